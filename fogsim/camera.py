@@ -1,0 +1,172 @@
+"""Camera geometry: intrinsics, planar depth → ray distance, stereo disparity ↔ depth.
+
+Conventions (OpenCV): K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]; integer pixel coordinates
+are pixel centres, so a centred principal point is cx = (W − 1)/2. ``depth`` is planar Z
+along the optical axis in metres (what Cycles' Depth pass and stereo give); the fog model
+needs the *ray distance* ℓ = Z·sqrt(1 + ((u−cx)/fx)² + ((v−cy)/fy)²). This module is the
+one place where that conversion, and disparity decoding, happen.
+
+Depth maps use two special values: 0 = hole (unknown, to be filled) and +inf = no hit (sky).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Pinhole intrinsics in pixels for an image of ``width``×``height``."""
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+
+    @property
+    def K(self) -> np.ndarray:
+        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1]], dtype=np.float64)
+
+    @classmethod
+    def from_K(cls, K, width: int, height: int) -> "Intrinsics":
+        K = np.asarray(K, dtype=np.float64)
+        return cls(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]), int(width), int(height))
+
+    @classmethod
+    def from_hfov(cls, hfov_deg: float, width: int, height: int) -> "Intrinsics":
+        """Square pixels, centred principal point, horizontal field of view in degrees."""
+        fx = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+        return cls(fx, fx, (width - 1) / 2.0, (height - 1) / 2.0, width, height)
+
+    def scaled(self, width: int, height: int) -> "Intrinsics":
+        """The same camera resampled to another resolution (pixel-centre convention kept)."""
+        sx, sy = width / self.width, height / self.height
+        return Intrinsics(self.fx * sx, self.fy * sy, (self.cx + 0.5) * sx - 0.5,
+                          (self.cy + 0.5) * sy - 0.5, width, height)
+
+    def to_dict(self) -> dict:
+        return asdict(self) | {"K": self.K.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "intrinsics") -> "Intrinsics":
+        try:
+            if "K" in d and "fx" not in d:
+                return cls.from_K(d["K"], d["width"], d["height"])
+            return cls(float(d["fx"]), float(d["fy"]), float(d["cx"]), float(d["cy"]),
+                       int(d["width"]), int(d["height"]))
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise InputError(source, f"malformed intrinsics ({exc!r}); need fx, fy, cx, cy, "
+                                     "width, height or K, width, height") from None
+
+
+@lru_cache(maxsize=16)
+def _ray_factor(fx: float, fy: float, cx: float, cy: float, width: int, height: int) -> np.ndarray:
+    x = ((np.arange(width, dtype=np.float64) - cx) / fx) ** 2
+    y = ((np.arange(height, dtype=np.float64) - cy) / fy) ** 2
+    factor = np.sqrt(1.0 + y[:, None] + x[None, :]).astype(np.float32)
+    factor.flags.writeable = False
+    return factor
+
+
+def ray_factor(K: Intrinsics) -> np.ndarray:
+    """H×W float32 map ℓ/Z = sqrt(1 + ((u−cx)/fx)² + ((v−cy)/fy)²), cached per camera."""
+    return _ray_factor(K.fx, K.fy, K.cx, K.cy, K.width, K.height)
+
+
+def planar_to_ray(depth: np.ndarray, K: Intrinsics) -> np.ndarray:
+    """Planar depth Z (metres) → ray distance ℓ (metres). 0 stays 0, inf stays inf."""
+    if depth.shape != (K.height, K.width):
+        raise ValueError(f"depth is {depth.shape[1]}×{depth.shape[0]} but the camera is "
+                         f"{K.width}×{K.height}")
+    return np.multiply(depth, ray_factor(K), dtype=np.float32)
+
+
+# ----------------------------------------------------------------------------- stereo
+def decode_disparity_png(raw: np.ndarray) -> np.ndarray:
+    """Cityscapes 16-bit encoding → disparity in pixels: d = (p − 1)/256, p = 0 → 0 (invalid)."""
+    d = (raw.astype(np.float32) - 1.0) / 256.0
+    d[raw == 0] = 0.0
+    return d
+
+
+def encode_disparity_png(disparity: np.ndarray) -> np.ndarray:
+    """Disparity in pixels → Cityscapes uint16 p = round(256·d + 1); d ≤ 0 or non-finite → 0."""
+    d = np.asarray(disparity, dtype=np.float64)
+    valid = np.isfinite(d) & (d > 0)
+    p = np.zeros(d.shape, dtype=np.uint16)
+    p[valid] = np.clip(np.rint(256.0 * d[valid] + 1.0), 1, 65535).astype(np.uint16)
+    return p
+
+
+def disparity_to_depth(disparity: np.ndarray, baseline_m: float, fx: float) -> np.ndarray:
+    """Z = baseline·fx/d in metres; d ≤ 0 (invalid) → 0 (a hole)."""
+    d = np.asarray(disparity, dtype=np.float32)
+    z = np.zeros(d.shape, dtype=np.float32)
+    valid = d > 0
+    z[valid] = np.float32(baseline_m * fx) / d[valid]
+    return z
+
+
+def depth_to_disparity(depth: np.ndarray, baseline_m: float, fx: float) -> np.ndarray:
+    """d = baseline·fx/Z in pixels; Z = inf → 0 disparity, Z ≤ 0 (hole) → 0 (invalid)."""
+    z = np.asarray(depth, dtype=np.float32)
+    d = np.zeros(z.shape, dtype=np.float32)
+    valid = (z > 0) & np.isfinite(z)
+    d[valid] = np.float32(baseline_m * fx) / z[valid]
+    return d
+
+
+@dataclass(frozen=True)
+class StereoCamera:
+    """A rectified stereo rig as Cityscapes' ``camera/*.json`` describes it."""
+
+    baseline: float  # metres
+    intrinsics: Intrinsics
+
+    def to_cityscapes_json(self) -> dict:
+        K = self.intrinsics
+        return {"extrinsic": {"baseline": self.baseline},
+                "intrinsic": {"fx": K.fx, "fy": K.fy, "u0": K.cx, "v0": K.cy},
+                "sensor": {"width": K.width, "height": K.height}}
+
+
+def load_cityscapes_camera(path: str | Path, width: int, height: int) -> StereoCamera:
+    """Read a Cityscapes camera JSON (``extrinsic.baseline``, ``intrinsic.fx/fy/u0/v0``)."""
+    from .io import read_json
+
+    d = read_json(path)
+    try:
+        intr = d["intrinsic"]
+        baseline = float(d["extrinsic"]["baseline"])
+        K = Intrinsics(float(intr["fx"]), float(intr["fy"]), float(intr["u0"]), float(intr["v0"]),
+                       width, height)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(path, f"not a Cityscapes camera file (missing {exc})") from None
+    if baseline <= 0 or K.fx <= 0:
+        raise InputError(path, f"baseline ({baseline}) and fx ({K.fx}) must be positive")
+    return StereoCamera(baseline, K)
+
+
+# ----------------------------------------------------------------------------- paper compatibility
+#: The reference fog code (Chaar & Weidl) decodes its 8-bit ILA predictions p ∈ [0, 126] with
+#: baseline 22 (cm) × focal 5.6, divides by 100 and uses the result directly as the distance
+#: in Koschmieder's law (no planar→ray step): ℓ = 0.22·5.6·256/(p − 1) m, and p < 2 → 320 m.
+PAPER_BASELINE_TIMES_FOCAL = 22 * 5.6 / 100  # = 1.232
+PAPER_FAR_DISTANCE = 320.0
+
+
+def paper_distance_from_8bit(raw: np.ndarray) -> np.ndarray:
+    """Distance in metres exactly as the paper's reference code computes it from 8-bit values."""
+    p = raw.astype(np.float64)
+    with np.errstate(divide="ignore"):
+        dist = PAPER_BASELINE_TIMES_FOCAL * 256.0 / (p - 1.0)
+    dist[p < 2] = PAPER_FAR_DISTANCE
+    return dist.astype(np.float32)

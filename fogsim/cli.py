@@ -1,0 +1,230 @@
+"""``fogsim`` command line. Exit codes: 0 all done, 1 some inputs failed (listed), 2 usage."""
+from __future__ import annotations
+
+import argparse
+import platform
+import sys
+from pathlib import Path
+
+from . import __version__
+from .errors import FogsimError
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+
+
+def _add_fog_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("fog")
+    g.add_argument("--levels", help="preset name (paper, foggy-cityscapes) or comma-separated β in 1/m "
+                                     "(default: paper)")
+    g.add_argument("--visibility", help="comma-separated visibilities in metres instead of β (β = ln20/V)")
+    g.add_argument("--extended", action="store_true", help="extended (smoothed-transmission) form")
+    g.add_argument("--kernel", choices=("box", "gaussian", "guided"), default="box",
+                   help="weights of the extended form (default box, as the paper's reference run)")
+    g.add_argument("--kernel-size", type=int, default=19, help="kernel size k in pixels, odd (default 19)")
+    g.add_argument("--sigma", type=float, default=5.0, help="Gaussian std in pixels (default 5)")
+    g.add_argument("--eps", type=float, default=1e-3, help="guided-filter regularisation (default 1e-3)")
+    g.add_argument("--airlight", default="255",
+                   help="airlight in 8-bit units: one value, R,G,B, or 'estimate' (dark channel)")
+    g.add_argument("--space", choices=("srgb", "linear"), default="srgb",
+                   help="blend gamma-encoded values (srgb, the paper's) or linear light")
+    g.add_argument("--fill", default=None,
+                   help="hole fill for depth: none, inpaint, ipbasic (default: none; inpaint for Cityscapes)")
+    g.add_argument("--heterogeneity", type=float, default=0.0,
+                   help="patchy fog: amplitude a in [0,1) of a mean-1 density field (default 0 = off)")
+    g.add_argument("--heterogeneity-scale", type=float, default=64.0, help="patch size in pixels")
+    g.add_argument("--seed", type=int, default=0, help="run seed (per-sample seeds derive from it)")
+
+
+def _add_batch_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("batch")
+    g.add_argument("--out", required=True, help="output folder (OUT/<level>/<input tree>)")
+    g.add_argument("--format", dest="image_format", choices=("png", "jpg"), default="png")
+    g.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
+    g.add_argument("--shard", help="i/N: process every N-th sample starting at i (0-based), "
+                                   "e.g. $SLURM_ARRAY_TASK_ID/N")
+    g.add_argument("--no-resume", action="store_true", help="redo samples whose outputs exist")
+    g.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="fogsim", description="Koschmieder fog for rendered and real images.")
+    parser.add_argument("--version", action="version", version=f"fogsim {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    fog = sub.add_parser("fog", help="fog a dataset at several densities",
+                         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    src = fog.add_argument_group("input (one of)").add_mutually_exclusive_group(required=True)
+    src.add_argument("--input", help="folder of images (paired with --depth by name)")
+    src.add_argument("--cityscapes", help="Cityscapes root (leftImg8bit/, disparity/, camera/)")
+    src.add_argument("--waymo", help="Waymo v1 .tfrecord file or folder, or a Waymo v2 parquet root")
+    d = fog.add_argument_group("depth")
+    d.add_argument("--depth", help="folder of depth maps for --input, matched by relative name")
+    d.add_argument("--depth-dir", help="folder of depth maps for --waymo (<segment>/<time>_<CAMERA>.*)")
+    d.add_argument("--depth-suffix", default="", help="depth name = image stem + this + extension")
+    d.add_argument("--depth-encoding", choices=("metric", "disparity", "paper-8bit"), default="metric",
+                   help="metric: metres (EXR/.npy/16-bit PNG × --depth-scale); paper-8bit: the paper's "
+                        "8-bit ILA maps decoded with its constant")
+    d.add_argument("--depth-scale", type=float, help="metres per unit of 16-bit PNG depth (e.g. 0.001)")
+    d.add_argument("--depth-kind", choices=("planar", "ray"), default="planar",
+                   help="planar Z (converted to ray distance with the intrinsics) or ray distance")
+    d.add_argument("--intrinsics", help="JSON with fx, fy, cx, cy, width, height (or K, width, height)")
+    d.add_argument("--hfov", type=float, help="horizontal field of view in degrees (centred, square pixels)")
+    fog.add_argument("--split", default="val", help="Cityscapes split(s), comma-separated")
+    fog.add_argument("--cameras", default="FRONT", help="Waymo cameras, comma-separated (FRONT, FRONT_LEFT, …)")
+    _add_fog_options(fog)
+    _add_batch_options(fog)
+
+    demo = sub.add_parser("demo", help="fog the built-in procedural street images (no dataset needed)")
+    demo.add_argument("--out", default="demo_out", help="output folder (default demo_out)")
+    demo.add_argument("--frames", type=int, default=3)
+    demo.add_argument("--seed", type=int, default=0)
+    demo.add_argument("--levels", default="paper")
+    demo.add_argument("--quiet", action="store_true")
+
+    sub.add_parser("levels", help="list the fog presets with β and visibility")
+    return parser
+
+
+def _samples(args):
+    from dataclasses import replace
+
+    from .camera import Intrinsics
+    from .datasets.base import DepthSpec
+    from .io import read_json
+
+    spec = DepthSpec("", args.depth_encoding, args.depth_kind, args.depth_scale)
+    K = None
+    if args.intrinsics:
+        K = Intrinsics.from_dict(read_json(args.intrinsics), args.intrinsics)
+    if args.input:
+        from .datasets.folder import folder_samples
+
+        if args.hfov and K is None:
+            from .io import read_image
+
+            first = next(p for p in sorted(Path(args.input).rglob("*")) if p.is_file())
+            h, w = read_image(first).shape[:2]
+            K = Intrinsics.from_hfov(args.hfov, w, h)
+        return folder_samples(args.input, args.depth, spec, args.depth_suffix, K)
+    if args.cityscapes:
+        from .datasets.cityscapes import cityscapes_samples
+
+        return cityscapes_samples(args.cityscapes, args.split)
+    from .datasets.waymo import waymo_samples
+
+    cameras = tuple(c.strip().upper() for c in args.cameras.split(",") if c.strip())
+    return waymo_samples(args.waymo, cameras, args.depth_dir, replace(spec, path=""))
+
+
+def _job(args, out: str):
+    from .batch import FogJob
+    from .fog import Kernel
+    from .levels import parse_levels
+
+    levels = tuple(parse_levels(args.levels, args.visibility))
+    if args.airlight.strip().lower() == "estimate":
+        airlight = "estimate"
+    else:
+        vals = [float(x) for x in args.airlight.split(",")]
+        if len(vals) not in (1, 3):
+            raise ValueError(f"--airlight takes one value or R,G,B, got {args.airlight!r}")
+        airlight = tuple(vals * 3 if len(vals) == 1 else vals)
+        if any(not 0 <= a <= 255 for a in airlight):
+            raise ValueError(f"--airlight values must lie in [0, 255], got {args.airlight}")
+    kernel = Kernel(args.kernel, args.kernel_size, args.sigma, args.eps) if args.extended else None
+    if not 0 <= args.heterogeneity < 1:
+        raise ValueError(f"--heterogeneity must be in [0, 1), got {args.heterogeneity}")
+    fill = args.fill or ("inpaint" if getattr(args, "cityscapes", None) else "none")
+    from .fill import fill_methods
+
+    if fill not in fill_methods():
+        raise ValueError(f"--fill must be one of {', '.join(fill_methods())}, got {fill!r}")
+    return FogJob(levels, out, airlight, args.space, kernel, fill, args.heterogeneity,
+                  args.heterogeneity_scale, args.seed, getattr(args, "image_format", "png"))
+
+
+def environment() -> dict:
+    import cv2
+    import numpy
+
+    return {"python": platform.python_version(), "numpy": numpy.__version__, "opencv": cv2.__version__}
+
+
+def cmd_fog(args) -> int:
+    from .batch import parse_shard, run, select_shard
+
+    if args.workers < 1:
+        raise ValueError("--workers must be ≥ 1")
+    job = _job(args, args.out)
+    shard = parse_shard(args.shard)
+    samples = select_shard(_samples(args), shard)
+    summary = run(samples, job, args.workers, not args.no_resume, not args.quiet, environment())
+    print(summary.line(job))
+    for source, error in summary.failed:
+        print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
+    return EXIT_FAILED if summary.failed else EXIT_OK
+
+
+def cmd_demo(args) -> int:
+    import numpy as np
+
+    from .batch import FogJob, run
+    from .datasets.folder import folder_samples
+    from .datasets.base import DepthSpec
+    from .demo import demo_scene
+    from .io import read_image, write_depth, write_image
+    from .levels import parse_levels
+    from .preview import colorize_depth, strip
+
+    out = Path(args.out)
+    rng = np.random.default_rng(args.seed)
+    K = None
+    for i in range(args.frames):
+        rgb, depth, K = demo_scene(rng)
+        write_image(out / "input" / "images" / f"street_{i:03d}.png", rgb)
+        write_depth(out / "input" / "depth" / f"street_{i:03d}.exr", depth)
+    levels = tuple(parse_levels(args.levels))
+    job = FogJob(levels, str(out / "fog"), seed=args.seed)
+    samples = folder_samples(out / "input" / "images", out / "input" / "depth", DepthSpec(""), "", K)
+    summary = run(samples, job, progress=not args.quiet, environment=environment())
+    print(summary.line(job))
+    first = samples[0]
+    tiles = [colorize_depth(depth_of(out, first.key))] + [read_image(job.paths(first, lv)[0]) for lv in levels]
+    captions = ["depth (m)"] + [lv.name if lv.beta == 0 else f"{lv.name}, b={lv.beta:g}" for lv in levels]
+    write_image(out / "fog_strip.png", strip(tiles, captions, width=320))
+    print(f"fog strip: {out / 'fog_strip.png'}")
+    return EXIT_FAILED if summary.failed else EXIT_OK
+
+
+def depth_of(out: Path, key: str):
+    from .io import read_depth_file
+
+    return read_depth_file(out / "input" / "depth" / f"{key}.exr")
+
+
+def cmd_levels(args) -> int:
+    from .levels import load_preset, preset_names
+
+    for name in preset_names():
+        print(name)
+        for lv in load_preset(name):
+            vis = lv.to_dict()["visibility_m"]
+            print(f"  {lv.key:<12} β = {lv.beta:<6g} 1/m  visibility {'∞' if vis is None else f'{vis:.0f} m':>6}  {lv.name}")
+    return EXIT_OK
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return {"fog": cmd_fog, "demo": cmd_demo, "levels": cmd_levels}[args.command](args)
+    except FogsimError as exc:
+        print(f"fogsim: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except ValueError as exc:
+        print(f"fogsim: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":
+    sys.exit(main())

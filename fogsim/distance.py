@@ -1,0 +1,61 @@
+"""From a sample's depth file to the ray distance the fog model needs."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .camera import Intrinsics, planar_to_ray
+from .datasets.base import Sample
+from .errors import InputError
+from .fill import HolesError, fill_holes, hole_mask
+
+
+@dataclass
+class Distance:
+    """Ray distance ℓ in metres (H×W float32, +inf = no hit) and how it was obtained."""
+
+    ray: np.ndarray
+    record: dict
+
+
+def sample_distance(sample: Sample, width: int, height: int, fill: str = "none",
+                    image: np.ndarray | None = None) -> Distance:
+    """Read, validate, hole-fill and convert a sample's depth to ray distance.
+
+    Raises :class:`InputError` naming the depth file for missing depth, size mismatch,
+    NaN or negative values, unfilled holes, or planar depth without intrinsics.
+    """
+    spec = sample.depth
+    if spec is None:
+        raise InputError(sample.source, "this dataset has no depth; give depth maps "
+                                        "(--depth / --depth-dir) for it")
+    depth, file_K = spec.read(width, height)
+    src = spec.path
+    if depth.shape != (height, width):
+        raise InputError(src, f"depth is {depth.shape[1]}×{depth.shape[0]} but the image "
+                              f"{sample.source} is {width}×{height}")
+    if np.isnan(depth).any():
+        raise InputError(src, f"depth has {int(np.isnan(depth).sum())} NaN pixels")
+    if (depth < 0).any():
+        raise InputError(src, f"depth has {int((depth < 0).sum())} negative pixels")
+    depth = np.where(depth >= 1e9, np.float32(np.inf), depth)  # Cycles writes 1e10 for no hit
+    holes = float(hole_mask(depth).mean())
+    try:
+        depth = fill_holes(depth, fill, image)
+    except HolesError as exc:
+        raise InputError(src, str(exc)) from None
+    record = {"depth_file": src, "encoding": spec.encoding, "fill": fill,
+              "hole_fraction": round(holes, 6)}
+    if spec.is_ray_distance:
+        record["distance"] = "ray (as stored)"
+        return Distance(depth, record)
+    K: Intrinsics | None = sample.intrinsics or file_K
+    if K is None:
+        raise InputError(src, "planar depth needs the camera intrinsics to become ray distance: "
+                              "give --intrinsics FILE.json or --hfov DEG, or --depth-kind ray")
+    if (K.width, K.height) != (width, height):
+        K = K.scaled(width, height)
+    record["distance"] = "planar→ray"
+    record["intrinsics"] = K.to_dict()
+    return Distance(planar_to_ray(depth, K), record)
