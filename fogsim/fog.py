@@ -103,25 +103,40 @@ def transmission(distance: np.ndarray, beta: float) -> np.ndarray:
 
 @lru_cache(maxsize=8)
 def _border_weight(height: int, width: int, kernel: Kernel) -> np.ndarray:
-    """1 / (weight of the kernel that falls inside the image), per pixel."""
-    w = kernel.weights_1d()
-    wy = np.convolve(np.ones(height), w, mode="same")
-    wx = np.convolve(np.ones(width), w, mode="same")
+    """1 / (weight of the kernel that falls inside the image), per pixel (1 in the interior)."""
+    w, r = kernel.weights_1d(), kernel.size // 2
+    wy = np.convolve(np.ones(height), w, mode="full")[r:r + height]
+    wx = np.convolve(np.ones(width), w, mode="full")[r:r + width]
     inv = (1.0 / np.outer(wy, wx)).astype(np.float32)
     inv.flags.writeable = False
     return inv
 
 
 def smooth_transmission(t: np.ndarray, kernel: Kernel, guide: np.ndarray | None = None) -> np.ndarray:
-    """(w∗t) normalised at the border; ``guide`` (H×W float 0–1) is needed for ``guided``."""
+    """(w∗t) normalised at the border; ``guide`` (H×W float 0–1) is needed for ``guided``.
+
+    Pixels outside the image contribute nothing, and each output is divided by the weight
+    that fell inside, so a uniform t stays uniform up to the edge. Only the border bands
+    (k//2 wide) need that division; the interior already has full weight.
+    """
     if kernel.kind == "guided":
         if guide is None:
             raise ValueError("the guided kernel needs the image as a guide")
         out = cv2.ximgproc.guidedFilter(guide.astype(np.float32), t, kernel.size // 2, kernel.eps)
         return np.clip(out, 0.0, 1.0, out=out)
-    w = kernel.weights_1d().astype(np.float32)
-    num = cv2.sepFilter2D(t, cv2.CV_32F, w, w, borderType=cv2.BORDER_CONSTANT)
-    return np.multiply(num, _border_weight(t.shape[0], t.shape[1], kernel), out=num)
+    k = kernel.size
+    if kernel.kind == "box":  # running sums: cost independent of k
+        out = cv2.boxFilter(t, cv2.CV_32F, (k, k), normalize=True, borderType=cv2.BORDER_CONSTANT)
+    else:
+        w = kernel.weights_1d().astype(np.float32)
+        out = cv2.sepFilter2D(t, cv2.CV_32F, w, w, borderType=cv2.BORDER_CONSTANT)
+    inv, r = _border_weight(t.shape[0], t.shape[1], kernel), k // 2
+    if 2 * r >= min(t.shape):  # bands would overlap: correct every pixel
+        return np.multiply(out, inv, out=out)
+    if r:
+        for band in (np.s_[:r], np.s_[-r:], np.s_[r:-r, :r], np.s_[r:-r, -r:]):
+            out[band] *= inv[band]
+    return out
 
 
 # ----------------------------------------------------------------------------- airlight
@@ -181,6 +196,9 @@ class Fogger:
     ``distance``: ray distance ℓ in metres (H×W, ≥ 0, +inf = sky). ``kernel=None`` is the
     standard law; a :class:`Kernel` gives the extended form. ``density`` (optional H×W field
     with mean 1, see :func:`density_field`) scales β per pixel.
+
+    The blend I·t + A·(1 − t) is computed as A + (I − A)·t on contiguous float32 colour
+    planes; for uint8 sRGB images OpenCV rounds and saturates in the same pass.
     """
 
     def __init__(self, image: np.ndarray, distance: np.ndarray, airlight=255.0, space: str = "srgb",
@@ -191,21 +209,22 @@ class Fogger:
             raise ValueError(f"blend space must be one of {', '.join(SPACES)}, got {space!r}")
         check_distance(distance, image.shape[:2])
         self.image, self.dtype, self.space, self.kernel = image, image.dtype, space, kernel
-        scale = full_scale(image.dtype)
+        scale = np.float32(full_scale(image.dtype))
         a = airlight_rgb(airlight, image.dtype)
         self.distance = distance.astype(np.float32, copy=False)
         if density is not None:
             check_distance(density, image.shape[:2])
             self.distance = self.distance * density
+        planes = [np.ascontiguousarray(image[:, :, c], dtype=np.float32) for c in range(3)]
         if space == "linear":
-            self._a = srgb_to_linear(a / scale)
-            self._diff = srgb_to_linear(image.astype(np.float32) / np.float32(scale)) - self._a
-        else:
-            self._a = a
-            self._diff = image.astype(np.float32) - a
+            a = srgb_to_linear(a / scale)
+            planes = [srgb_to_linear(p / scale) for p in planes]
+        self._a = a
+        self._diff = [p - a[c] for c, p in enumerate(planes)]  # I − A per colour plane
+        self._fast_u8 = self.dtype == np.uint8 and space == "srgb"
         self._guide = None
         if kernel is not None and kernel.kind == "guided":
-            self._guide = image.astype(np.float32).mean(axis=2) / np.float32(scale)
+            self._guide = sum(planes) / np.float32(3 * (1 if space == "linear" else scale))
 
     def transmission(self, beta: float) -> np.ndarray:
         """The transmission used for β: exp(−β·ℓ), smoothed by the kernel if there is one."""
@@ -218,8 +237,10 @@ class Fogger:
         if beta == 0:
             return self.image.copy()
         t = self.transmission(beta)
-        out = np.multiply(self._diff, t[:, :, None])
-        out += self._a
+        if self._fast_u8:  # A + (I − A)·t, rounded to nearest and saturated by OpenCV
+            return cv2.merge([cv2.convertScaleAbs(cv2.multiply(d, t), alpha=1.0, beta=float(a))
+                              for d, a in zip(self._diff, self._a)])
+        out = np.stack([d * t + a for d, a in zip(self._diff, self._a)], axis=-1)
         if self.space == "linear":
             out = linear_to_srgb(out)
             if self.dtype.kind != "f":

@@ -119,6 +119,13 @@ def test_extended_has_no_dark_border():
         assert np.array_equal(ext, standard), kernel  # uniform t stays uniform, border included
 
 
+def test_kernel_larger_than_image_is_still_normalised():
+    img = np.full((6, 9, 3), 77, np.uint8)
+    dist = np.full((6, 9), 12.0, np.float32)
+    for kind in ("box", "gaussian"):
+        assert np.array_equal(koschmieder_extended(img, dist, 0.05, Kernel(kind, 19)), koschmieder(img, dist, 0.05))
+
+
 def test_smoothing_is_normalised_at_border(rng):
     t = rng.uniform(0, 1, (15, 17)).astype(np.float32)
     k = Kernel("box", 5)

@@ -1,0 +1,51 @@
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fogsim.camera import Intrinsics, encode_disparity_png, depth_to_disparity
+from fogsim.io import write_depth, write_image
+
+
+def tree_digest(root: Path) -> str:
+    """A hash of every file's path and bytes under root (to prove inputs are untouched)."""
+    h = hashlib.sha256()
+    for p in sorted(root.rglob("*")):
+        if p.is_file():
+            h.update(str(p.relative_to(root)).encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+@pytest.fixture
+def folder_dataset(tmp_path):
+    """images/{a,sub/b}.png + depth/{a,sub/b}.exr (planar Z, sky inf) + K.json."""
+    rng = np.random.default_rng(5)
+    K = Intrinsics(fx=30.0, fy=30.0, cx=15.5, cy=11.5, width=32, height=24)
+    for name in ("a", "sub/b"):
+        write_image(tmp_path / "images" / f"{name}.png", rng.integers(0, 256, (24, 32, 3), dtype=np.uint8))
+        depth = rng.uniform(2, 120, (24, 32)).astype(np.float32)
+        depth[:3] = np.inf
+        write_depth(tmp_path / "depth" / f"{name}.exr", depth)
+    (tmp_path / "K.json").write_text(json.dumps(K.to_dict()))
+    return tmp_path
+
+
+@pytest.fixture
+def cityscapes_root(tmp_path):
+    """A two-image Cityscapes tree: leftImg8bit, disparity (uint16, with holes), camera."""
+    rng = np.random.default_rng(9)
+    root = tmp_path / "cityscapes"
+    cam = {"extrinsic": {"baseline": 0.209}, "intrinsic": {"fx": 40.0, "fy": 40.0, "u0": 19.5, "v0": 9.5}}
+    for base in ("aachen_000000_000019", "aachen_000001_000019"):
+        img = rng.integers(0, 256, (20, 40, 3), dtype=np.uint8)
+        write_image(root / "leftImg8bit" / "val" / "aachen" / f"{base}_leftImg8bit.png", img)
+        depth = rng.uniform(3, 60, (20, 40)).astype(np.float32)
+        disp = encode_disparity_png(depth_to_disparity(depth, 0.209, 40.0))
+        disp[:2, :4] = 0  # holes
+        write_image(root / "disparity" / "val" / "aachen" / f"{base}_disparity.png", disp)
+        (root / "camera" / "val" / "aachen").mkdir(parents=True, exist_ok=True)
+        (root / "camera" / "val" / "aachen" / f"{base}_camera.json").write_text(json.dumps(cam))
+    return root

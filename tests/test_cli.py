@@ -1,0 +1,185 @@
+"""The ``fogsim`` command end to end on datasets the tests build."""
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+
+from conftest import tree_digest
+from fogsim.camera import Intrinsics, decode_disparity_png, disparity_to_depth, planar_to_ray
+from fogsim.cli import main
+from fogsim.fill import fill_holes
+from fogsim.io import read_depth_file, read_image, read_uint16_map, write_depth, write_image
+
+
+def fog_args(ds, out, *extra):
+    return ["fog", "--input", str(ds / "images"), "--depth", str(ds / "depth"),
+            "--intrinsics", str(ds / "K.json"), "--out", str(out), "--quiet", *extra]
+
+
+def test_folder_dataset_numbers_and_sidecars(folder_dataset, tmp_path):
+    ds, out = folder_dataset, tmp_path / "out"
+    before = tree_digest(ds / "images") + tree_digest(ds / "depth")
+    assert main(fog_args(ds, out, "--levels", "clear,0.05")) == 0
+    assert tree_digest(ds / "images") + tree_digest(ds / "depth") == before  # inputs untouched
+    img = read_image(ds / "images" / "sub" / "b.png")
+    K = Intrinsics.from_dict(json.loads((ds / "K.json").read_text()))
+    ray = planar_to_ray(read_depth_file(ds / "depth" / "sub" / "b.exr"), K).astype(np.float64)
+    t = np.exp(-0.05 * ray)[..., None]
+    ref = np.floor(img * t + 255 * (1 - t) + 0.5)
+    got = read_image(out / "beta0.05" / "sub" / "b.png")
+    assert np.abs(got - ref).max() <= 1 and np.mean(got == ref) > 0.99
+    assert np.array_equal(read_image(out / "clear" / "sub" / "b.png"), img)
+    meta = json.loads((out / "beta0.05" / "sub" / "b.json").read_text())
+    assert meta["level"]["beta"] == 0.05 and meta["level"]["visibility_m"] == pytest.approx(59.915, abs=1e-3)
+    assert meta["airlight_rgb"] == [255, 255, 255] and meta["blend_space"] == "srgb"
+    assert meta["distance"] == "planar→ray" and meta["model"] == "standard" and meta["kernel"] is None
+    assert meta["fill"] == "none" and meta["fogsim_version"]
+    run = json.loads((out / "fogsim_run.json").read_text())
+    assert run["parameters"]["seed"] == 0 and run["numpy"]
+
+
+def test_extended_and_linear_options_are_recorded(folder_dataset, tmp_path):
+    out = tmp_path / "out"
+    assert main(fog_args(folder_dataset, out, "--levels", "0.1", "--extended", "--kernel", "gaussian",
+                         "--space", "linear", "--airlight", "240,240,250", "--heterogeneity", "0.3",
+                         "--seed", "4")) == 0
+    meta = json.loads((out / "beta0.1" / "a.json").read_text())
+    assert meta["kernel"] == {"kind": "gaussian", "size": 19, "sigma": 5.0}
+    assert meta["blend_space"] == "linear" and meta["airlight_rgb"] == [240, 240, 250]
+    assert meta["heterogeneity"]["amplitude"] == 0.3 and isinstance(meta["sample_seed"], int)
+    # same seed → same pixels; another seed → other pixels
+    out2, out3 = tmp_path / "o2", tmp_path / "o3"
+    main(fog_args(folder_dataset, out2, "--levels", "0.1", "--heterogeneity", "0.3", "--seed", "4"))
+    main(fog_args(folder_dataset, out3, "--levels", "0.1", "--heterogeneity", "0.3", "--seed", "5"))
+    a2, a3 = read_image(out2 / "beta0.1" / "a.png"), read_image(out3 / "beta0.1" / "a.png")
+    main(fog_args(folder_dataset, tmp_path / "o4", "--levels", "0.1", "--heterogeneity", "0.3", "--seed", "4"))
+    assert np.array_equal(a2, read_image(tmp_path / "o4" / "beta0.1" / "a.png"))
+    assert not np.array_equal(a2, a3)
+
+
+def test_resume_shards_and_workers(folder_dataset, tmp_path, capsys):
+    ds, out = folder_dataset, tmp_path / "out"
+    assert main(fog_args(ds, out, "--levels", "0.03", "--shard", "0/2")) == 0
+    assert (out / "beta0.03" / "a.png").exists() and not (out / "beta0.03" / "sub" / "b.png").exists()
+    assert main(fog_args(ds, out, "--levels", "0.03", "--shard", "1/2")) == 0
+    assert (out / "beta0.03" / "sub" / "b.png").exists()
+    mtime = os.path.getmtime(out / "beta0.03" / "a.png")
+    capsys.readouterr()
+    assert main(fog_args(ds, out, "--levels", "0.03")) == 0
+    assert "fogged 0 of 2" in capsys.readouterr().out and os.path.getmtime(out / "beta0.03" / "a.png") == mtime
+    (out / "beta0.03" / "a.json").unlink()  # an interrupted sample: image written, sidecar not
+    assert main(fog_args(ds, out, "--levels", "0.03")) == 0
+    assert "fogged 1 of 2" in capsys.readouterr().out
+    par = tmp_path / "par"
+    assert main(fog_args(ds, par, "--levels", "0.03", "--workers", "2")) == 0
+    for name in ("a", "sub/b"):
+        assert read_image(par / "beta0.03" / f"{name}.png").tobytes() == read_image(out / "beta0.03" / f"{name}.png").tobytes()
+    assert not list(out.rglob("*.part"))
+
+
+def test_other_parameters_into_same_out_are_refused(folder_dataset, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(fog_args(folder_dataset, out, "--levels", "0.03")) == 0
+    assert main(fog_args(folder_dataset, out, "--levels", "0.06")) == 2
+    assert "fogsim_run.json" in capsys.readouterr().err
+
+
+def test_bad_inputs_fail_clearly_without_partial_output(folder_dataset, tmp_path, capsys):
+    ds = folder_dataset
+    write_depth(ds / "depth" / "a.exr", np.ones((10, 10), np.float32))  # wrong size
+    nan = np.full((24, 32), 5.0, np.float32)
+    nan[3, 3] = np.nan
+    write_depth(ds / "depth" / "sub" / "b.exr", nan)
+    (ds / "images" / "c.png").write_bytes(b"not a png at all")
+    write_image(ds / "images" / "d.png", np.zeros((24, 32, 3), np.uint8))  # no depth for it
+    out = tmp_path / "out"
+    assert main(fog_args(ds, out, "--levels", "0.03")) == 1
+    err = capsys.readouterr().err
+    assert "a.exr: depth is 10×10 but the image" in err
+    assert "b.exr: depth has 1 NaN pixels" in err
+    assert "c.png: not a readable image" in err
+    assert "d.exr: depth file not found" in err
+    assert not list(out.rglob("*.png")) and not list(out.rglob("*.part"))
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--levels", "-0.1"], "≥ 0"),
+    (["--levels", "0.1", "--airlight", "300"], "airlight"),
+    (["--levels", "0.1", "--shard", "2/2"], "shard"),
+    (["--levels", "0.1", "--fill", "magic"], "fill"),
+])
+def test_usage_errors_exit_2(folder_dataset, tmp_path, capsys, args, message):
+    assert main(fog_args(folder_dataset, tmp_path / "out", *args)) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_missing_dataset_and_missing_intrinsics(tmp_path, folder_dataset, capsys):
+    assert main(["fog", "--input", str(tmp_path / "nope"), "--depth", str(tmp_path), "--out",
+                 str(tmp_path / "o"), "--quiet"]) == 2
+    assert "nope: image folder not found" in capsys.readouterr().err
+    assert main(["fog", "--input", str(folder_dataset / "images"), "--depth", str(folder_dataset / "depth"),
+                 "--out", str(tmp_path / "o2"), "--quiet", "--levels", "0.1"]) == 1
+    assert "needs the camera intrinsics" in capsys.readouterr().err
+    assert main(["fog", "--input", str(folder_dataset / "images"), "--depth", str(folder_dataset / "depth"),
+                 "--out", str(tmp_path / "o3"), "--quiet", "--levels", "0.1", "--hfov", "60"]) == 0
+
+
+def test_cityscapes_tree(cityscapes_root, tmp_path, capsys):
+    root, out = cityscapes_root, tmp_path / "out"
+    before = tree_digest(root)
+    assert main(["fog", "--cityscapes", str(root), "--split", "val", "--levels", "foggy-cityscapes",
+                 "--out", str(out), "--quiet"]) == 0
+    assert tree_digest(root) == before
+    base = "aachen_000000_000019"
+    rel = f"leftImg8bit/val/aachen/{base}_leftImg8bit"
+    meta = json.loads((out / "beta0.02" / f"{rel}.json").read_text())
+    assert meta["fill"] == "inpaint" and meta["hole_fraction"] == pytest.approx(8 / 800)
+    raw = read_uint16_map(root / "disparity" / "val" / "aachen" / f"{base}_disparity.png")
+    depth = fill_holes(disparity_to_depth(decode_disparity_png(raw), 0.209, 40.0), "inpaint")
+    ray = planar_to_ray(depth, Intrinsics(40.0, 40.0, 19.5, 9.5, 40, 20)).astype(np.float64)
+    img = read_image(root / "leftImg8bit" / "val" / "aachen" / f"{base}_leftImg8bit.png")
+    t = np.exp(-0.02 * ray)[..., None]
+    got = read_image(out / "beta0.02" / f"{rel}.png")
+    assert np.abs(got - (img * t + 255 * (1 - t))).max() <= 0.5 + 1e-2
+
+
+def test_cityscapes_bad_camera_and_8bit_disparity(cityscapes_root, tmp_path, capsys):
+    root = cityscapes_root
+    (root / "camera" / "val" / "aachen" / "aachen_000000_000019_camera.json").unlink()
+    write_image(root / "disparity" / "val" / "aachen" / "aachen_000001_000019_disparity.png",
+                np.zeros((20, 40, 3), np.uint8))
+    assert main(["fog", "--cityscapes", str(root), "--levels", "0.01", "--out", str(tmp_path / "o"),
+                 "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "aachen_000000_000019_disparity.png: disparity needs its camera JSON" in err
+    assert "aachen_000000_000019_camera.json" in err
+    assert "aachen_000001_000019_disparity.png: expected a single-channel 16-bit map" in err
+
+
+def test_paper_8bit_depth_reproduces_reference(tmp_path):
+    rng = np.random.default_rng(2)
+    img = rng.integers(0, 256, (8, 10, 3), dtype=np.uint8)
+    raw = rng.integers(0, 127, (8, 10), dtype=np.uint8)
+    write_image(tmp_path / "img" / "x.png", img)
+    write_image(tmp_path / "dep" / "x.png", raw)
+    assert main(["fog", "--input", str(tmp_path / "img"), "--depth", str(tmp_path / "dep"),
+                 "--depth-encoding", "paper-8bit", "--levels", "0.06", "--out", str(tmp_path / "o"),
+                 "--quiet"]) == 0
+    p = raw.astype(np.float64)
+    dist = np.where(p < 2, 320.0, 22 * 5.6 / ((p - 1) / 256) / 100)
+    t = np.exp(-0.06 * dist)[..., None]
+    got = read_image(tmp_path / "o" / "beta0.06" / "x.png")
+    assert np.abs(got - (img * t + 255 * (1 - t))).max() <= 0.5 + 1e-2
+
+
+def test_demo_writes_strip(tmp_path):
+    assert main(["demo", "--out", str(tmp_path / "d"), "--frames", "1", "--quiet"]) == 0
+    strip = read_image(tmp_path / "d" / "fog_strip.png")
+    assert strip.shape[1] > 5 * 320
+    for key in ("clear", "beta0.03", "beta0.12"):
+        assert (tmp_path / "d" / "fog" / key / "street_000.png").is_file()
+    far = read_image(tmp_path / "d" / "fog" / "beta0.12" / "street_000.png")[:20].mean()
+    near = read_image(tmp_path / "d" / "fog" / "clear" / "street_000.png")[:20].mean()
+    assert far > near  # the sky row turns white in fog

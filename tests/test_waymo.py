@@ -1,0 +1,278 @@
+"""Waymo readers on fixtures built here: TFRecord framing, protobuf wire format, v1 and v2."""
+from __future__ import annotations
+
+import pickle
+import struct
+import sys
+
+import numpy as np
+import pytest
+
+from fogsim.camera import Intrinsics
+from fogsim.datasets import protobuf_wire as pw
+from fogsim.datasets import tfrecord
+from fogsim.datasets.base import DepthSpec
+from fogsim.datasets.tfrecord import (crc32c_python, index_tfrecord, masked_crc32c, read_record,
+                                      write_tfrecord)
+from fogsim.datasets.waymo import waymo_v1_samples, waymo_v2_samples
+from fogsim.errors import FogsimError, InputError
+from fogsim.io import encode_image
+
+CONTEXT = "1005081002024129653_5313_150_5333_150"
+TIMESTAMPS = (1510593602340000, 1510593602440000)
+W, H = 16, 12
+# camera id → (f_u, f_v, c_u, c_v, k1, k2, p1, p2, k3)
+CALIB = {1: (20.0, 21.0, 7.5, 5.5, 0.1, 0.2, 0.3, 0.4, 0.5),
+         2: (30.0, 31.0, 8.0, 6.0, -0.1, -0.2, -0.3, -0.4, -0.5)}
+
+
+def _front(t: int) -> np.ndarray:
+    """Noise image: exact through PNG."""
+    return np.random.default_rng(t).integers(0, 256, (H, W, 3), dtype=np.uint8)
+
+
+def _front_left(t: int) -> np.ndarray:
+    """Smooth image: close through JPEG."""
+    y, x = np.mgrid[0:H, 0:W]
+    return np.stack([x * 12 + t, y * 16, np.full_like(x, 128)], axis=2).astype(np.uint8)
+
+
+def _calibration(camera: int, packed: bool) -> bytes:
+    values = CALIB[camera]
+    intrinsic = (pw.packed_doubles(2, values) if packed
+                 else b"".join(pw.double_field(2, v) for v in values))
+    extrinsic = pw.bytes_field(3, pw.packed_doubles(1, np.eye(4).ravel()))
+    return (pw.varint_field(1, camera) + intrinsic + extrinsic + pw.varint_field(4, W)
+            + pw.varint_field(5, H) + pw.varint_field(6, 2))
+
+
+def _camera_image(camera: int, data: bytes) -> bytes:
+    return (pw.varint_field(1, camera) + pw.bytes_field(2, data)
+            + pw.bytes_field(3, pw.packed_doubles(1, np.eye(4).ravel())) + pw.double_field(5, 1.5))
+
+
+def _frame(context: str, t: int) -> bytes:
+    """A Frame with two calibrations (unpacked and packed doubles), two images, a laser."""
+    ctx = (pw.bytes_field(1, context) + pw.bytes_field(2, _calibration(1, packed=False))
+           + pw.bytes_field(2, _calibration(2, packed=True)))
+    images = (pw.bytes_field(4, _camera_image(1, encode_image(_front(t), ".png")))
+              + pw.bytes_field(4, _camera_image(2, encode_image(_front_left(t), ".jpg"))))
+    laser = pw.bytes_field(5, pw.varint_field(1, 1) + pw.bytes_field(2, b"\x00" * 64))
+    return (pw.bytes_field(1, ctx) + pw.varint_field(2, TIMESTAMPS[t])
+            + pw.bytes_field(3, pw.packed_doubles(1, np.eye(4).ravel())) + images + laser)
+
+
+@pytest.fixture
+def v1_file(tmp_path):
+    path = tmp_path / "segment-1.tfrecord"
+    write_tfrecord(path, [_frame(CONTEXT, 0), _frame(CONTEXT, 1)])
+    return path
+
+
+def _key(t: int, camera: str) -> str:
+    return f"{CONTEXT}/{TIMESTAMPS[t]}_{camera}"
+
+
+# ----------------------------------------------------------------------------- TFRecord
+def test_crc32c_known_answer():
+    assert crc32c_python(b"123456789") == 0xE3069283
+    assert crc32c_python(b"") == 0
+
+
+def test_tfrecord_round_trip_and_index(tmp_path):
+    records = [b"", b"hello", bytes(range(256)) * 40]
+    path = tmp_path / "x.tfrecord"
+    write_tfrecord(path, records)
+    index = index_tfrecord(path)
+    assert index == [(12, 0), (28, 5), (49, 10240)]
+    assert [read_record(path, o, n) for o, n in index] == records
+    raw = path.read_bytes()
+    assert struct.unpack("<I", raw[8:12])[0] == masked_crc32c(raw[:8])
+    assert struct.unpack("<I", raw[33:37])[0] == masked_crc32c(b"hello")
+
+
+def test_corrupt_length_crc_names_file_and_record(tmp_path):
+    path = tmp_path / "bad.tfrecord"
+    write_tfrecord(path, [b"a", b"bb"])
+    raw = bytearray(path.read_bytes())
+    raw[17 + 8] ^= 0xFF  # length CRC of record 1 (record 0 takes 12 + 1 + 4 bytes)
+    path.write_bytes(bytes(raw))
+    with pytest.raises(InputError, match="length CRC") as err:
+        index_tfrecord(path)
+    assert err.value.source == f"{path}#record 1"
+
+
+@pytest.mark.parametrize("where", ["in the data", "in the header"])
+def test_truncated_file_names_file_and_record(v1_file, where):
+    raw = v1_file.read_bytes()
+    second = index_tfrecord(v1_file)[1][0] - 12  # start of record 1's header
+    v1_file.write_bytes(raw[:-3] if where == "in the data" else raw[:second + 5])
+    with pytest.raises(InputError, match="truncated") as err:
+        waymo_v1_samples(v1_file)
+    assert err.value.source == f"{v1_file}#record 1"
+
+
+@pytest.mark.skipif(tfrecord._FAST_CRC32C is None, reason="data CRCs are checked only with a "
+                                                            "compiled crc32c module")
+def test_corrupt_data_crc(tmp_path):
+    path = tmp_path / "bad.tfrecord"
+    write_tfrecord(path, [b"abc"])
+    raw = bytearray(path.read_bytes())
+    raw[13] ^= 0xFF
+    path.write_bytes(bytes(raw))
+    with pytest.raises(InputError, match="data CRC"):
+        read_record(path, 12, 3, f"{path}#record 0")
+
+
+# ----------------------------------------------------------------------------- protobuf wire
+def test_protobuf_wire_round_trip():
+    msg = (pw.varint_field(1, -5) + pw.packed_doubles(2, [1.5, 2.5]) + pw.double_field(2, 3.5)
+           + pw.bytes_field(3, "naïve") + pw.varint_field(1, 7))
+    fields = pw.decode_fields(msg)
+    assert pw.integer(fields, 1) == 7  # last one wins
+    assert pw.integer(pw.decode_fields(pw.varint_field(1, -5)), 1) == -5
+    assert pw.doubles(fields, 2) == [1.5, 2.5, 3.5]
+    assert pw.string(fields, 3) == "naïve"
+    assert pw.integer(fields, 9, default=4) == 4 and pw.submessage(fields, 9) == {}
+
+
+@pytest.mark.parametrize("data, problem", [
+    (b"\x0b", "wire type 3"),                # start group
+    (b"\x12\x05ab", "runs past the end"),    # length beyond the buffer
+    (b"\x08\xff", "varint"),                 # unterminated varint
+])
+def test_protobuf_wire_rejects_malformed(data, problem):
+    with pytest.raises(InputError, match=problem):
+        pw.decode_fields(data, "m.pb")
+
+
+def test_protobuf_wire_type_mismatch():
+    with pytest.raises(InputError, match="wire type"):
+        pw.string(pw.decode_fields(pw.varint_field(1, 3)), 1, "m.pb")
+
+
+# ----------------------------------------------------------------------------- v1
+def test_v1_samples_keys_intrinsics_and_images(v1_file):
+    samples = waymo_v1_samples(v1_file, cameras=("FRONT", "FRONT_LEFT"))
+    assert [s.key for s in samples] == [_key(0, "FRONT"), _key(0, "FRONT_LEFT"),
+                                        _key(1, "FRONT"), _key(1, "FRONT_LEFT")]
+    assert samples[3].source == f"{v1_file}#record 1 FRONT_LEFT"
+    assert samples[0].intrinsics == Intrinsics(20.0, 21.0, 7.5, 5.5, W, H)
+    assert samples[1].intrinsics == Intrinsics(30.0, 31.0, 8.0, 6.0, W, H)
+    assert samples[1].meta["distortion"] == dict(zip(("k1", "k2", "p1", "p2", "k3"), CALIB[2][4:]))
+    assert all(s.depth is None for s in samples)
+    np.testing.assert_array_equal(samples[2].read_image(), _front(1))
+    jpeg = samples[3].read_image().astype(int)
+    assert jpeg.shape == (H, W, 3) and np.abs(jpeg - _front_left(1)).mean() < 4
+
+
+def test_v1_camera_selection(v1_file, tmp_path):
+    assert [s.key for s in waymo_v1_samples(v1_file, cameras=("front_left",))] == \
+        [_key(0, "FRONT_LEFT"), _key(1, "FRONT_LEFT")]
+    assert waymo_v1_samples(v1_file, cameras=("SIDE_LEFT",)) == []  # not in these frames
+    with pytest.raises(ValueError, match="FRONT_RIGHT"):
+        waymo_v1_samples(v1_file, cameras=("BACK",))
+
+
+def test_v1_folder_sorted_and_sanitized_context(tmp_path, v1_file):
+    write_tfrecord(tmp_path / "segment-0.tfrecord", [_frame("a b/../c", 0)])
+    samples = waymo_v1_samples(tmp_path)
+    assert [s.key for s in samples] == [f"a_b_.._c/{TIMESTAMPS[0]}_FRONT",
+                                        _key(0, "FRONT"), _key(1, "FRONT")]
+    assert samples[0].meta["context"] == "a b/../c"
+
+
+def test_v1_duplicate_frames_refused(tmp_path, v1_file):
+    (tmp_path / "copy.tfrecord").write_bytes(v1_file.read_bytes())
+    with pytest.raises(InputError, match="duplicate"):
+        waymo_v1_samples(tmp_path)
+
+
+def test_v1_not_a_frame(tmp_path):
+    path = tmp_path / "other.tfrecord"
+    write_tfrecord(path, [pw.varint_field(3, 1)])
+    with pytest.raises(InputError, match="not a Waymo Frame") as err:
+        waymo_v1_samples(path)
+    assert err.value.source == f"{path}#record 0"
+
+
+def test_depth_dir_matching(v1_file, tmp_path):
+    depth_dir = tmp_path / "depth"
+    (depth_dir / CONTEXT).mkdir(parents=True)
+    for t in (0, 1):
+        np.save(depth_dir / f"{_key(t, 'FRONT')}.npy", np.ones((H, W), np.float32))
+    template = DepthSpec(path="", encoding="metric", kind="ray", png_scale=0.01)
+    samples = waymo_v1_samples(v1_file, depth_dir=depth_dir, depth=template)
+    assert samples[1].depth == DepthSpec(str(depth_dir / f"{_key(1, 'FRONT')}.npy"),
+                                         "metric", "ray", 0.01)
+    with pytest.raises(InputError, match="depth map") as err:
+        waymo_v1_samples(v1_file, cameras=("FRONT_LEFT",), depth_dir=depth_dir)
+    assert err.value.source == str(depth_dir / f"{_key(0, 'FRONT_LEFT')}.exr")
+
+
+def test_samples_pickle(v1_file):
+    samples = pickle.loads(pickle.dumps(waymo_v1_samples(v1_file, cameras=("FRONT",))))
+    np.testing.assert_array_equal(samples[0].read_image(), _front(0))
+
+
+# ----------------------------------------------------------------------------- v2
+def _write_v2(root, pa, pq):
+    """camera_image with 3 cameras per frame (row groups of 4) and camera_calibration."""
+    rows = [(t, cam) for t in (0, 1) for cam in (1, 2, 4)]
+    images = {1: lambda t: encode_image(_front(t), ".png"),
+              2: lambda t: encode_image(_front_left(t), ".jpg"),
+              4: lambda t: encode_image(_front(t), ".png")}
+    table = pa.table({
+        "key.segment_context_name": [CONTEXT] * len(rows),
+        "key.frame_timestamp_micros": pa.array([TIMESTAMPS[t] for t, _ in rows], pa.int64()),
+        "key.camera_name": pa.array([cam for _, cam in rows], pa.int8()),
+        "[CameraImageComponent].image": pa.array([images[c](t) for t, c in rows], pa.binary()),
+    })
+    (root / "camera_image").mkdir(parents=True)
+    pq.write_table(table, root / "camera_image" / f"{CONTEXT}.parquet", row_group_size=4)
+    cal = "[CameraCalibrationComponent]"
+    names = ("f_u", "f_v", "c_u", "c_v", "k1", "k2", "p1", "p2", "k3")
+    columns = {"key.segment_context_name": [CONTEXT] * 2,
+               "key.camera_name": pa.array([1, 2], pa.int8()),
+               f"{cal}.width": pa.array([W, W], pa.int32()),
+               f"{cal}.height": pa.array([H, H], pa.int32())}
+    columns |= {f"{cal}.intrinsic.{n}": [CALIB[1][i], CALIB[2][i]] for i, n in enumerate(names)}
+    (root / "camera_calibration").mkdir()
+    pq.write_table(pa.table(columns), root / "camera_calibration" / f"{CONTEXT}.parquet")
+
+
+def test_v2_matches_v1(tmp_path, v1_file):
+    pa = pytest.importorskip("pyarrow", exc_type=ImportError)
+    pq = pytest.importorskip("pyarrow.parquet", exc_type=ImportError)
+    _write_v2(tmp_path / "training", pa, pq)
+    v2 = waymo_v2_samples(tmp_path / "training", cameras=("FRONT", "FRONT_LEFT"))
+    v1 = waymo_v1_samples(v1_file, cameras=("FRONT", "FRONT_LEFT"))
+    assert [(s.key, s.intrinsics, s.meta["distortion"]) for s in v2] == \
+        [(s.key, s.intrinsics, s.meta["distortion"]) for s in v1]
+    assert v2[3].source.endswith("#row 4 FRONT_LEFT")
+    for a, b in zip(pickle.loads(pickle.dumps(v2)), v1):
+        np.testing.assert_array_equal(a.read_image(), b.read_image())
+
+
+def test_v2_unreadable_files(tmp_path):
+    pa = pytest.importorskip("pyarrow", exc_type=ImportError)
+    pq = pytest.importorskip("pyarrow.parquet", exc_type=ImportError)
+    (tmp_path / "camera_image").mkdir()
+    path = tmp_path / "camera_image" / "x.parquet"
+    pq.write_table(pa.table({"key.segment_context_name": ["a"]}), path)
+    with pytest.raises(InputError, match="missing column") as err:
+        waymo_v2_samples(tmp_path)
+    assert err.value.source == str(path)
+    path.write_bytes(b"not parquet")
+    with pytest.raises(InputError, match="not a readable parquet"):
+        waymo_v2_samples(tmp_path)
+
+
+def test_v2_errors(tmp_path, monkeypatch):
+    with pytest.raises(InputError, match="camera_image"):
+        waymo_v2_samples(tmp_path)
+    (tmp_path / "camera_image").mkdir()
+    (tmp_path / "camera_image" / "x.parquet").write_bytes(b"not parquet")
+    monkeypatch.setitem(sys.modules, "pyarrow.parquet", None)  # as if pyarrow were missing
+    with pytest.raises(FogsimError, match=r"pip install -e '\.\[waymo\]'"):
+        waymo_v2_samples(tmp_path)
