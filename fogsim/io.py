@@ -98,22 +98,6 @@ def write_image(path: str | os.PathLike, rgb: np.ndarray) -> None:
 
 
 # ----------------------------------------------------------------------------- depth
-def write_exr(path: str | os.PathLike, channels: dict[str, np.ndarray]) -> None:
-    """Write float32 channels (name → H×W array) to a single-part EXR, atomically."""
-    import OpenEXR
-
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.part.exr")
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    data = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}
-    try:
-        OpenEXR.File(header, data).write(str(tmp))
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
 def read_exr_channels(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """All channels of an EXR file (single- or multi-layer), name → H×W array."""
     import OpenEXR
@@ -133,16 +117,25 @@ EXR_DEPTH_CHANNELS = ("Z", "depth", "Depth", "ViewLayer.Depth.Z", "Depth.Z", "Y"
 
 
 def write_depth(path: str | os.PathLike, depth: np.ndarray) -> None:
-    """Write H×W float32 metres as EXR (channel ``Z``) or ``.npy``, by suffix."""
+    """Write H×W float32 metres as EXR (one float channel ``Y``, ZIP) or ``.npy``, by suffix.
+
+    EXR goes through OpenCV, not the OpenEXR package, because this also runs inside
+    Debian's Blender 3.4, where the OpenEXR package crashes the process.
+    """
     path = Path(path)
+    depth = np.ascontiguousarray(depth, dtype=np.float32)
     if path.suffix == ".npy":
         import io as _io
 
         buf = _io.BytesIO()
-        np.save(buf, depth.astype(np.float32))
+        np.save(buf, depth)
         atomic_write_bytes(path, buf.getvalue())
-    else:
-        write_exr(path, {"Z": depth})
+        return
+    ok, data = cv2.imencode(".exr", depth, [cv2.IMWRITE_EXR_TYPE, cv2.IMWRITE_EXR_TYPE_FLOAT,
+                                            cv2.IMWRITE_EXR_COMPRESSION, cv2.IMWRITE_EXR_COMPRESSION_ZIP])
+    if not ok:
+        raise ValueError(f"OpenCV could not encode a {depth.shape} depth map as EXR")
+    atomic_write_bytes(path, data.tobytes())
 
 
 def read_depth_file(path: str | os.PathLike, png_scale: float | None = None) -> np.ndarray:
