@@ -1,0 +1,84 @@
+"""Every difference between the Blender versions we support (3.4 … 5.0) lives here."""
+from __future__ import annotations
+
+import bpy
+
+VERSION = bpy.app.version
+
+#: names of the render passes in the multilayer EXR, per Blender version (first match wins)
+PASS_CHANNELS = {
+    "rgb": [("ViewLayer.Combined.R", "ViewLayer.Combined.G", "ViewLayer.Combined.B")],
+    "depth": ["ViewLayer.Depth.Z"],
+    "index": ["ViewLayer.IndexOB.X", "ViewLayer.Object Index.X"],
+}
+
+
+def has_denoiser() -> bool:
+    """True when this Cycles build has OpenImageDenoise (Debian's 3.4 has not)."""
+    try:
+        import _cycles
+    except ImportError:
+        return False
+    return bool(getattr(_cycles, "with_openimagedenoise", False))
+
+
+def set_multilayer_exr(image_settings) -> None:
+    """Make the render output one single-part multilayer float EXR holding every pass."""
+    if hasattr(image_settings, "media_type"):  # 5.0: must come before file_format
+        image_settings.media_type = "MULTI_LAYER_IMAGE"
+    image_settings.file_format = "OPEN_EXR_MULTILAYER"
+    image_settings.color_depth = "32"
+    image_settings.exr_codec = "ZIP"
+    if hasattr(image_settings, "use_exr_interleave"):  # 5.0 writes one part per pass otherwise
+        image_settings.use_exr_interleave = True
+
+
+def set_mesh_polygons(mesh, loop_starts, loop_totals) -> None:
+    """Fill polygon loop ranges (``loop_total`` became read-only in Blender 4.0)."""
+    mesh.polygons.foreach_set("loop_start", loop_starts)
+    if VERSION < (4, 0, 0):
+        mesh.polygons.foreach_set("loop_total", loop_totals)
+
+
+def sky_type_physical(node) -> str | None:
+    """Set a physical sky model on a Sky Texture node; returns the type chosen (None if none)."""
+    items = [e.identifier for e in node.bl_rna.properties["sky_type"].enum_items]
+    for name in ("NISHITA", "SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "HOSEK_WILKIE", "PREETHAM"):
+        if name in items:
+            node.sky_type = name
+            return name
+    return None
+
+
+def principled_inputs(node) -> dict:
+    """Principled BSDF input sockets by role (names changed in 4.0)."""
+    names = {s.name for s in node.inputs}
+    pick = lambda *cands: next((node.inputs[c] for c in cands if c in names), None)  # noqa: E731
+    return {"base": pick("Base Color"), "roughness": pick("Roughness"), "metallic": pick("Metallic"),
+            "emission": pick("Emission Color", "Emission"), "emission_strength": pick("Emission Strength"),
+            "transmission": pick("Transmission Weight", "Transmission"), "alpha": pick("Alpha"),
+            "normal": pick("Normal")}
+
+
+def cycles_device(scene, want_gpu: bool) -> str:
+    """Use the GPU when asked and one is configured; returns 'GPU' or 'CPU'."""
+    scene.cycles.device = "CPU"
+    if not want_gpu:
+        return "CPU"
+    try:
+        prefs = bpy.context.preferences.addons["cycles"].preferences
+        for kind in ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL"):
+            try:
+                prefs.compute_device_type = kind
+            except TypeError:
+                continue
+            prefs.get_devices()
+            gpus = [d for d in prefs.devices if d.type != "CPU"]
+            if gpus:
+                for d in prefs.devices:
+                    d.use = d.type != "CPU"
+                scene.cycles.device = "GPU"
+                return "GPU"
+    except (KeyError, AttributeError):
+        pass
+    return "CPU"

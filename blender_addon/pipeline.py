@@ -1,0 +1,89 @@
+"""Render a dataset frame by frame: describe → build → render → clear → commit.
+
+:class:`RenderJob` renders one frame per :meth:`RenderJob.step`, so the batch script can
+loop and the add-on's modal operator can step from a timer (progress bar, cancel).
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import bpy
+
+from fogsim import __version__
+from fogsim.dataset_writer import DatasetLayout, finalize
+from fogsim.errors import InputError
+from fogsim.frames import commit_frame, describe_frame, frame_name, frame_seed, scene_meshes
+from fogsim.io import read_json, write_json
+from fogsim.render_config import RenderConfig
+
+from . import build as scene_build
+from .render import configure, render
+
+RUN_FILE = "render_run.json"
+SCENE_NAME = "fogsim"
+
+
+def _check_run(layout: DatasetLayout, config: RenderConfig) -> None:
+    """Refuse to add frames to a dataset made from another preset (frame count may differ)."""
+    path = Path(layout.root) / RUN_FILE
+    mine = {k: v for k, v in config.to_dict().items() if k not in ("frames", "source")}
+    if path.is_file():
+        old = read_json(path).get("config", {})
+        old = {k: v for k, v in old.items() if k not in ("frames", "source")}
+        if old != mine:
+            raise InputError(path, "this output folder holds a dataset made with other settings; "
+                                   "use another --out rather than mixing two datasets")
+        return
+    write_json(path, {"fogsim_version": __version__, "blender": bpy.app.version_string,
+                      "config": config.to_dict()})
+
+
+class RenderJob:
+    """The frames of one shard still to render, and the means to render them."""
+
+    def __init__(self, config: RenderConfig, out: str | Path, shard: tuple[int, int] = (0, 1),
+                 resume: bool = True, gpu: bool = False):
+        self.config, self.layout, self.gpu = config, DatasetLayout(out), gpu
+        Path(out).mkdir(parents=True, exist_ok=True)
+        _check_run(self.layout, config)
+        i, n = shard
+        mine = [k for k in range(config.frames) if k % n == i]
+        self.todo = [k for k in mine if not (resume and self.layout.frame_done(frame_name(k)))]
+        self.skipped = len(mine) - len(self.todo)
+        self.done: list[dict] = []
+        self.scene = bpy.data.scenes.get(SCENE_NAME) or bpy.data.scenes.new(SCENE_NAME)
+
+    def step(self) -> dict:
+        """Render and commit the next frame; returns its meta record."""
+        index = self.todo.pop(0)
+        t0 = time.perf_counter()
+        desc = describe_frame(self.config, index)
+        meshes = scene_meshes(desc)
+        t1 = time.perf_counter()
+        info = configure(self.scene, self.config.quality, frame_seed(self.config.seed, index), self.gpu)
+        built = scene_build.build(desc, self.scene, meshes)
+        t2 = time.perf_counter()
+        try:
+            passes = render(self.scene)
+        finally:
+            scene_build.clear(built)
+        t3 = time.perf_counter()
+        info["blender"] = bpy.app.version_string
+        timings = {"scene": t1 - t0, "bpy_build": t2 - t1, "render": t3 - t2}
+        meta = commit_frame(self.layout, self.config, index, desc, meshes, passes.rgb_linear,
+                            passes.depth, passes.index, timings, info)
+        self.done.append(meta)
+        return meta
+
+    def finish(self) -> None:
+        """Write the dataset-level files (COCO, YAMLs, manifest, contact sheet) over all done frames."""
+        manifest = {"preset": self.config.to_dict(), "seed": self.config.seed,
+                    "frame_seeds": "numpy SeedSequence([seed, frame index])",
+                    "blender": bpy.app.version_string, "fogsim_version": __version__}
+        finalize(self.layout, self.config.levels, manifest)
+
+    def close(self) -> None:
+        if self.scene is not None and self.scene.name in bpy.data.scenes and len(bpy.data.scenes) > 1:
+            bpy.data.scenes.remove(self.scene)
+        self.scene = None

@@ -1,0 +1,101 @@
+"""One rendered frame → a committed dataset frame (pure Python; the renderer hands arrays in).
+
+Per frame: sRGB image from the scene-linear render, ray distance from the planar depth,
+instance mask, boxes and visibility from the mask and the unoccluded silhouettes, the fogged
+image at every level, then ``meta/<frame>.json`` last — its presence marks the frame done.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from . import __version__
+from .camera import Intrinsics, planar_to_ray
+from .colour import linear_to_srgb
+from .dataset_writer import DatasetLayout, write_frame_labels
+from .fog import Fogger, Kernel
+from .io import write_depth, write_image, write_json
+from .labels import object_records
+from .render_config import RenderConfig
+from .scene.classes import is_labelled
+from .scene.geometry import world_parts
+from .scene.layout import sample_scene
+from .silhouette import silhouette_areas
+
+
+def frame_name(index: int) -> str:
+    return f"{index:06d}"
+
+
+def frame_seed(seed: int, index: int) -> int:
+    """The seed of frame ``index`` of a run with ``seed``: independent of shards and order."""
+    return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0])
+
+
+def describe_frame(config: RenderConfig, index: int) -> dict:
+    """The scene description of frame ``index`` (same config and index → same scene)."""
+    s = frame_seed(config.seed, index)
+    return sample_scene(np.random.default_rng(s), config.style, config.camera, config.resolution, seed=s)
+
+
+def scene_meshes(desc: dict) -> dict[int, list]:
+    """World-space (vertices, faces, slot) parts of every object, built once per frame."""
+    return {obj["id"]: world_parts(obj) for obj in desc["objects"]}
+
+
+def to_srgb8(rgb_linear: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """Scene-linear render → 8-bit sRGB (exposure scale, clip at white, sRGB transfer)."""
+    x = linear_to_srgb(np.clip(rgb_linear * np.float32(exposure), 0.0, 1.0))
+    return (x * 255.0 + 0.5).astype(np.uint8)
+
+
+def fog_settings(config: RenderConfig) -> dict:
+    m = config.fog_model
+    kernel = None
+    if m.get("extended"):
+        kernel = Kernel(m.get("kernel", "box"), int(m.get("kernel_size", 19)), float(m.get("sigma", 5.0)))
+    airlight = m.get("airlight", 255)
+    return {"airlight": airlight, "space": m.get("space", "srgb"), "kernel": kernel}
+
+
+def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: dict, meshes: dict,
+                 rgb_linear: np.ndarray, depth: np.ndarray, mask: np.ndarray, timings: dict,
+                 render_info: dict) -> dict:
+    """Ground truth, fog and every file of one frame; returns the frame record (meta)."""
+    t0 = time.perf_counter()
+    name = frame_name(index)
+    K = Intrinsics.from_dict(desc["camera"]["intrinsics"])
+    h, w = mask.shape
+    rgb = to_srgb8(rgb_linear, config.exposure)
+    ray = planar_to_ray(depth, K)
+    cls = {o["id"]: o["class"] for o in desc["objects"]}
+    labelled = {oid: [(v, f) for v, f, _ in parts] for oid, parts in meshes.items() if is_labelled(cls[oid])}
+    sil = silhouette_areas(labelled, K, np.asarray(desc["camera"]["world_to_camera"]))
+    lab = config.labels
+    records = object_records(mask, ray, desc["objects"], sil,
+                             min_pixels=int(lab.get("min_pixels", 25)),
+                             min_visible_fraction=float(lab.get("min_visible_fraction", 0.1)))
+    t1 = time.perf_counter()
+    fs = fog_settings(config)
+    fogger = Fogger(rgb, ray, fs["airlight"], fs["space"], fs["kernel"])
+    foggy = {lv.key: fogger(lv.beta) for lv in config.levels}
+    t2 = time.perf_counter()
+    for lv in config.levels:
+        write_image(layout.image(lv.key, name), foggy[lv.key])
+    write_frame_labels(layout, name, config.levels, records, w, h)
+    write_depth(layout.depth(name), depth)
+    write_image(layout.mask(name), mask)
+    t3 = time.perf_counter()
+    timings = dict(timings, ground_truth=t1 - t0, fog=t2 - t1, write=t3 - t2)
+    meta = {"frame": name, "index": index, "seed": desc["seed"], "width": w, "height": h,
+            "camera": desc["camera"], "objects": records,
+            "fog": {"levels": [lv.to_dict() for lv in config.levels], "distance": "planar→ray",
+                    "airlight": fs["airlight"], "blend_space": fs["space"],
+                    "kernel": fs["kernel"].to_dict() if fs["kernel"] else None},
+            "depth": {"file": str(layout.depth(name).relative_to(layout.root)), "kind": "planar Z, metres",
+                      "no_hit": "inf"},
+            "render": render_info, "timings_s": {k: round(v, 4) for k, v in timings.items()},
+            "scene": desc, "fogsim_version": __version__}
+    write_json(layout.meta(name), meta)
+    return meta

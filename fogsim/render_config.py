@@ -1,0 +1,113 @@
+"""Dataset presets for the renderer: one JSON file naming a style, camera, quality and fog levels.
+
+``presets/<name>.json`` refers to components by name — ``presets/styles/<style>.json``,
+``presets/cameras/<camera>.json``, ``presets/quality/<quality>.json``, ``presets/fog/<fog>.json``
+(or an inline list of β) — so a preset is short and its parts are shared. Command-line
+overrides (frames, seed, resolution, samples, levels) are applied on top.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import InputError
+from .io import read_json
+from .levels import FogLevel, parse_levels, presets_dir
+
+KEYS = {"name", "description", "version", "style", "camera", "resolution", "quality", "fog",
+        "fog_model", "labels", "exposure", "frames", "seed", "stereo"}
+
+
+@dataclass(frozen=True)
+class RenderConfig:
+    name: str
+    source: str
+    style: dict
+    camera: dict
+    resolution: tuple[int, int]
+    quality: dict
+    levels: tuple[FogLevel, ...]
+    fog_model: dict = field(default_factory=dict)
+    labels: dict = field(default_factory=dict)
+    exposure: float = 1.0
+    frames: int = 8
+    seed: int = 0
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "source": self.source, "style": self.style, "camera": self.camera,
+                "resolution": list(self.resolution), "quality": self.quality,
+                "levels": [lv.to_dict() for lv in self.levels], "fog_model": self.fog_model,
+                "labels": self.labels, "exposure": self.exposure, "frames": self.frames, "seed": self.seed}
+
+
+def preset_path(name_or_path: str | None) -> Path:
+    """``None`` → the default preset; a name → ``presets/<name>.json``; else the path itself."""
+    if name_or_path is None:
+        return presets_dir() / "default.json"
+    p = Path(name_or_path)
+    if p.suffix == ".json" or p.exists():
+        return p
+    return presets_dir() / f"{name_or_path}.json"
+
+
+def _component(kind: str, value, source: Path) -> dict:
+    if isinstance(value, dict):
+        return value
+    path = presets_dir() / kind / f"{value}.json"
+    if not path.is_file():
+        known = ", ".join(sorted(p.stem for p in (presets_dir() / kind).glob("*.json")))
+        raise InputError(source, f"unknown {kind[:-1] if kind.endswith('s') else kind} {value!r} (known: {known})")
+    return read_json(path)
+
+
+def parse_resolution(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--resolution must look like 640x426, got {text!r}") from None
+    if w < 8 or h < 8:
+        raise ValueError(f"--resolution {text}: at least 8×8 pixels")
+    return w, h
+
+
+def load_render_preset(name_or_path: str | None = None, *, frames: int | None = None,
+                       seed: int | None = None, resolution: str | None = None,
+                       samples: int | None = None, levels: str | None = None) -> RenderConfig:
+    """Read a dataset preset and apply overrides; every problem names the preset file."""
+    path = preset_path(name_or_path)
+    if not path.is_file():
+        raise InputError(path, "preset not found")
+    d = read_json(path)
+    if not isinstance(d, dict):
+        raise InputError(path, "a preset must be a JSON object")
+    unknown = set(d) - KEYS
+    if unknown:
+        raise InputError(path, f"unknown preset keys {sorted(unknown)} (allowed: {sorted(KEYS)})")
+    for key in ("style", "camera", "quality"):
+        if key not in d:
+            raise InputError(path, f"preset lacks {key!r}")
+    try:
+        quality = dict(_component("quality", d["quality"], path))
+        if samples is not None:
+            if samples < 1:
+                raise ValueError("--samples must be ≥ 1")
+            quality["samples"] = samples
+        res = parse_resolution(resolution) if resolution else tuple(d.get("resolution") or ())
+        camera = _component("cameras", d["camera"], path)
+        if not res:
+            res = (camera["width"], camera["height"])
+        fog = levels if levels is not None else d.get("fog", "paper")
+        lv = parse_levels(",".join(str(x) for x in fog) if isinstance(fog, list) else str(fog))
+        cfg = RenderConfig(
+            name=str(d.get("name", path.stem)), source=str(path),
+            style=_component("styles", d["style"], path), camera=camera,
+            resolution=(int(res[0]), int(res[1])), quality=quality, levels=tuple(lv),
+            fog_model=dict(d.get("fog_model", {})), labels=dict(d.get("labels", {})),
+            exposure=float(d.get("exposure", 1.0)),
+            frames=int(frames if frames is not None else d.get("frames", 8)),
+            seed=int(seed if seed is not None else d.get("seed", 0)))
+    except (TypeError, KeyError) as exc:
+        raise InputError(path, f"malformed preset ({exc!r})") from None
+    if cfg.frames < 1:
+        raise ValueError(f"--frames must be ≥ 1, got {cfg.frames}")
+    return cfg
