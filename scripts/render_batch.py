@@ -108,7 +108,8 @@ def run(job, args) -> int:
                 bar.write(f"error: frame {index}: {type(exc).__name__}: {exc}")
             bar.update(1)
         bar.close()
-    job.finish()
+    if job.layout.done_frames():
+        job.finish()
     job.close()
     print(f"rendered {len(job.done)} frames ({job.skipped} already done, {len(failed)} failed) "
           f"in {time.perf_counter() - t0:.1f} s → {args.out}")

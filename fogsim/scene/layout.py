@@ -193,13 +193,15 @@ def street_furniture(b: _Builder, st: dict, style: dict) -> None:
 
 
 def camera_intrinsics(camera: dict, resolution: tuple[int, int] | None = None) -> Intrinsics:
-    """Intrinsics of a camera preset (``fx`` or ``hfov_deg``), scaled to ``resolution`` (W, H)."""
-    w, h = camera["width"], camera["height"]
-    if "fx" in camera:
-        K = Intrinsics(camera["fx"], camera["fx"], (w - 1) / 2, (h - 1) / 2, w, h)
-    else:
-        K = Intrinsics.from_hfov(camera["hfov_deg"], w, h)
-    return K.scaled(*resolution) if resolution else K
+    """Intrinsics of a camera preset (``fx`` or ``hfov_deg``) at ``resolution`` (W, H).
+
+    The horizontal field of view is kept and pixels stay square (a renderer needs them), so
+    a resolution of another aspect ratio crops or extends the image vertically around the
+    centre (640×426 from 1920×1280 differs by 2/3 of a row).
+    """
+    w, h = resolution or (camera["width"], camera["height"])
+    fx = camera["fx"] * w / camera["width"] if "fx" in camera else Intrinsics.from_hfov(camera["hfov_deg"], w, h).fx
+    return Intrinsics(fx, fx, (w - 1) / 2, (h - 1) / 2, w, h)
 
 
 def sample_scene(rng: np.random.Generator, style: dict, camera: dict,

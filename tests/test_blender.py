@@ -1,0 +1,185 @@
+"""Real Blender: the bpy module (5.0) and Debian's blender binary (3.4), each end to end.
+
+Every render here is tiny (96×64, 2 samples). Blender runs in subprocesses so each test gets
+a fresh Blender and the exit code of the real entry points is what is checked.
+"""
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fogsim.io import read_depth_file, read_image, read_uint16_map
+from fogsim.labels import parse_yolo_line
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPTS = ROOT / "tests" / "blender_scripts"
+BLENDER = shutil.which("blender")
+TINY = ["--resolution", "96x64", "--samples", "2", "--levels", "clear,0.06,0.12", "--quiet"]
+
+
+def _need_binary():
+    if BLENDER is None:
+        if os.environ.get("CI"):
+            pytest.fail("Debian's blender is not installed (scripts/test.sh installs it)")
+        pytest.skip("Debian's blender binary is not installed")
+
+
+def runner(kind):
+    """Command prefix that runs a Python file under the bpy module or the blender binary."""
+    if kind == "bpy":
+        return lambda script, *args: [sys.executable, str(script), *args]
+    _need_binary()
+    return lambda script, *args: [BLENDER, "-b", "--factory-startup", "-noaudio", "-P", str(script), "--", *args]
+
+
+def run(cmd, timeout=600, **kw):
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT, **kw)
+
+
+KINDS = ["bpy", "blender"]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_plane_at_known_distance_gives_exact_depth(kind, tmp_path):
+    res = run(runner(kind)(SCRIPTS / "plane_depth.py", str(tmp_path / "r.json")))
+    assert res.returncode == 0, res.stderr[-3000:]
+    r = json.loads((tmp_path / "r.json").read_text())
+    assert r["wall_pixels"] > 1000
+    assert r["wall_depth_min"] == pytest.approx(10.0, abs=1e-4) and r["wall_depth_max"] == pytest.approx(10.0, abs=1e-4)
+    assert r["wall_ray_max_abs_err"] < 1e-3
+    assert r["ground_depth_max_rel_err"] < 1e-3 and r["sky_rows_inf"]
+    assert r["leftover"] == [0, 0, 0]  # clear() removed every mesh, material and object
+
+
+def render_dataset(kind, out, *extra, timeout=900):
+    return run(runner(kind)(ROOT / "scripts" / "render_batch.py", "--out", str(out), "--frames", "2", *TINY, *extra),
+               timeout=timeout)
+
+
+def check_dataset(out: Path):
+    """Boxes equal the tight boxes of the mask; YOLO lines round-trip; files all there."""
+    levels = ["clear", "beta0.06", "beta0.12"]
+    metas = sorted((out / "meta").glob("*.json"))
+    assert len(metas) == 2
+    n_boxes = 0
+    for m in metas:
+        meta = json.loads(m.read_text())
+        frame = meta["frame"]
+        mask = read_uint16_map(out / "masks" / f"{frame}.png")
+        depth = read_depth_file(out / "depth" / f"{frame}.exr")
+        assert mask.shape == depth.shape == (64, 96)
+        assert np.isinf(depth).any() and np.isfinite(depth).any()
+        lines = (out / "labels" / "clear" / f"{frame}.txt").read_text().split("\n")
+        lines = [line for line in lines if line.strip()]
+        kept = [r for r in meta["objects"] if r["kept"]]
+        assert len(lines) == len(kept)
+        for rec, line in zip(kept, lines):
+            v, u = np.nonzero(mask == rec["id"])
+            assert rec["bbox"] == [int(u.min()), int(v.min()), int(u.max()) + 1, int(v.max()) + 1]
+            assert rec["pixels"] == len(u)
+            cls, box = parse_yolo_line(line, 96, 64)
+            assert cls == rec["class_id"] and list(box) == rec["bbox"]
+            n_boxes += 1
+        for lv in levels:
+            img = read_image(out / "images" / lv / f"{frame}.png")
+            assert img.shape == (64, 96, 3)
+            assert (out / "labels" / lv / f"{frame}.txt").read_text() == (out / "labels" / "clear" / f"{frame}.txt").read_text()
+        sky = np.isinf(depth)
+        if sky.any():  # sky turns white with fog
+            assert read_image(out / "images" / "beta0.12" / f"{frame}.png")[sky].min() == 255
+    for lv in levels:
+        coco = json.loads((out / "coco" / f"{lv}.json").read_text())
+        assert len(coco["images"]) == 2 and len(coco["annotations"]) == n_boxes
+        assert (out / "data" / f"{lv}.yaml").is_file()
+    assert (out / "data" / "all.yaml").is_file() and (out / "contact_sheet.png").is_file()
+    manifest = json.loads((out / "dataset.json").read_text())
+    assert manifest["frames"] == 2
+    return n_boxes
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_render_batch_end_to_end(kind, tmp_path):
+    out = tmp_path / "ds"
+    res = render_dataset(kind, out)
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-3000:]
+    assert "rendered 2 frames" in res.stdout
+    check_dataset(out)
+
+
+def dataset_digest(out: Path) -> dict:
+    """Labels, depth and masks (the deterministic parts) by relative path."""
+    files = {}
+    for sub in ("labels", "masks", "depth"):
+        for p in sorted((out / sub).rglob("*")):
+            if p.is_file():
+                files[str(p.relative_to(out))] = (read_depth_file(p).tobytes() if p.suffix == ".exr"
+                                                  else p.read_bytes())
+    return files
+
+
+def test_same_seed_same_dataset_and_resume_after_kill(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert render_dataset("bpy", a, "--seed", "5").returncode == 0
+    # start the same run, kill it hard once the first frame is committed, then resume it
+    cmd = runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(b), "--frames", "2", *TINY, "--seed", "5")
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 300
+    while not (b / "meta" / "000000.json").exists() and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    res = render_dataset("bpy", b, "--seed", "5")
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert dataset_digest(a) == dataset_digest(b)
+    assert not list(b.rglob("*.part"))
+    c = tmp_path / "c"
+    assert render_dataset("bpy", c, "--seed", "6").returncode == 0
+    assert dataset_digest(c) != dataset_digest(a)
+
+
+def test_shards_cover_the_dataset(tmp_path):
+    out = tmp_path / "s"
+    for i in (0, 1):
+        assert render_dataset("bpy", out, "--shard", f"{i}/2").returncode == 0
+    assert sorted(p.stem for p in (out / "meta").glob("*.json")) == ["000000", "000001"]
+    check_dataset(out)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--preset", "no-such-preset"], "preset not found"),
+    (["--resolution", "big"], "--resolution"),
+    (["--shard", "3/2"], "shard"),
+])
+def test_bad_arguments_exit_2(tmp_path, args, message):
+    res = run(runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(tmp_path / "o"), *args))
+    assert res.returncode == 2 and message in res.stderr
+
+
+def test_bad_preset_file_and_unwritable_output(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"style": "urban-canyon", "camera": "nope", "quality": "draft"}))
+    res = run(runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(tmp_path / "o"), "--preset", str(bad)))
+    assert res.returncode == 2 and "bad.json: unknown camera 'nope'" in res.stderr
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    res = run(runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(blocker / "sub")))
+    assert res.returncode == 2 and "file" in res.stderr
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_addon_registers_builds_and_renders_through_ops(kind, tmp_path):
+    res = run(runner(kind)(SCRIPTS / "addon_ops.py", str(tmp_path / "ds")))
+    assert res.returncode == 0, res.stderr[-3000:]
+    line = next(ln for ln in res.stdout.splitlines() if ln.startswith("RESULT "))
+    r = json.loads(line[len("RESULT "):])
+    assert r["build"] == ["FINISHED"] and r["built_objects"] > 20 and r["left_after_clear"] == 0
+    assert r["render"] == ["FINISHED"] and r["status"].startswith("done: 1 frames")
+    assert r["unregistered"]
+    assert (tmp_path / "ds" / "meta" / "000000.json").is_file()

@@ -1,0 +1,60 @@
+"""Street layouts: deterministic, sensible, serialisable — without Blender."""
+import json
+
+import numpy as np
+import pytest
+
+from fogsim.render_config import load_render_preset
+from fogsim.scene.classes import LABELLED, STUFF
+from fogsim.scene.layout import SIDEWALK_HEIGHT, _footprint, sample_scene
+
+
+@pytest.fixture(params=["default", "suburban", "arterial"])
+def config(request):
+    return load_render_preset(request.param)
+
+
+def scene(config, seed):
+    return sample_scene(np.random.default_rng(seed), config.style, config.camera, config.resolution, seed=seed)
+
+
+def test_same_seed_same_scene(config):
+    a, b, c = scene(config, 1), scene(config, 1), scene(config, 2)
+    assert json.dumps(a) == json.dumps(b) and json.dumps(a) != json.dumps(c)
+
+
+def test_layout_makes_sense(config):
+    for seed in range(4):
+        s = scene(config, seed)
+        st = s["street"]
+        ids = [o["id"] for o in s["objects"]]
+        assert ids == list(range(1, len(ids) + 1))
+        assert all(o["class"] in LABELLED + STUFF for o in s["objects"])
+        placed = [o for o in s["objects"] if o["class"] in LABELLED + ("pole", "tree")]
+        boxes = [_footprint(o["asset"], np.asarray(o["transform"])[0, 3], np.asarray(o["transform"])[1, 3],
+                            np.degrees(np.arctan2(np.asarray(o["transform"])[1, 0], np.asarray(o["transform"])[0, 0])))
+                 for o in placed]
+        for i in range(len(boxes)):  # no two footprints overlap
+            for j in range(i + 1, len(boxes)):
+                a, b = boxes[i], boxes[j]
+                assert a[1] <= b[0] or b[1] <= a[0] or a[3] <= b[2] or b[3] <= a[2], (placed[i]["class"], placed[j]["class"])
+        for o in s["objects"]:
+            M = np.asarray(o["transform"])
+            x, z = M[0, 3], M[2, 3]
+            heading = np.degrees(np.arctan2(M[1, 0], M[0, 0]))
+            if o["class"] in ("car", "van", "truck", "bus") :
+                assert abs(x) < st["curb_x"], "vehicles stay on the road"
+                assert z == 0.0
+                # facing along the street: +y on the right half, −y on the left half
+                assert (abs(heading) < 10) if x > 0 else (abs(abs(heading) - 180) < 10)
+            if o["class"] == "pedestrian" and z > 0:
+                assert z == SIDEWALK_HEIGHT and st["curb_x"] <= abs(x) <= st["curb_x"] + st["sidewalk_width"]
+        assert sum(o["class"] in ("car", "van", "truck", "bus") for o in s["objects"]) >= 1
+
+
+def test_camera_follows_preset(config):
+    s = scene(config, 0)
+    K = s["camera"]["intrinsics"]
+    assert (K["width"], K["height"]) == tuple(config.resolution)
+    assert s["camera"]["position"][2] == config.camera["height_m"]
+    assert 0 < s["camera"]["position"][0] < s["street"]["lanes"] * s["street"]["lane_width"]
