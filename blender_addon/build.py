@@ -90,6 +90,9 @@ def _lighting(built: Built, light: dict, scene) -> None:
         sky.sun_direction = (math.cos(elev) * math.sin(azim), math.cos(elev) * math.cos(azim), math.sin(elev))
     nt.links.new(sky.outputs["Color"], bg.inputs["Color"])
     bg.inputs["Strength"].default_value = light.get("sky_strength", 0.25)
+    # a small importance map: building Cycles' default 1024² map costs ~0.7 s per frame
+    world.cycles.sampling_method = "MANUAL"
+    world.cycles.sample_map_resolution = 64
     scene.world = world
     sun = bpy.data.lights.new("fogsim_sun", "SUN")
     sun.energy = light.get("sun_strength", 4.0)

@@ -28,9 +28,16 @@ def set_multilayer_exr(image_settings) -> None:
         image_settings.media_type = "MULTI_LAYER_IMAGE"
     image_settings.file_format = "OPEN_EXR_MULTILAYER"
     image_settings.color_depth = "32"
-    image_settings.exr_codec = "ZIP"
+    image_settings.exr_codec = "NONE"  # a temporary file read back at once: compression only costs time
     if hasattr(image_settings, "use_exr_interleave"):  # 5.0 writes one part per pass otherwise
         image_settings.use_exr_interleave = True
+
+
+def set_denoiser_speed(cycles, quality: str, prefilter: str) -> None:
+    """OpenImageDenoise quality (HIGH/BALANCED/FAST, Blender 4.1+) and prefilter (ACCURATE/FAST/NONE)."""
+    if hasattr(cycles, "denoising_quality"):
+        cycles.denoising_quality = quality
+    cycles.denoising_prefilter = prefilter
 
 
 def set_mesh_polygons(mesh, loop_starts, loop_totals) -> None:

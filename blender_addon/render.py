@@ -10,7 +10,7 @@ import numpy as np
 
 from fogsim.exr import read_exr
 
-from .compat import PASS_CHANNELS, cycles_device, has_denoiser, set_multilayer_exr
+from .compat import PASS_CHANNELS, cycles_device, has_denoiser, set_denoiser_speed, set_multilayer_exr
 
 
 @dataclass
@@ -31,6 +31,8 @@ def configure(scene, quality: dict, seed: int, gpu: bool = False) -> dict:
         cy.adaptive_threshold = float(quality["adaptive_threshold"])
     denoise = bool(quality.get("denoise", True)) and has_denoiser()
     cy.use_denoising = denoise
+    if denoise:
+        set_denoiser_speed(cy, quality.get("denoise_quality", "HIGH"), quality.get("denoise_prefilter", "ACCURATE"))
     bounces = quality.get("bounces", {})
     cy.max_bounces = bounces.get("total", 4)
     cy.diffuse_bounces = bounces.get("diffuse", 2)

@@ -166,13 +166,13 @@ def _summary(metas: list[dict], levels, train: list, val: list, train_fraction: 
 
 
 def contact_sheet(layout: DatasetLayout, levels, frames: list[str], max_frames: int = 4,
-                  tile_width: int = 320) -> np.ndarray:
+                  tile_width: int = 384) -> np.ndarray:
     """RGB uint8 overview: one row per frame, one column per level, kept boxes drawn."""
     rows = []
     for frame in frames[:max_frames]:
         records = [r for r in read_json(layout.meta(frame))["objects"] if r["kept"]]
         tiles = [_tile(read_image(layout.image(lv.key, frame)), records, tile_width) for lv in levels]
-        captions = [f"{frame} {_ascii(lv.name)} beta={lv.beta:g}/m" for lv in levels]
+        captions = [(f"frame {frame}: " if i == 0 else "") + _caption(lv) for i, lv in enumerate(levels)]
         rows.append(strip(tiles, captions))
     width = max(r.shape[1] for r in rows)
     gap = np.full((4, width, 3), 255, np.uint8)
@@ -192,6 +192,7 @@ def _tile(image: np.ndarray, records: list[dict], width: int) -> np.ndarray:
     return tile
 
 
-def _ascii(text: str) -> str:
-    """Caption text OpenCV's Hershey fonts can draw (β spelled out, other non-ASCII dropped)."""
-    return text.replace("β", "beta").encode("ascii", "ignore").decode()
+def _caption(level) -> str:
+    """Short tile caption: "clear" or "beta 0.06, V 50 m" (OpenCV fonts cannot draw β)."""
+    vis = level.to_dict()["visibility_m"]
+    return "clear" if vis is None else f"beta {level.beta:g}/m, V {vis:.0f} m"

@@ -9,6 +9,7 @@ their box exactly.
 """
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -24,22 +25,39 @@ class Part(NamedTuple):
     make: Callable[[], tuple[np.ndarray, np.ndarray]]
 
 
+def _cross(b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Cross product over the last axis (np.cross costs ~10 µs of overhead per call)."""
+    return np.stack([b[..., 1] * c[..., 2] - b[..., 2] * c[..., 1],
+                     b[..., 2] * c[..., 0] - b[..., 0] * c[..., 2],
+                     b[..., 0] * c[..., 1] - b[..., 1] * c[..., 0]], axis=-1)
+
+
 def _oriented(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Flip a closed mesh's winding if its signed volume is negative (normals point outward)."""
     a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    volume = np.einsum("ij,ij->i", a, np.cross(b, c)).sum()
+    volume = np.einsum("ij,ij->i", a, _cross(b, c)).sum()
     return (v, f[:, ::-1].copy()) if volume < 0 else (v, f)
+
+
+_UNIT_BOX = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+_UNIT_BOX_V = np.asarray(_UNIT_BOX.vertices) + 0.5  # corners of [0, 1]³
+_UNIT_BOX_F = np.asarray(_UNIT_BOX.faces)
+
+
+def box_arrays(lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """(8 vertices, 12 outward triangles) of the box between corners ``lo`` < ``hi``.
+
+    Plain arrays: thousands of windows and lane dashes per scene, so no Trimesh per box.
+    """
+    lo = np.asarray(lo, float)
+    return lo + _UNIT_BOX_V * (np.asarray(hi, float) - lo), _UNIT_BOX_F
 
 
 def box(slot: str, lo, hi) -> Part:
     """Axis-aligned box between opposite corners ``lo`` and ``hi`` (in any order per axis)."""
     a, b = np.asarray(lo, float), np.asarray(hi, float)
     lo, hi = np.minimum(a, b), np.maximum(a, b)
-
-    def make():
-        m = trimesh.creation.box(extents=hi - lo)
-        return np.asarray(m.vertices) + (lo + hi) / 2.0, np.asarray(m.faces)
-    return Part(slot, lo, hi, make)
+    return Part(slot, lo, hi, lambda: box_arrays(lo, hi))
 
 
 def loft_mesh(rings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -72,9 +90,9 @@ def prism(slot: str, polygon_yz, x0: float, x1: float) -> Part:
 def _frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors spanning the plane normal to ``axis`` (axis-aligned when axis is)."""
     ref = np.array([0.0, 0.0, 1.0]) if abs(axis[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    u = np.cross(axis, ref)
-    u /= np.linalg.norm(u)
-    return u, np.cross(axis, u)
+    u = _cross(axis, ref)
+    u /= np.sqrt(u @ u)
+    return u, _cross(axis, u)
 
 
 def _circle(center, axis, radius: float, n: int) -> np.ndarray:
@@ -121,14 +139,22 @@ def blob(slot: str, center, radii, seed: int, jitter: float = 0.0, subdivisions:
     center, radii = np.asarray(center, float), np.asarray(radii, float)
 
     def make():
-        m = trimesh.creation.icosphere(subdivisions=subdivisions)
-        v = np.asarray(m.vertices, float)
+        base_v, base_f = _icosphere(subdivisions)
+        v = base_v
         if jitter > 0:
             v = v * (1.0 + jitter * np.random.default_rng(seed).uniform(-1, 1, (len(v), 1)))
         lo, hi = v.min(0), v.max(0)
         v = (v - (lo + hi) / 2.0) / ((hi - lo) / 2.0)
-        return _oriented(center + v * radii, np.asarray(m.faces))
+        return _oriented(center + v * radii, base_f)
     return Part(slot, center - radii, center + radii, make)
+
+
+@lru_cache(maxsize=4)
+def _icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
+    m = trimesh.creation.icosphere(subdivisions=subdivisions)
+    v, f = np.asarray(m.vertices, float), np.asarray(m.faces)
+    v.flags.writeable = f.flags.writeable = False
+    return v, f
 
 
 def torus(slot: str, center, axis, major: float, minor: float, n_major: int = 24, n_minor: int = 8) -> Part:

@@ -15,23 +15,28 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
+from .assets_parts import box_arrays
+
 
 def local_parts(asset: dict) -> list[tuple[trimesh.Trimesh, str]]:
     """(mesh in the asset's local frame, material slot) pairs."""
-    if asset["type"] == "box":
-        return [(_box(0.0, 0.0, 0.0, *asset["params"]["size"]), asset["params"]["material"])]
-    if asset["type"] == "boxes":
-        boxes = [_box(*b) for b in asset["params"]["boxes"]]
-        return [(trimesh.util.concatenate(boxes), asset["params"]["material"])]
+    if asset["type"] in ("box", "boxes"):
+        p = asset["params"]
+        boxes = [[0.0, 0.0, 0.0, *p["size"]]] if asset["type"] == "box" else p["boxes"]
+        return [(_boxes_mesh(np.asarray(boxes, dtype=np.float64)), p["material"])]
     from .assets import build_asset
 
     return build_asset(asset)
 
 
-def _box(cx: float, cy: float, z0: float, sx: float, sy: float, sz: float) -> trimesh.Trimesh:
-    box = trimesh.creation.box(extents=(sx, sy, sz))
-    box.apply_translation((cx, cy, z0 + sz / 2.0))
-    return box
+def _boxes_mesh(boxes: np.ndarray) -> trimesh.Trimesh:
+    """One mesh of many boxes given as rows [cx, cy, z0, sx, sy, sz]."""
+    lo = np.column_stack([boxes[:, 0] - boxes[:, 3] / 2, boxes[:, 1] - boxes[:, 4] / 2, boxes[:, 2]])
+    hi = lo + boxes[:, 3:6]
+    v, f = box_arrays(np.zeros(3), np.ones(3))
+    verts = (lo[:, None, :] + v[None] * (hi - lo)[:, None, :]).reshape(-1, 3)
+    faces = (f[None] + 8 * np.arange(len(boxes))[:, None, None]).reshape(-1, 3)
+    return trimesh.Trimesh(vertices=verts, faces=faces, process=False)
 
 
 def world_parts(obj: dict) -> list[tuple[np.ndarray, np.ndarray, str]]:
