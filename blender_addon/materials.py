@@ -33,6 +33,7 @@ def make_material(name: str, slot: str, overrides: dict) -> bpy.types.Material:
     sockets["roughness"].default_value = spec.get("roughness", 0.5)
     sockets["metallic"].default_value = spec.get("metallic", 0.0)
     sockets["base"].default_value = (*color, 1.0)
+    mat.diffuse_color = (*color, 1.0)  # the viewport's solid-mode colour
     if spec.get("emission", 0.0) > 0 and sockets["emission"] is not None:
         sockets["emission"].default_value = (*color, 1.0)
         if sockets["emission_strength"] is not None:

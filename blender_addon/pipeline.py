@@ -15,6 +15,7 @@ from fogsim.dataset_writer import DatasetLayout, finalize
 from fogsim.errors import InputError
 from fogsim.frames import commit_frame, describe_frame, frame_name, frame_seed, scene_meshes
 from fogsim.io import read_json, write_json
+from fogsim.versions import package_versions
 from fogsim.render_config import RenderConfig
 
 from . import build as scene_build
@@ -78,9 +79,11 @@ class RenderJob:
 
     def finish(self) -> None:
         """Write the dataset-level files (COCO, YAMLs, manifest, contact sheet) over all done frames."""
+        frames = self.layout.done_frames()
         manifest = {"preset": self.config.to_dict(), "seed": self.config.seed,
-                    "frame_seeds": "numpy SeedSequence([seed, frame index])",
-                    "blender": bpy.app.version_string, "fogsim_version": __version__}
+                    "frame_seeds": {f: frame_seed(self.config.seed, int(f)) for f in frames},
+                    "frame_seed_rule": "numpy SeedSequence([seed, frame index]).generate_state(1)[0]",
+                    "blender": bpy.app.version_string, "versions": package_versions()}
         finalize(self.layout, self.config.levels, manifest)
 
     def close(self) -> None:

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import platform
 import sys
 from pathlib import Path
 
@@ -144,10 +143,9 @@ def _job(args, out: str):
 
 
 def environment() -> dict:
-    import cv2
-    import numpy
+    from .versions import package_versions
 
-    return {"python": platform.python_version(), "numpy": numpy.__version__, "opencv": cv2.__version__}
+    return package_versions()
 
 
 def cmd_fog(args) -> int:
