@@ -276,3 +276,25 @@ def test_v2_errors(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "pyarrow.parquet", None)  # as if pyarrow were missing
     with pytest.raises(FogsimError, match=r"pip install -e '\.\[waymo\]'"):
         waymo_v2_samples(tmp_path)
+
+
+# ----------------------------------------------------------------------------- through the CLI
+def test_cli_fogs_waymo_with_depth_dir(v1_file, tmp_path, capsys):
+    from fogsim.camera import Intrinsics, planar_to_ray
+    from fogsim.cli import main
+    from fogsim.io import read_image, write_depth
+
+    depth = np.random.default_rng(4).uniform(2, 80, (H, W)).astype(np.float32)
+    for t in (0, 1):
+        write_depth(tmp_path / "depth" / f"{_key(t, 'FRONT')}.exr", depth)
+    out = tmp_path / "out"
+    assert main(["fog", "--waymo", str(v1_file), "--depth-dir", str(tmp_path / "depth"), "--levels", "0.06",
+                 "--workers", "2", "--out", str(out), "--quiet"]) == 0
+    f_u, f_v, c_u, c_v = CALIB[1][:4]
+    ray = planar_to_ray(depth, Intrinsics(f_u, f_v, c_u, c_v, W, H)).astype(np.float64)
+    t = np.exp(-0.06 * ray)[..., None]
+    got = read_image(out / "beta0.06" / f"{_key(1, 'FRONT')}.png")
+    assert np.abs(got - (_front(1) * t + 255 * (1 - t))).max() <= 0.5 + 1e-2
+    capsys.readouterr()
+    assert main(["fog", "--waymo", str(v1_file), "--levels", "0.06", "--out", str(tmp_path / "o2"), "--quiet"]) == 1
+    assert "has no depth" in capsys.readouterr().err
