@@ -8,6 +8,7 @@ parameters is refused rather than mixed.
 """
 from __future__ import annotations
 
+import multiprocessing
 import os
 import time
 import zlib
@@ -168,7 +169,10 @@ def run(samples: list[Sample], job: FogJob, workers: int = 1, resume: bool = Tru
     results = map(_worker, ((job, s) for s in todo))
     pool = None
     if workers > 1 and len(todo) > 1:
-        pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker)
+        # spawn, not fork: a forked child inherits library thread pools (OpenEXR, OpenCV)
+        # mid-state and can deadlock on its first EXR read
+        pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
+                                   mp_context=multiprocessing.get_context("spawn"))
         results = pool.map(_worker, ((job, s) for s in todo), chunksize=1)
     try:
         for source, error in results:

@@ -59,7 +59,8 @@ def test_plane_at_known_distance_gives_exact_depth(kind, tmp_path):
 
 
 def render_dataset(kind, out, *extra, timeout=900):
-    return run(runner(kind)(ROOT / "scripts" / "render_batch.py", "--out", str(out), "--frames", "2", *TINY, *extra),
+    frames = [] if "--frames" in extra else ["--frames", "2"]
+    return run(runner(kind)(ROOT / "scripts" / "render_batch.py", "--out", str(out), *frames, *TINY, *extra),
                timeout=timeout)
 
 
@@ -126,21 +127,24 @@ def dataset_digest(out: Path) -> dict:
 
 def test_same_seed_same_dataset_and_resume_after_kill(tmp_path):
     a, b = tmp_path / "a", tmp_path / "b"
-    assert render_dataset("bpy", a, "--seed", "5").returncode == 0
+    frames = ["--frames", "3", "--seed", "5"]
+    assert render_dataset("bpy", a, *frames).returncode == 0
     # start the same run, kill it hard once the first frame is committed, then resume it
-    cmd = runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(b), "--frames", "2", *TINY, "--seed", "5")
+    cmd = runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(b), *TINY, *frames)
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 300
     while not (b / "meta" / "000000.json").exists() and time.time() < deadline and proc.poll() is None:
-        time.sleep(0.05)
+        time.sleep(0.02)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    res = render_dataset("bpy", b, "--seed", "5")
+    assert len(list((b / "meta").glob("*.json"))) < 3, "the kill came too late to interrupt the run"
+    res = render_dataset("bpy", b, *frames)
     assert res.returncode == 0, res.stderr[-3000:]
+    assert "already done" in res.stdout and "(0 already done" not in res.stdout
     assert dataset_digest(a) == dataset_digest(b)
     assert not list(b.rglob("*.part"))
     c = tmp_path / "c"
-    assert render_dataset("bpy", c, "--seed", "6").returncode == 0
+    assert render_dataset("bpy", c, "--frames", "3", "--seed", "6").returncode == 0
     assert dataset_digest(c) != dataset_digest(a)
 
 

@@ -296,7 +296,7 @@ def test_finalize_writes_coco_yaml_splits_manifest(tiny_dataset):
     assert manifest["levels"] == [lv.to_dict() for lv in LEVELS] and manifest["classes"] == list(LABELLED)
     assert manifest["counts"]["car"] == 1 and manifest["counts"]["bus"] == 1 and manifest["counts"]["van"] == 0
     assert manifest["filtered"] == {"too few pixels": 2}
-    assert read_image(root / "contact_sheet.png").shape == (2 * (28 + 213) + 4, 2 * 320 + 4, 3)
+    assert read_image(root / "contact_sheet.png").shape == (2 * (28 + 256) + 4, 2 * 384 + 4, 3)  # 640×426 tiles at 384 px
 
 
 def test_split_deterministic_and_stable():

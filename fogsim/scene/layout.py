@@ -35,8 +35,9 @@ class _Occupancy:
         self.boxes.append(box)
 
 
-def _footprint(spec: dict, x: float, y: float, yaw_deg: float):
-    sx, sy, _ = asset_extent(spec)
+def _footprint(spec: dict, x: float, y: float, yaw_deg: float, extent=None):
+    """Axis-aligned (x0, x1, y0, y1) of the asset's box turned by ``yaw_deg`` at (x, y)."""
+    sx, sy, _ = extent or asset_extent(spec)
     c, s = abs(math.cos(math.radians(yaw_deg))), abs(math.sin(math.radians(yaw_deg)))
     hx, hy = (sx * c + sy * s) / 2, (sx * s + sy * c) / 2
     return (x - hx, x + hx, y - hy, y + hy)
@@ -45,6 +46,7 @@ def _footprint(spec: dict, x: float, y: float, yaw_deg: float):
 class _Builder:
     def __init__(self, rng: np.random.Generator):
         self.rng, self.objects, self.occupied = rng, [], _Occupancy()
+        self._last: tuple[dict | None, tuple] = (None, ())  # (spec, extent): retries reuse it
 
     def add(self, cls: str, asset: dict, x: float, y: float, z: float = 0.0, yaw: float = 0.0) -> dict:
         obj = {"id": len(self.objects) + 1, "class": cls, "asset": asset,
@@ -55,7 +57,9 @@ class _Builder:
     def place(self, cls: str, spec: dict, x: float, y: float, z: float, yaw: float,
               margin: float = 0.3) -> bool:
         """Add ``spec`` at (x, y, z) turned by ``yaw`` if its footprint is free."""
-        box = _footprint(spec, x, y, yaw)
+        if self._last[0] is not spec:
+            self._last = (spec, asset_extent(spec))
+        box = _footprint(spec, x, y, yaw, self._last[1])
         if not self.occupied.free(box, margin):
             return False
         self.occupied.take(box)
