@@ -64,14 +64,20 @@ def _camera(built: Built, cam: dict, scene) -> None:
         setattr(data, key, value)
     data.clip_start, data.clip_end = 0.1, 2000.0
     obj = bpy.data.objects.new("fogsim_camera", data)
-    obj.matrix_world = mathutils.Matrix(blender_camera_matrix(np.asarray(cam["world_to_camera"])).tolist())
     built.collection.objects.link(obj)
     built.others += [("cameras", data)]
     built.objects.append(obj)
     scene.camera = obj
+    set_camera_pose(scene, cam["world_to_camera"])
     scene.render.resolution_x, scene.render.resolution_y = K.width, K.height
     scene.render.resolution_percentage = 100
     scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
+
+
+def set_camera_pose(scene, world_to_camera) -> None:
+    """Place the scene camera from an OpenCV world→camera matrix (4×4)."""
+    M = blender_camera_matrix(np.asarray(world_to_camera, dtype=np.float64))
+    scene.camera.matrix_world = mathutils.Matrix(M.tolist())
 
 
 def _lighting(built: Built, light: dict, scene) -> None:

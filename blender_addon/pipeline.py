@@ -17,6 +17,7 @@ from fogsim.frames import commit_frame, describe_frame, frame_name, frame_seed, 
 from fogsim.io import read_json, write_json
 from fogsim.versions import package_versions
 from fogsim.render_config import RenderConfig
+from fogsim.stereo import right_world_to_camera
 
 from . import build as scene_build
 from .render import configure, render
@@ -65,15 +66,20 @@ class RenderJob:
         info = configure(self.scene, self.config.quality, frame_seed(self.config.seed, index), self.gpu)
         built = scene_build.build(desc, self.scene, meshes)
         t2 = time.perf_counter()
+        right = None
         try:
             passes = render(self.scene)
+            if self.config.stereo_baseline:  # the right camera of a rectified pair, same scene
+                w2c = right_world_to_camera(desc["camera"]["world_to_camera"], self.config.stereo_baseline)
+                scene_build.set_camera_pose(self.scene, w2c)
+                right = render(self.scene).rgb_linear
         finally:
             scene_build.clear(built)
         t3 = time.perf_counter()
         info["blender"] = bpy.app.version_string
         timings = {"scene": t1 - t0, "bpy_build": t2 - t1, "render": t3 - t2}
         meta = commit_frame(self.layout, self.config, index, desc, meshes, passes.rgb_linear,
-                            passes.depth, passes.index, timings, info)
+                            passes.depth, passes.index, timings, info, right_linear=right)
         self.done.append(meta)
         return meta
 

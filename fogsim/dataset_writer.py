@@ -60,6 +60,12 @@ class DatasetLayout:
     def meta(self, frame: str) -> Path:
         return self.root / "meta" / f"{frame}.json"
 
+    def cityscapes(self, kind: str, frame: str, split: str) -> Path:
+        """The stereo pair in Cityscapes' tree (city "fogsim"), so its loader reads it:
+        ``kind`` = leftImg8bit | rightImg8bit | disparity (.png) | camera (.json)."""
+        ext = "json" if kind == "camera" else "png"
+        return self.root / "cityscapes" / kind / split / "fogsim" / f"{frame}_{kind}.{ext}"
+
     def frame_done(self, frame: str) -> bool:
         return self.meta(frame).is_file()
 
@@ -76,12 +82,22 @@ def write_frame_labels(layout: DatasetLayout, frame: str, levels, records: list[
         atomic_write_bytes(layout.label(lv.key, frame), text.encode())
 
 
+def split_key(frame: str, seed: int = 0) -> int:
+    """The frame's position in [0, 1000) for the split rule (see the module docstring)."""
+    return zlib.crc32(f"{seed}/{frame}".encode()) % 1000
+
+
+def frame_split(frame: str, train_fraction: float = 0.8, seed: int = 0) -> str:
+    """"train" or "val" for one frame by the split rule alone (no empty-split adjustment)."""
+    return "train" if split_key(frame, seed) < round(1000 * train_fraction) else "val"
+
+
 def split_frames(frames: list[str], train_fraction: float = 0.8, seed: int = 0) -> tuple[list, list]:
     """Deterministic (train, val) frame lists by hash of name (see the module docstring)."""
     if len(frames) == 1:
         return list(frames), list(frames)
     cut = round(1000 * train_fraction)
-    key = {f: zlib.crc32(f"{seed}/{f}".encode()) % 1000 for f in frames}
+    key = {f: split_key(f, seed) for f in frames}
     train = sorted(f for f in frames if key[f] < cut)
     val = sorted(f for f in frames if key[f] >= cut)
     if frames and not val:  # never leave a split empty: the frame nearest the cut changes sides

@@ -7,13 +7,14 @@ image at every level, then ``meta/<frame>.json`` last — its presence marks the
 from __future__ import annotations
 
 import time
+from dataclasses import asdict
 
 import numpy as np
 
 from . import __version__
-from .camera import Intrinsics, planar_to_ray
+from .camera import Intrinsics, StereoCamera, encode_disparity_png, planar_to_ray
 from .colour import linear_to_srgb
-from .dataset_writer import DatasetLayout, write_frame_labels
+from .dataset_writer import DatasetLayout, frame_split, write_frame_labels
 from .fog import Fogger, Kernel
 from .io import write_depth, write_image, write_json
 from .labels import object_records
@@ -22,6 +23,7 @@ from .scene.classes import is_labelled
 from .scene.geometry import world_parts
 from .scene.layout import sample_scene
 from .silhouette import silhouette_areas
+from .stereo import SGBMParams, hole_fraction, sgbm_disparity
 
 
 def frame_name(index: int) -> str:
@@ -59,10 +61,29 @@ def fog_settings(config: RenderConfig) -> dict:
     return {"airlight": airlight, "space": m.get("space", "srgb"), "kernel": kernel}
 
 
+def write_stereo(layout: DatasetLayout, config: RenderConfig, name: str, K: Intrinsics,
+                 left: np.ndarray, right: np.ndarray) -> dict:
+    """SGBM disparity of the clear pair, written with the pair and camera in Cityscapes' tree."""
+    cam = StereoCamera(config.stereo_baseline, K)
+    params = SGBMParams()
+    disparity = sgbm_disparity(left, right, cam, params)
+    split = frame_split(name)
+    write_image(layout.cityscapes("leftImg8bit", name, split), left)
+    write_image(layout.cityscapes("rightImg8bit", name, split), right)
+    write_image(layout.cityscapes("disparity", name, split), encode_disparity_png(disparity))
+    write_json(layout.cityscapes("camera", name, split), cam.to_cityscapes_json())
+    return {"baseline_m": cam.baseline, "split": split, "hole_fraction": round(hole_fraction(disparity), 6),
+            "matcher": {"method": "OpenCV StereoSGBM (3-way)", **asdict(params)}}
+
+
 def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: dict, meshes: dict,
                  rgb_linear: np.ndarray, depth: np.ndarray, mask: np.ndarray, timings: dict,
-                 render_info: dict) -> dict:
-    """Ground truth, fog and every file of one frame; returns the frame record (meta)."""
+                 render_info: dict, right_linear: np.ndarray | None = None) -> dict:
+    """Ground truth, fog and every file of one frame; returns the frame record (meta).
+
+    ``right_linear``: the right view of a stereo pair, if the preset asks for one; it is
+    matched with SGBM and written with the left view in Cityscapes' layout.
+    """
     t0 = time.perf_counter()
     name = frame_name(index)
     K = Intrinsics.from_dict(desc["camera"]["intrinsics"])
@@ -86,6 +107,8 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: 
     write_frame_labels(layout, name, config.levels, records, w, h)
     write_depth(layout.depth(name), depth)
     write_image(layout.mask(name), mask)
+    stereo = None if right_linear is None else write_stereo(layout, config, name, K, rgb,
+                                                             to_srgb8(right_linear, config.exposure))
     t3 = time.perf_counter()
     timings = dict(timings, ground_truth=t1 - t0, fog=t2 - t1, write=t3 - t2)
     meta = {"frame": name, "index": index, "seed": desc["seed"], "width": w, "height": h,
@@ -95,6 +118,7 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: 
                     "kernel": fs["kernel"].to_dict() if fs["kernel"] else None},
             "depth": {"file": str(layout.depth(name).relative_to(layout.root)), "kind": "planar Z, metres",
                       "no_hit": "inf"},
+            "stereo": stereo,
             "render": render_info, "timings_s": {k: round(v, 4) for k, v in timings.items()},
             "scene": desc, "fogsim_version": __version__}
     write_json(layout.meta(name), meta)

@@ -32,12 +32,14 @@ class RenderConfig:
     exposure: float = 1.0
     frames: int = 8
     seed: int = 0
+    stereo_baseline: float | None = None  # metres; None = no right camera
 
     def to_dict(self) -> dict:
         return {"name": self.name, "source": self.source, "style": self.style, "camera": self.camera,
                 "resolution": list(self.resolution), "quality": self.quality,
                 "levels": [lv.to_dict() for lv in self.levels], "fog_model": self.fog_model,
-                "labels": self.labels, "exposure": self.exposure, "frames": self.frames, "seed": self.seed}
+                "labels": self.labels, "exposure": self.exposure, "frames": self.frames, "seed": self.seed,
+                "stereo_baseline_m": self.stereo_baseline}
 
 
 def preset_path(name_or_path: str | None) -> Path:
@@ -60,6 +62,19 @@ def _component(kind: str, value, source: Path) -> dict:
     return read_json(path)
 
 
+def _stereo_baseline(spec, camera: dict, override: bool | None, source: Path) -> float | None:
+    """Baseline in metres from the preset's ``stereo`` ({"baseline_m": …} or true = the
+    camera's ``stereo_baseline_m``, else Cityscapes' 0.209 m); ``override`` forces it on/off."""
+    on = bool(spec) if override is None else override
+    if not on:
+        return None
+    b = spec.get("baseline_m") if isinstance(spec, dict) else None
+    b = float(b if b is not None else camera.get("stereo_baseline_m", 0.209))
+    if not b > 0:
+        raise InputError(source, f"stereo baseline must be > 0 m, got {b}")
+    return b
+
+
 def parse_resolution(text: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in text.lower().split("x"))
@@ -72,7 +87,8 @@ def parse_resolution(text: str) -> tuple[int, int]:
 
 def load_render_preset(name_or_path: str | None = None, *, frames: int | None = None,
                        seed: int | None = None, resolution: str | None = None,
-                       samples: int | None = None, levels: str | None = None) -> RenderConfig:
+                       samples: int | None = None, levels: str | None = None,
+                       stereo: bool | None = None) -> RenderConfig:
     """Read a dataset preset and apply overrides; every problem names the preset file."""
     path = preset_path(name_or_path)
     if not path.is_file():
@@ -97,6 +113,7 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
         if not res:
             res = (camera["width"], camera["height"])
         fog = levels if levels is not None else d.get("fog", "paper")
+        baseline = _stereo_baseline(d.get("stereo"), camera, stereo, path)
         lv = parse_levels(",".join(str(x) for x in fog) if isinstance(fog, list) else str(fog))
         cfg = RenderConfig(
             name=str(d.get("name", path.stem)), source=str(path),
@@ -105,7 +122,7 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
             fog_model=dict(d.get("fog_model", {})), labels=dict(d.get("labels", {})),
             exposure=float(d.get("exposure", 1.0)),
             frames=int(frames if frames is not None else d.get("frames", 8)),
-            seed=int(seed if seed is not None else d.get("seed", 0)))
+            seed=int(seed if seed is not None else d.get("seed", 0)), stereo_baseline=baseline)
     except (TypeError, KeyError) as exc:
         raise InputError(path, f"malformed preset ({exc!r})") from None
     if cfg.frames < 1:

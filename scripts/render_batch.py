@@ -57,6 +57,9 @@ def parse_args(argv):
     p.add_argument("--resolution", help="WxH, e.g. 640x426 (intrinsics scale with it)")
     p.add_argument("--samples", type=int, help="Cycles samples (overrides the quality preset)")
     p.add_argument("--levels", help="fog levels: preset name or comma-separated β (overrides the preset)")
+    p.add_argument("--stereo", action="store_true",
+                   help="also render the right camera (preset baseline, else the camera's, else 0.209 m) "
+                        "and write SGBM disparity in Cityscapes' layout under OUT/cityscapes/")
     p.add_argument("--shard", help="i/N: render frames i, i+N, … (0-based)")
     p.add_argument("--no-resume", action="store_true", help="re-render committed frames")
     p.add_argument("--gpu", action="store_true", help="render on the GPU when one is available")
@@ -74,7 +77,8 @@ def main() -> int:
 
     try:
         config = load_render_preset(args.preset, frames=args.frames, seed=args.seed,
-                                    resolution=args.resolution, samples=args.samples, levels=args.levels)
+                                    resolution=args.resolution, samples=args.samples, levels=args.levels,
+                                    stereo=True if args.stereo else None)
         shard = parse_shard(args.shard)
         from blender_addon.pipeline import RenderJob
 

@@ -217,3 +217,28 @@ def test_packaged_addon_installs_and_builds(kind, package, addon_zips, tmp_path)
     assert str(tmp_path) in r["fogsim"]  # the library came from the installed zip, not the checkout
     if package == "legacy":
         assert str(tmp_path) in r["cv2"]  # and so did OpenCV
+
+
+def test_stereo_pair_in_cityscapes_layout(tmp_path):
+    """--stereo: SGBM disparity agrees with the exact disparity where valid, has real holes,
+    and the Cityscapes tree goes through ``fogsim fog --cityscapes``."""
+    from fogsim.camera import decode_disparity_png, depth_to_disparity
+    from fogsim.cli import main
+
+    out = tmp_path / "st"
+    res = run(runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(out), "--preset", "cityscapes-stereo",
+                            "--frames", "1", "--resolution", "256x128", "--samples", "2", "--levels", "clear", "--quiet"))
+    assert res.returncode == 0, res.stderr[-3000:]
+    meta = json.loads((out / "meta" / "000000.json").read_text())
+    split = meta["stereo"]["split"]
+    cs = out / "cityscapes"
+    cam = json.loads((cs / "camera" / split / "fogsim" / "000000_camera.json").read_text())
+    assert cam["extrinsic"]["baseline"] == 0.209 and cam["intrinsic"]["fx"] == pytest.approx(2262.0 * 256 / 2048)
+    sgbm = decode_disparity_png(read_uint16_map(cs / "disparity" / split / "fogsim" / "000000_disparity.png"))
+    exact = depth_to_disparity(read_depth_file(out / "depth" / "000000.exr"), 0.209, cam["intrinsic"]["fx"])
+    valid = sgbm > 0
+    assert 0.05 < 1 - valid.mean() < 0.8 and meta["stereo"]["hole_fraction"] == pytest.approx(1 - valid.mean(), abs=1e-5)
+    assert np.median(np.abs(sgbm[valid] - exact[valid])) < 0.5
+    assert (cs / "rightImg8bit" / split / "fogsim" / "000000_rightImg8bit.png").is_file()
+    assert main(["fog", "--cityscapes", str(cs), "--split", split, "--levels", "0.06", "--out", str(tmp_path / "fog"),
+                 "--quiet"]) == 0
