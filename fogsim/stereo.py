@@ -37,21 +37,47 @@ def disparity_range(baseline_m: float, fx: float, min_depth_m: float) -> int:
     return max(16, int(math.ceil(baseline_m * fx / min_depth_m / 16.0)) * 16)
 
 
-def sgbm_disparity(left_rgb: np.ndarray, right_rgb: np.ndarray, camera: StereoCamera,
-                   params: SGBMParams = SGBMParams()) -> np.ndarray:
-    """Disparity in pixels (float32, H×W) of the left image; 0 where SGBM gives no match."""
+def _matcher(camera: StereoCamera, params: SGBMParams):
     n = params.num_disparities or disparity_range(camera.baseline, camera.intrinsics.fx, params.min_depth_m)
     bs = params.block_size
-    matcher = cv2.StereoSGBM_create(
+    return cv2.StereoSGBM_create(
         minDisparity=0, numDisparities=n, blockSize=bs, P1=8 * bs * bs, P2=32 * bs * bs,
         disp12MaxDiff=params.lr_max_diff, uniquenessRatio=params.uniqueness,
         speckleWindowSize=params.speckle_window, speckleRange=params.speckle_range,
         mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
-    gray = [cv2.cvtColor(np.ascontiguousarray(im), cv2.COLOR_RGB2GRAY) for im in (left_rgb, right_rgb)]
-    raw = matcher.compute(gray[0], gray[1])  # int16, 1/16 px, invalid < 0
+
+
+def _gray(rgb: np.ndarray) -> np.ndarray:
+    return cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2GRAY)
+
+
+def _pixels(raw: np.ndarray) -> np.ndarray:
+    """OpenCV's fixed-point disparity (1/16 px, invalid ≤ 0) → float pixels, 0 = hole."""
     d = raw.astype(np.float32) / 16.0
     d[d <= 0] = 0.0
     return d
+
+
+def sgbm_disparity(left_rgb: np.ndarray, right_rgb: np.ndarray, camera: StereoCamera,
+                   params: SGBMParams = SGBMParams()) -> np.ndarray:
+    """Disparity in pixels (float32, H×W) of the left image; 0 where SGBM gives no match."""
+    return _pixels(_matcher(camera, params).compute(_gray(left_rgb), _gray(right_rgb)))
+
+
+def wls_disparity(left_rgb: np.ndarray, right_rgb: np.ndarray, camera: StereoCamera,
+                  params: SGBMParams = SGBMParams(), lam: float = 8000.0, sigma_color: float = 1.5) -> np.ndarray:
+    """SGBM followed by opencv-contrib's edge-aware weighted-least-squares disparity filter,
+    guided by the left image, with its left–right confidence (a classical baseline). OpenCV
+    leaves the left band and L/R-inconsistent occlusions undefined: 0 there."""
+    left_m = _matcher(camera, params)
+    right_m = cv2.ximgproc.createRightMatcher(left_m)
+    gl, gr = _gray(left_rgb), _gray(right_rgb)
+    wls = cv2.ximgproc.createDisparityWLSFilter(left_m)
+    wls.setLambda(lam)
+    wls.setSigmaColor(sigma_color)
+    out = wls.filter(left_m.compute(gl, gr), np.ascontiguousarray(left_rgb[:, :, ::-1]),
+                     disparity_map_right=right_m.compute(gr, gl))
+    return _pixels(out)
 
 
 def hole_fraction(disparity: np.ndarray) -> float:

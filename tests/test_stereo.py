@@ -4,7 +4,8 @@ import pytest
 
 from fogsim.camera import Intrinsics, StereoCamera
 from fogsim.scene.pose import camera_to_world, world_to_camera
-from fogsim.stereo import SGBMParams, disparity_range, hole_fraction, right_world_to_camera, sgbm_disparity
+from fogsim.stereo import (SGBMParams, disparity_range, hole_fraction, right_world_to_camera, sgbm_disparity,
+                           wls_disparity)
 
 
 def test_sgbm_recovers_a_known_shift():
@@ -42,3 +43,23 @@ def test_right_camera_sees_points_shifted_by_baseline_fx_over_z():
     ul, ur = K.fx * pl[0] / pl[2] + K.cx, K.fx * pr[0] / pr[2] + K.cx
     assert pl[2] == pytest.approx(pr[2]) and pl[1] == pytest.approx(pr[1])
     assert ul - ur == pytest.approx(0.3 * K.fx / pl[2])
+
+
+def test_wls_keeps_the_disparities_and_smooths():
+    """A near square in front of a far textured wall: WLS agrees with the known disparities.
+    (OpenCV's WLS leaves L/R-inconsistent occlusions undefined, so it is no hole fill by itself.)"""
+    rng = np.random.default_rng(1)
+    h, w, far, near = 96, 192, 8, 24
+    wall = (rng.random((h, w + far)) * 255).astype(np.uint8)
+    box = (rng.random((40, 60 + near)) * 255).astype(np.uint8)
+    left, right = wall[:, :w].copy(), wall[:, far:far + w].copy()
+    left[28:68, 90:150] = box[:, :60]
+    right[28:68, 90 - near:150 - near] = box[:, :60]
+    to_rgb = lambda g: np.repeat(g[:, :, None], 3, axis=2)  # noqa: E731
+    cam = StereoCamera(0.2, Intrinsics(100.0, 100.0, 95.5, 47.5, w, h))
+    p = SGBMParams(num_disparities=32)
+    sgbm = sgbm_disparity(to_rgb(left), to_rgb(right), cam, p)
+    dense = wls_disparity(to_rgb(left), to_rgb(right), cam, p)
+    for d in (sgbm, dense):
+        assert abs(np.median(d[40:60, 100:140]) - near) < 0.5 and abs(np.median(d[5:20, 60:80]) - far) < 0.5
+    assert 0 < hole_fraction(dense) < 0.5 and not (dense[:, :32] > 0).any()
