@@ -27,13 +27,17 @@ import bpy  # noqa: E402
 from bpy.props import BoolProperty, EnumProperty, IntProperty, PointerProperty, StringProperty  # noqa: E402
 
 _state = {"built": None, "job": None, "timer": None, "cancel": False}
+_PRESET_ITEMS: list = []  # Blender needs Python to keep dynamic enum items alive
 
 
 def _preset_items(self, context):
     from fogsim.levels import presets_dir
 
     names = sorted(p.stem for p in presets_dir().glob("*.json"))
-    return [(n, n, f"presets/{n}.json") for n in names] or [("default", "default", "")]
+    items = [(n, n, f"presets/{n}.json") for n in names] or [("default", "default", "")]
+    if items != _PRESET_ITEMS:
+        _PRESET_ITEMS[:] = items
+    return _PRESET_ITEMS
 
 
 class FogsimSettings(bpy.types.PropertyGroup):
@@ -61,7 +65,7 @@ class FOGSIM_OT_build_scene(bpy.types.Operator):
 
     bl_idname = "fogsim.build_scene"
     bl_label = "Build scene"
-    bl_options = {"REGISTER", "UNDO"}
+    bl_options = {"REGISTER"}  # no UNDO: an undo would leave _state["built"] pointing at freed data
 
     def execute(self, context):
         from fogsim.errors import FogsimError
@@ -128,8 +132,12 @@ class FOGSIM_OT_render_dataset(bpy.types.Operator):
             return {"CANCELLED"}
         _state.update(job=job, cancel=False, total=max(1, len(job.todo)))
         if bpy.app.background or context.window is None:  # no event loop: run to the end
-            while job.todo:
-                job.step()
+            try:
+                while job.todo:
+                    job.step()
+            except Exception as exc:  # report, and leave the add-on ready for the next run
+                self.report({"ERROR"}, f"{type(exc).__name__}: {exc}")
+                _state["cancel"] = True
             return self._finish(context)
         context.window_manager.progress_begin(0, 100)
         _state["timer"] = context.window_manager.event_timer_add(0.1, window=context.window)
@@ -145,7 +153,12 @@ class FOGSIM_OT_render_dataset(bpy.types.Operator):
             return {"PASS_THROUGH"}
         if _state["cancel"] or not job.todo:
             return self._finish(context)
-        meta = job.step()
+        try:
+            meta = job.step()
+        except Exception as exc:  # one failure ends the run cleanly; committed frames stay
+            self.report({"ERROR"}, f"{type(exc).__name__}: {exc}")
+            _state["cancel"] = True
+            return self._finish(context)
         done = _state["total"] - len(job.todo)
         s.progress = int(100 * done / _state["total"])
         s.status = f"frame {meta['frame']} done ({done}/{_state['total']})"
@@ -157,8 +170,13 @@ class FOGSIM_OT_render_dataset(bpy.types.Operator):
         if _state["timer"] is not None:
             wm.event_timer_remove(_state["timer"])
             wm.progress_end()
-        job.finish()
-        job.close()
+        try:
+            if job.layout.done_frames():
+                job.finish()
+        except Exception as exc:
+            self.report({"ERROR"}, f"writing the dataset files failed: {exc}")
+        finally:
+            job.close()
         context.scene.fogsim.status = ("cancelled" if _state["cancel"] else "done") + f": {len(job.done)} frames"
         _state.update(job=None, timer=None)
         return {"CANCELLED"} if _state["cancel"] else {"FINISHED"}

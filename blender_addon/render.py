@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
+from fogsim.camera import NO_HIT_DEPTH
 from fogsim.exr import read_exr
 
 from .compat import PASS_CHANNELS, cycles_device, has_denoiser, set_denoiser_speed, set_multilayer_exr
@@ -80,6 +81,6 @@ def render(scene) -> RenderPasses:
     finally:
         os.unlink(path)
     depth = _pick(ch, PASS_CHANNELS["depth"]).astype(np.float32)
-    depth[depth >= 1e9] = np.inf  # Cycles writes 1e10 where a ray hits nothing
+    depth[depth >= NO_HIT_DEPTH] = np.inf
     index = np.rint(_pick(ch, PASS_CHANNELS["index"])).astype(np.uint16)
     return RenderPasses(_pick(ch, PASS_CHANNELS["rgb"]).astype(np.float32), depth, index)

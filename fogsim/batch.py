@@ -43,6 +43,7 @@ class FogJob:
     heterogeneity_scale: float = 64.0
     seed: int = 0
     image_format: str = "png"
+    inputs: dict = field(default_factory=dict, hash=False)  # what is read and how (see cli._inputs)
 
     def parameters(self) -> dict:
         """The run parameters recorded in ``fogsim_run.json`` and compared on resume."""
@@ -58,6 +59,7 @@ class FogJob:
             if self.heterogeneity else None,
             "seed": self.seed,
             "image_format": self.image_format,
+            "inputs": self.inputs,
         }
 
     def paths(self, sample: Sample, level: FogLevel) -> tuple[Path, Path]:

@@ -31,6 +31,11 @@ class Intrinsics:
     width: int
     height: int
 
+    def __post_init__(self):
+        if not (self.fx > 0 and self.fy > 0 and self.width > 0 and self.height > 0):
+            raise ValueError(f"intrinsics need fx, fy, width, height > 0, got fx={self.fx}, fy={self.fy}, "
+                             f"{self.width}×{self.height}")
+
     @property
     def K(self) -> np.ndarray:
         return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1]], dtype=np.float64)
@@ -63,8 +68,12 @@ class Intrinsics:
             return cls(float(d["fx"]), float(d["fy"]), float(d["cx"]), float(d["cy"]),
                        int(d["width"]), int(d["height"]))
         except (KeyError, TypeError, ValueError, IndexError) as exc:
-            raise InputError(source, f"malformed intrinsics ({exc!r}); need fx, fy, cx, cy, "
+            raise InputError(source, f"malformed intrinsics ({exc}); need fx, fy, cx, cy, "
                                      "width, height or K, width, height") from None
+
+
+#: depths at or beyond this are "no hit" (Cycles writes 1e10 where a ray hits nothing) → +inf
+NO_HIT_DEPTH = 1e9
 
 
 @lru_cache(maxsize=16)

@@ -96,15 +96,18 @@ def _samples(args):
     if args.intrinsics:
         K = Intrinsics.from_dict(read_json(args.intrinsics), args.intrinsics)
     if args.input:
+        from dataclasses import replace as _replace
+
         from .datasets.folder import folder_samples
 
-        if args.hfov and K is None:
-            from .io import read_image
-
-            first = next(p for p in sorted(Path(args.input).rglob("*")) if p.is_file())
-            h, w = read_image(first).shape[:2]
+        samples = folder_samples(args.input, args.depth, spec, args.depth_suffix, K)
+        if args.hfov is not None and K is None:
+            if not 0 < args.hfov < 180:
+                raise ValueError(f"--hfov must be in (0, 180) degrees, got {args.hfov}")
+            h, w = samples[0].read_image().shape[:2]
             K = Intrinsics.from_hfov(args.hfov, w, h)
-        return folder_samples(args.input, args.depth, spec, args.depth_suffix, K)
+            samples = [_replace(smp, intrinsics=K) for smp in samples]
+        return samples
     if args.cityscapes:
         from .datasets.cityscapes import cityscapes_samples
 
@@ -133,13 +136,30 @@ def _job(args, out: str):
     kernel = Kernel(args.kernel, args.kernel_size, args.sigma, args.eps) if args.extended else None
     if not 0 <= args.heterogeneity < 1:
         raise ValueError(f"--heterogeneity must be in [0, 1), got {args.heterogeneity}")
+    if not args.heterogeneity_scale > 0:
+        raise ValueError(f"--heterogeneity-scale must be > 0 pixels, got {args.heterogeneity_scale}")
     fill = args.fill or ("inpaint" if getattr(args, "cityscapes", None) else "none")
     from .fill import fill_methods
 
     if fill not in fill_methods():
         raise ValueError(f"--fill must be one of {', '.join(fill_methods())}, got {fill!r}")
     return FogJob(levels, out, airlight, args.space, kernel, fill, args.heterogeneity,
-                  args.heterogeneity_scale, args.seed, getattr(args, "image_format", "png"))
+                  args.heterogeneity_scale, args.seed, getattr(args, "image_format", "png"), _inputs(args))
+
+
+def _inputs(args) -> dict:
+    """What the run reads and how, recorded so a resumed run with other inputs is refused."""
+    keys = ("input", "depth", "cityscapes", "split", "waymo", "depth_dir", "cameras", "depth_suffix",
+            "depth_encoding", "depth_scale", "depth_kind", "intrinsics", "hfov")
+    out = {k: getattr(args, k) for k in keys if getattr(args, k, None) not in (None, "")}
+    for k in ("input", "depth", "cityscapes", "waymo", "depth_dir", "intrinsics"):
+        if k in out:
+            out[k] = str(Path(out[k]).resolve())
+    if getattr(args, "intrinsics", None):
+        from .io import read_json
+
+        out["intrinsics_values"] = read_json(args.intrinsics)
+    return out
 
 
 def environment() -> dict:
@@ -166,7 +186,7 @@ def cmd_fog(args) -> int:
 def cmd_demo(args) -> int:
     import numpy as np
 
-    from .batch import FogJob, run
+    from .batch import FogJob, check_run_file, run
     from .datasets.folder import folder_samples
     from .datasets.base import DepthSpec
     from .demo import demo_scene
@@ -175,14 +195,17 @@ def cmd_demo(args) -> int:
     from .preview import colorize_depth, strip
 
     out = Path(args.out)
+    if args.frames < 1:
+        raise ValueError(f"--frames must be ≥ 1, got {args.frames}")
+    levels = tuple(parse_levels(args.levels))
+    job = FogJob(levels, str(out / "fog"), seed=args.seed, inputs={"demo_seed": args.seed, "frames": args.frames})
+    check_run_file(job, environment())  # before writing inputs: never overwrite another run's
     rng = np.random.default_rng(args.seed)
     K = None
     for i in range(args.frames):
         rgb, depth, K = demo_scene(rng)
         write_image(out / "input" / "images" / f"street_{i:03d}.png", rgb)
         write_depth(out / "input" / "depth" / f"street_{i:03d}.exr", depth)
-    levels = tuple(parse_levels(args.levels))
-    job = FogJob(levels, str(out / "fog"), seed=args.seed)
     samples = folder_samples(out / "input" / "images", out / "input" / "depth", DepthSpec(""), "", K)
     summary = run(samples, job, progress=not args.quiet, environment=environment())
     print(summary.line(job))

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import Intrinsics, planar_to_ray
+from .camera import NO_HIT_DEPTH, Intrinsics, planar_to_ray
 from .datasets.base import Sample
 from .errors import InputError
 from .fill import HolesError, fill_holes, hole_mask
@@ -39,7 +39,7 @@ def sample_distance(sample: Sample, width: int, height: int, fill: str = "none",
         raise InputError(src, f"depth has {int(np.isnan(depth).sum())} NaN pixels")
     if (depth < 0).any():
         raise InputError(src, f"depth has {int((depth < 0).sum())} negative pixels")
-    depth = np.where(depth >= 1e9, np.float32(np.inf), depth)  # Cycles writes 1e10 for no hit
+    depth = np.where(depth >= NO_HIT_DEPTH, np.float32(np.inf), depth)
     holes = float(hole_mask(depth).mean())
     try:
         depth = fill_holes(depth, fill, image)
@@ -55,6 +55,9 @@ def sample_distance(sample: Sample, width: int, height: int, fill: str = "none",
         raise InputError(src, "planar depth needs the camera intrinsics to become ray distance: "
                               "give --intrinsics FILE.json or --hfov DEG, or --depth-kind ray")
     if (K.width, K.height) != (width, height):
+        if abs(K.height * width / K.width - height) > 1.0:
+            raise InputError(src, f"the intrinsics are for {K.width}×{K.height}, another aspect ratio "
+                                  f"than the {width}×{height} image {sample.source}")
         K = K.scaled(width, height)
     record["distance"] = "planar→ray"
     record["intrinsics"] = K.to_dict()

@@ -15,10 +15,10 @@ from . import __version__
 from .camera import Intrinsics, StereoCamera, encode_disparity_png, planar_to_ray
 from .colour import linear_to_srgb
 from .dataset_writer import DatasetLayout, frame_split, write_frame_labels
-from .fog import Fogger, Kernel
+from .fog import Fogger
 from .io import write_depth, write_image, write_json
 from .labels import object_records
-from .render_config import RenderConfig
+from .render_config import RenderConfig, fog_settings
 from .scene.classes import is_labelled
 from .scene.geometry import world_parts
 from .scene.layout import sample_scene
@@ -52,22 +52,13 @@ def to_srgb8(rgb_linear: np.ndarray, exposure: float = 1.0) -> np.ndarray:
     return (x * 255.0 + 0.5).astype(np.uint8)
 
 
-def fog_settings(config: RenderConfig) -> dict:
-    m = config.fog_model
-    kernel = None
-    if m.get("extended"):
-        kernel = Kernel(m.get("kernel", "box"), int(m.get("kernel_size", 19)), float(m.get("sigma", 5.0)))
-    airlight = m.get("airlight", 255)
-    return {"airlight": airlight, "space": m.get("space", "srgb"), "kernel": kernel}
-
-
 def write_stereo(layout: DatasetLayout, config: RenderConfig, name: str, K: Intrinsics,
                  left: np.ndarray, right: np.ndarray) -> dict:
     """SGBM disparity of the clear pair, written with the pair and camera in Cityscapes' tree."""
     cam = StereoCamera(config.stereo_baseline, K)
     params = SGBMParams()
     disparity = sgbm_disparity(left, right, cam, params)
-    split = frame_split(name)
+    split = frame_split(name, seed=config.seed)
     write_image(layout.cityscapes("leftImg8bit", name, split), left)
     write_image(layout.cityscapes("rightImg8bit", name, split), right)
     write_image(layout.cityscapes("disparity", name, split), encode_disparity_png(disparity))

@@ -75,6 +75,20 @@ def _stereo_baseline(spec, camera: dict, override: bool | None, source: Path) ->
     return b
 
 
+def _positive(value, name: str) -> float:
+    v = float(value)
+    if not v > 0:
+        raise ValueError(f"{name} must be > 0, got {value}")
+    return v
+
+
+def _resolution(value) -> tuple[int, int]:
+    w, h = (int(v) for v in value)
+    if w < 8 or h < 8:
+        raise ValueError(f"resolution must be at least 8×8 pixels, got {w}×{h}")
+    return w, h
+
+
 def parse_resolution(text: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in text.lower().split("x"))
@@ -102,29 +116,62 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
     for key in ("style", "camera", "quality"):
         if key not in d:
             raise InputError(path, f"preset lacks {key!r}")
+    # command-line overrides: their errors are usage errors, not the preset's
+    res_override = parse_resolution(resolution) if resolution else None
+    if samples is not None and samples < 1:
+        raise ValueError(f"--samples must be ≥ 1, got {samples}")
+    lv_override = parse_levels(levels) if levels is not None else None
     try:
         quality = dict(_component("quality", d["quality"], path))
         if samples is not None:
-            if samples < 1:
-                raise ValueError("--samples must be ≥ 1")
             quality["samples"] = samples
-        res = parse_resolution(resolution) if resolution else tuple(d.get("resolution") or ())
         camera = _component("cameras", d["camera"], path)
-        if not res:
-            res = (camera["width"], camera["height"])
-        fog = levels if levels is not None else d.get("fog", "paper")
+        res = res_override or _resolution(d.get("resolution") or (camera["width"], camera["height"]))
+        fog = d.get("fog", "paper")
         baseline = _stereo_baseline(d.get("stereo"), camera, stereo, path)
-        lv = parse_levels(",".join(str(x) for x in fog) if isinstance(fog, list) else str(fog))
+        lv = lv_override or parse_levels(",".join(str(x) for x in fog) if isinstance(fog, list) else str(fog))
         cfg = RenderConfig(
             name=str(d.get("name", path.stem)), source=str(path),
             style=_component("styles", d["style"], path), camera=camera,
             resolution=(int(res[0]), int(res[1])), quality=quality, levels=tuple(lv),
             fog_model=dict(d.get("fog_model", {})), labels=dict(d.get("labels", {})),
-            exposure=float(d.get("exposure", 1.0)),
+            exposure=_positive(d.get("exposure", 1.0), "exposure"),
             frames=int(frames if frames is not None else d.get("frames", 8)),
             seed=int(seed if seed is not None else d.get("seed", 0)), stereo_baseline=baseline)
-    except (TypeError, KeyError) as exc:
-        raise InputError(path, f"malformed preset ({exc!r})") from None
+        fog_settings(cfg)  # fail now, naming the preset, not after the first render
+        _check_labels(cfg.labels)
+        if any(lv.key == "all" for lv in cfg.levels):
+            raise ValueError("a fog level may not be keyed 'all' (the name of the mixed split)")
+    except (TypeError, KeyError, IndexError, ValueError) as exc:
+        raise InputError(path, f"malformed preset ({exc})") from None
     if cfg.frames < 1:
         raise ValueError(f"--frames must be ≥ 1, got {cfg.frames}")
     return cfg
+
+
+def fog_settings(config: RenderConfig) -> dict:
+    """The preset's ``fog_model`` as Fogger arguments: airlight (8-bit units), blend space, kernel."""
+    from .fog import SPACES, Kernel, airlight_rgb
+
+    m = config.fog_model
+    unknown = set(m) - {"extended", "kernel", "kernel_size", "sigma", "eps", "airlight", "space"}
+    if unknown:
+        raise ValueError(f"unknown fog_model keys {sorted(unknown)}")
+    kernel = None
+    if m.get("extended"):
+        kernel = Kernel(m.get("kernel", "box"), int(m.get("kernel_size", 19)), float(m.get("sigma", 5.0)),
+                        float(m.get("eps", 1e-3)))
+    airlight = m.get("airlight", 255)
+    airlight_rgb(airlight)  # validates: a number or R,G,B in [0, 255]
+    space = m.get("space", "srgb")
+    if space not in SPACES:
+        raise ValueError(f"fog_model.space must be one of {', '.join(SPACES)}, got {space!r}")
+    return {"airlight": airlight, "space": space, "kernel": kernel}
+
+
+def _check_labels(labels: dict) -> None:
+    unknown = set(labels) - {"min_pixels", "min_visible_fraction"}
+    if unknown:
+        raise ValueError(f"unknown labels keys {sorted(unknown)}")
+    if int(labels.get("min_pixels", 25)) < 1 or not 0 <= float(labels.get("min_visible_fraction", 0.1)) <= 1:
+        raise ValueError("labels: min_pixels must be ≥ 1 and min_visible_fraction in [0, 1]")

@@ -72,7 +72,7 @@ def main() -> int:
     _bootstrap()
     args = parse_args(_argv())
     from fogsim.batch import parse_shard
-    from fogsim.errors import FogsimError
+    from fogsim.errors import FogsimError, InputError
     from fogsim.render_config import load_render_preset
 
     try:
@@ -80,14 +80,16 @@ def main() -> int:
                                     resolution=args.resolution, samples=args.samples, levels=args.levels,
                                     stereo=True if args.stereo else None)
         shard = parse_shard(args.shard)
-        from blender_addon.pipeline import RenderJob
+        from blender_addon.pipeline import RUN_FILE, RenderJob
 
+        if args.finalize_only and not (Path(args.out) / RUN_FILE).is_file():
+            raise InputError(args.out, f"no {RUN_FILE} here: not a dataset to finalize")
         job = RenderJob(config, args.out, shard, resume=not args.no_resume, gpu=args.gpu)
     except (FogsimError, ValueError) as exc:
         print(f"fogsim: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:
-        print(f"fogsim: error: {args.out}: cannot write ({exc.strerror})", file=sys.stderr)
+        print(f"fogsim: error: {exc.filename or args.out}: {exc.strerror}", file=sys.stderr)
         return 2
     return run(job, args)
 
@@ -112,8 +114,12 @@ def run(job, args) -> int:
                 bar.write(f"error: frame {index}: {type(exc).__name__}: {exc}")
             bar.update(1)
         bar.close()
-    if job.layout.done_frames():
-        job.finish()
+    sharded = args.shard and not args.shard.endswith("/1")
+    if job.layout.done_frames() and (not sharded or args.finalize_only):
+        job.finish()  # shards leave this to one --finalize-only run over all frames
+    elif args.finalize_only:
+        print(f"fogsim: error: {args.out}: no committed frames to finalize", file=sys.stderr)
+        return 2
     job.close()
     print(f"rendered {len(job.done)} frames ({job.skipped} already done, {len(failed)} failed) "
           f"in {time.perf_counter() - t0:.1f} s → {args.out}")

@@ -153,7 +153,12 @@ def test_shards_cover_the_dataset(tmp_path):
     for i in (0, 1):
         assert render_dataset("bpy", out, "--shard", f"{i}/2").returncode == 0
     assert sorted(p.stem for p in (out / "meta").glob("*.json")) == ["000000", "000001"]
+    assert not (out / "coco").exists()  # shards leave the dataset files to one finalize run
+    res = render_dataset("bpy", out, "--finalize-only")
+    assert res.returncode == 0, res.stderr[-2000:]
     check_dataset(out)
+    res = run(runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(tmp_path / "empty"), "--finalize-only"))
+    assert res.returncode == 2 and "not a dataset to finalize" in res.stderr
 
 
 @pytest.mark.parametrize("args, message", [

@@ -183,3 +183,34 @@ def test_demo_writes_strip(tmp_path):
     far = read_image(tmp_path / "d" / "fog" / "beta0.12" / "street_000.png")[:20].mean()
     near = read_image(tmp_path / "d" / "fog" / "clear" / "street_000.png")[:20].mean()
     assert far > near  # the sky row turns white in fog
+
+
+def test_review_fixes_bad_inputs(folder_dataset, tmp_path, capsys):
+    ds = folder_dataset
+    base = ["fog", "--input", str(ds / "images"), "--depth", str(ds / "depth"), "--levels", "0.1", "--quiet"]
+    assert main(base + ["--hfov", "0", "--out", str(tmp_path / "h0")]) == 2
+    assert "--hfov" in capsys.readouterr().err
+    assert main(base + ["--hfov", "50", "--heterogeneity", "0.2", "--heterogeneity-scale", "0",
+                        "--out", str(tmp_path / "hs")]) == 2
+    assert "--heterogeneity-scale" in capsys.readouterr().err
+    # a resumed run with other inputs (another field of view) is refused, not skipped
+    assert main(base + ["--hfov", "50", "--out", str(tmp_path / "o")]) == 0
+    assert main(base + ["--hfov", "70", "--out", str(tmp_path / "o")]) == 2
+    assert "fogsim_run.json" in capsys.readouterr().err
+    # intrinsics with fx = 0 name their file
+    bad_k = tmp_path / "badK.json"
+    bad_k.write_text(json.dumps({"fx": 0, "fy": 30, "cx": 15.5, "cy": 11.5, "width": 32, "height": 24}))
+    assert main(base + ["--intrinsics", str(bad_k), "--out", str(tmp_path / "k")]) == 2
+    assert "badK.json" in capsys.readouterr().err
+    # two images whose names differ only by extension would overwrite each other's outputs
+    write_image(ds / "images" / "a.jpg", np.zeros((24, 32, 3), np.uint8))
+    assert main(base + ["--hfov", "50", "--out", str(tmp_path / "dup")]) == 2
+    assert "a.png: has the same name as" in capsys.readouterr().err
+
+
+def test_demo_refuses_another_run_before_touching_its_inputs(tmp_path, capsys):
+    out = tmp_path / "d"
+    assert main(["demo", "--out", str(out), "--frames", "1", "--quiet"]) == 0
+    before = (out / "input" / "images" / "street_000.png").read_bytes()
+    assert main(["demo", "--out", str(out), "--frames", "1", "--seed", "5", "--quiet"]) == 2
+    assert (out / "input" / "images" / "street_000.png").read_bytes() == before

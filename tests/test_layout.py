@@ -58,3 +58,27 @@ def test_camera_follows_preset(config):
     assert (K["width"], K["height"]) == tuple(config.resolution)
     assert s["camera"]["position"][2] == config.camera["height_m"]
     assert 0 < s["camera"]["position"][0] < s["street"]["lanes"] * s["street"]["lane_width"]
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"resolution": [640]}, "malformed preset"),
+    ({"resolution": [0, 0]}, "at least 8×8"),
+    ({"exposure": "abc"}, "malformed preset"),
+    ({"fog_model": {"extended": True, "kernel": "boxx"}}, "kernel must be"),
+    ({"fog_model": {"airlight": 300}}, "airlight"),
+    ({"labels": {"min_pixels": 0}}, "min_pixels"),
+    ({"fog": [0.03, -1]}, "β must be"),
+    ({"camera": "nope"}, "unknown camera"),
+])
+def test_bad_presets_fail_at_load_naming_the_file(tmp_path, change, message):
+    import json as _json
+
+    from fogsim.errors import InputError
+    from fogsim.levels import presets_dir
+
+    d = _json.loads((presets_dir() / "default.json").read_text()) | change
+    path = tmp_path / "bad.json"
+    path.write_text(_json.dumps(d))
+    with pytest.raises(InputError, match=message) as err:
+        load_render_preset(str(path))
+    assert "bad.json" in str(err.value)

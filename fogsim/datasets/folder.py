@@ -35,9 +35,13 @@ def folder_samples(images_dir: str | Path, depth_dir: str | Path | None,
     depth_dir = Path(depth_dir) if depth_dir is not None else None
     if depth_dir is not None and not depth_dir.is_dir():
         raise InputError(depth_dir, "depth folder not found")
-    samples = []
+    samples, seen = [], {}
     for path in sorted(p for p in images_dir.rglob("*") if p.suffix.lower() in IMAGE_SUFFIXES):
         rel = path.relative_to(images_dir).with_suffix("").as_posix()
+        if rel in seen:
+            raise InputError(path, f"has the same name as {seen[rel]} but another extension: their "
+                                   "outputs would overwrite each other")
+        seen[rel] = path
         spec = None
         if depth_dir is not None:
             found = find_depth(depth_dir, rel, depth_suffix)
