@@ -247,3 +247,20 @@ def test_stereo_pair_in_cityscapes_layout(tmp_path):
     assert (cs / "rightImg8bit" / split / "fogsim" / "000000_rightImg8bit.png").is_file()
     assert main(["fog", "--cityscapes", str(cs), "--split", split, "--levels", "0.06", "--out", str(tmp_path / "fog"),
                  "--quiet"]) == 0
+    # the depth benchmark on this frame: classical completions scored against exact depth
+    from fogsim.dataset_writer import DatasetLayout
+    from fogsim.depth_bench import CLASSICAL, complete, evaluate_frame, load_stereo_frame
+    from fogsim.levels import load_preset
+
+    frame = load_stereo_frame(DatasetLayout(out), "000000")
+    done = {m: complete(frame, m) for m in CLASSICAL}
+    assert np.array_equal(done["sgbm"] == 0, sgbm == 0)
+    for m in ("inpaint", "ipbasic", "wls"):
+        assert not (done[m] == 0).any()
+        assert np.array_equal(done[m][sgbm > 0], frame.sgbm[sgbm > 0]) or m == "wls"  # fills change only holes
+    res = evaluate_frame(frame, done, load_preset("paper"))
+    assert res["methods"]["sgbm"]["holes"]["pixels"] == 0 and "fog" not in res["methods"]["sgbm"]
+    inpaint = res["methods"]["inpaint"]
+    assert inpaint["holes"]["pixels"] > 0 and 0 < inpaint["holes"]["abs_rel"] < 1
+    assert set(inpaint["fog"]) == {"beta0.03", "beta0.06", "beta0.09", "beta0.12"}
+    assert all(v["psnr"] > 10 for v in inpaint["fog"].values())
