@@ -7,7 +7,9 @@ PY=${PYTHON:-python3.11}
 command -v "$PY" >/dev/null || PY=python3
 [ -x .venv/bin/python ] || "$PY" -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
-.venv/bin/python -m pip install -q -e ".[dev,blender,waymo]"
+# torch: pinned to the CPU build (an unpinned torch pulls a multi-GB CUDA build)
+.venv/bin/python -m pip install -q "torch==2.13.0"
+.venv/bin/python -m pip install -q -e ".[dev,blender,waymo,ila]"
 # Debian's Blender 3.4 for the `blender -b -P` tests
 if ! command -v blender >/dev/null 2>&1; then
   if [ "$(id -u)" = 0 ]; then

@@ -1,0 +1,56 @@
+"""ILA: masked loss, the fill step, and a tiny end-to-end run (torch, CPU)."""
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from fogsim.ila import (ILAConfig, build_unet, fill_targets, load_model, load_stereo_set, masked_loss,  # noqa: E402
+                        predict_depth, train_rounds)
+
+
+def test_masked_loss_ignores_holes():
+    pred = torch.tensor([[[[0.5, 9.0], [0.2, 7.0]]]])
+    target = torch.tensor([[[[0.4, 0.0], [0.2, 0.0]]]])
+    valid = (target > 0).float()
+    assert float(masked_loss(pred, target, valid)) == pytest.approx((0.1 ** 2 + 0) / 2)
+    # whatever the prediction in the holes, the masked loss is the same
+    pred2 = pred.clone()
+    pred2[0, 0, :, 1] = -3.0
+    assert float(masked_loss(pred2, target, valid)) == float(masked_loss(pred, target, valid))
+    # the reference's loss regresses holes to 0
+    assert float(masked_loss(pred, target, valid, "all")) == pytest.approx((0.01 + 81 + 0 + 49) / 4)
+
+
+def test_fill_step_changes_only_holes():
+    rng = np.random.default_rng(0)
+    target = rng.uniform(0.01, 0.1, (2, 1, 8, 8)).astype(np.float32)
+    target[:, :, 2:5, 3:6] = 0
+    pred = rng.uniform(0.01, 0.1, target.shape).astype(np.float32)
+    filled = fill_targets(target, pred)
+    holes = target == 0
+    assert np.array_equal(filled[~holes], target[~holes]) and np.array_equal(filled[holes], pred[holes])
+
+
+def test_widths():
+    n = lambda w: sum(p.numel() for p in build_unet(ILAConfig(width=w)).parameters())  # noqa: E731
+    assert 1e6 < n(16) < 2.5e6  # CPU default
+    assert 30e6 < n(64) < 32e6  # the reference's 31 M
+
+
+def test_tiny_ila_round_end_to_end(cityscapes_root, tmp_path):
+    cfg = ILAConfig(size=(32, 16), width=4, rounds=1, epochs=2, batch=2)
+    data = load_stereo_set(cityscapes_root, "val", cfg.size)
+    assert data.rgb.shape == (2, 3, 16, 32) and data.camera["baseline_m"] == pytest.approx(0.209)
+    assert data.camera["fx_over_w"] == pytest.approx(40.0 / 40)
+    assert (data.target == 0).any() and (data.target > 0).any()
+    log = train_rounds(data, cfg, tmp_path / "ck", progress=False)
+    assert log[0]["holes_before"] > 0 and log[0]["holes_after"] == 0
+    model, config, camera = load_model(log[0]["checkpoint"])
+    assert config == cfg
+    depth = predict_depth(model, config, camera, np.zeros((20, 40, 3), np.uint8))
+    assert depth.shape == (20, 40) and np.all(np.isfinite(depth)) and np.all(depth > 0)
+    # same seed → same weights
+    log2 = train_rounds(data, cfg, tmp_path / "ck2", progress=False)
+    a = torch.load(log[0]["checkpoint"], weights_only=False)["state_dict"]
+    b = torch.load(log2[0]["checkpoint"], weights_only=False)["state_dict"]
+    assert all(torch.equal(a[k], b[k]) for k in a)
