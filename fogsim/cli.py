@@ -68,6 +68,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="planar Z (converted to ray distance with the intrinsics) or ray distance")
     d.add_argument("--intrinsics", help="JSON with fx, fy, cx, cy, width, height (or K, width, height)")
     d.add_argument("--hfov", type=float, help="horizontal field of view in degrees (centred, square pixels)")
+    d.add_argument("--depth-from", help="ila:CHECKPOINT — predict depth for every image with an ILA model "
+                                        "(for datasets without depth, e.g. Waymo)")
     fog.add_argument("--split", default="val", help="Cityscapes split(s), comma-separated")
     fog.add_argument("--cameras", default="FRONT", help="Waymo cameras, comma-separated (FRONT, FRONT_LEFT, …)")
     _add_fog_options(fog)
@@ -81,6 +83,27 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--quiet", action="store_true")
 
     sub.add_parser("levels", help="list the fog presets with β and visibility")
+
+    ila = sub.add_parser("ila", help="train ILA depth completion, or predict depth with it")
+    isub = ila.add_subparsers(dest="ila_command", required=True)
+    tr = isub.add_parser("train", help="train ILA rounds on a Cityscapes-layout split")
+    tr.add_argument("--data", required=True, help="Cityscapes root (real, or OUT/cityscapes of a --stereo render)")
+    tr.add_argument("--split", default="train")
+    tr.add_argument("--out", required=True, help="folder for round_<r>.pt and ila_log.json")
+    tr.add_argument("--rounds", type=int, default=2)
+    tr.add_argument("--epochs", type=int, default=40)
+    tr.add_argument("--width", type=int, default=16, help="U-Net width: 16 ≈ 2 M parameters, 64 = the reference's 31 M")
+    tr.add_argument("--size", default="256x128", help="training resolution WxH, multiples of 16")
+    tr.add_argument("--sparse", action="store_true", help="also input the sparse disparity")
+    tr.add_argument("--loss", choices=("valid", "all"), default="valid",
+                    help="masked to valid targets, or over all pixels as the reference (holes → 0)")
+    tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--quiet", action="store_true")
+    pr = isub.add_parser("predict", help="predict planar depth (EXR, metres) for a folder of images")
+    pr.add_argument("--checkpoint", required=True)
+    pr.add_argument("--input", required=True)
+    pr.add_argument("--out", required=True)
+    pr.add_argument("--quiet", action="store_true")
     return parser
 
 
@@ -118,6 +141,23 @@ def _samples(args):
     return waymo_samples(args.waymo, cameras, args.depth_dir, replace(spec, path=""))
 
 
+def _with_depth_from(samples, depth_from: str | None):
+    """``--depth-from ila:CKPT``: every sample's depth is predicted by that model."""
+    if not depth_from:
+        return samples
+    from dataclasses import replace
+
+    from .datasets.base import DepthSpec
+
+    kind, _, path = depth_from.partition(":")
+    if kind != "ila" or not path:
+        raise ValueError(f"--depth-from takes ila:CHECKPOINT, got {depth_from!r}")
+    if not Path(path).is_file():
+        raise FogsimError(f"{path}: ILA checkpoint not found")
+    spec = DepthSpec(str(Path(path).resolve()), encoding="ila", kind="planar")
+    return [replace(s, depth=spec) for s in samples]
+
+
 def _job(args, out: str):
     from .batch import FogJob
     from .fog import Kernel
@@ -150,7 +190,7 @@ def _job(args, out: str):
 def _inputs(args) -> dict:
     """What the run reads and how, recorded so a resumed run with other inputs is refused."""
     keys = ("input", "depth", "cityscapes", "split", "waymo", "depth_dir", "cameras", "depth_suffix",
-            "depth_encoding", "depth_scale", "depth_kind", "intrinsics", "hfov")
+            "depth_encoding", "depth_scale", "depth_kind", "intrinsics", "hfov", "depth_from")
     out = {k: getattr(args, k) for k in keys if getattr(args, k, None) not in (None, "")}
     for k in ("input", "depth", "cityscapes", "waymo", "depth_dir", "intrinsics"):
         if k in out:
@@ -175,7 +215,7 @@ def cmd_fog(args) -> int:
         raise ValueError("--workers must be ≥ 1")
     job = _job(args, args.out)
     shard = parse_shard(args.shard)
-    samples = select_shard(_samples(args), shard)
+    samples = select_shard(_with_depth_from(_samples(args), args.depth_from), shard)
     summary = run(samples, job, args.workers, not args.no_resume, not args.quiet, environment())
     print(summary.line(job))
     for source, error in summary.failed:
@@ -234,11 +274,40 @@ def cmd_levels(args) -> int:
     return EXIT_OK
 
 
+def cmd_ila(args) -> int:
+    import json
+
+    from . import ila
+    from .io import atomic_write_bytes, read_image, write_depth
+
+    if args.ila_command == "train":
+        from .render_config import parse_resolution
+
+        config = ila.ILAConfig(width=args.width, size=parse_resolution(args.size), use_sparse=args.sparse,
+                               loss_on=args.loss, rounds=args.rounds, epochs=args.epochs, seed=args.seed)
+        data = ila.load_stereo_set(args.data, args.split, config.size)
+        log = ila.train_rounds(data, config, args.out, progress=not args.quiet)
+        atomic_write_bytes(Path(args.out) / "ila_log.json", json.dumps(
+            {"config": str(config), "frames": data.keys, "camera": data.camera, "rounds": log}, indent=2).encode())
+        print(f"trained {len(log)} ILA rounds on {len(data.keys)} frames → {log[-1]['checkpoint']}")
+        return EXIT_OK
+    from tqdm import tqdm
+
+    from .datasets.folder import folder_samples
+
+    model, config, camera = ila.cached_model(args.checkpoint)
+    samples = folder_samples(args.input, None)
+    for s in tqdm(samples, unit="img", disable=args.quiet, desc="ILA depth"):
+        write_depth(Path(args.out) / f"{s.key}.exr", ila.predict_depth(model, config, camera, read_image(s.source)))
+    print(f"predicted planar depth (metres, EXR) for {len(samples)} images → {args.out}")
+    return EXIT_OK
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return {"fog": cmd_fog, "demo": cmd_demo, "levels": cmd_levels}[args.command](args)
+        return {"fog": cmd_fog, "demo": cmd_demo, "levels": cmd_levels, "ila": cmd_ila}[args.command](args)
     except FogsimError as exc:
         print(f"fogsim: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -59,7 +59,7 @@ def complete(frame: StereoFrame, method: str) -> np.ndarray:
         d = wls_disparity(frame.left, frame.right, frame.camera)
         depth = disparity_to_depth(d, frame.camera.baseline, frame.camera.intrinsics.fx)
         return fill_holes(depth, "ipbasic")  # WLS leaves its left band and occlusions undefined
-    return fill_holes(frame.sgbm, method, frame.left)
+    return fill_holes(frame.sgbm, method, frame.left)  # classical or registered (ILA) fills
 
 
 def psnr(a: np.ndarray, b: np.ndarray) -> float:

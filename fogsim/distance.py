@@ -30,7 +30,7 @@ def sample_distance(sample: Sample, width: int, height: int, fill: str = "none",
     if spec is None:
         raise InputError(sample.source, "this dataset has no depth; give depth maps "
                                         "(--depth / --depth-dir) for it")
-    depth, file_K = spec.read(width, height)
+    depth, file_K = spec.read_for_image(image) if image is not None else spec.read(width, height)
     src = spec.path
     if depth.shape != (height, width):
         raise InputError(src, f"depth is {depth.shape[1]}×{depth.shape[0]} but the image "

@@ -20,13 +20,14 @@ torch is an optional extra: ``pip install -e ".[ila]"``.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from .camera import decode_disparity_png, load_cityscapes_camera
 from .datasets.cityscapes import cityscapes_samples
-from .errors import FogsimError
+from .errors import FogsimError, InputError
 from .io import read_image, read_uint16_map
 
 
@@ -198,6 +199,14 @@ def train_rounds(data: StereoSet, config: ILAConfig, out: str | Path, progress: 
     return log
 
 
+@lru_cache(maxsize=2)
+def cached_model(checkpoint: str):
+    """:func:`load_model`, once per process (for fogging many images)."""
+    if not Path(checkpoint).is_file():
+        raise InputError(checkpoint, "ILA checkpoint not found")
+    return load_model(checkpoint)
+
+
 def load_model(checkpoint: str | Path):
     """(model, config, camera) from a checkpoint written by :func:`train_rounds`."""
     torch = _torch()
@@ -227,3 +236,22 @@ def predict_depth(model, config: ILAConfig, camera: dict, rgb: np.ndarray,
         d_over_w = model(x).numpy()[0, 0]
     d_over_w = cv2.resize(d_over_w, (w, h), interpolation=cv2.INTER_LINEAR)
     return (camera["baseline_m"] * camera["fx_over_w"] / np.maximum(d_over_w, 1e-6)).astype(np.float32)
+
+
+def ila_fill(checkpoint: str | Path):
+    """A :func:`fogsim.fill.register_fill` function that fills holes with the model's depth.
+
+    The sparse disparity the model may take is rebuilt from the valid inverse depth with the
+    checkpoint's camera (d = baseline · fx · (1/Z), fx = fx/W · W).
+    """
+    model, config, camera = load_model(checkpoint)
+
+    def fill(inv: np.ndarray, holes: np.ndarray, image: np.ndarray | None) -> np.ndarray:
+        if image is None:
+            raise ValueError("the ILA fill needs the RGB image")
+        w = inv.shape[1]
+        sparse = np.where(holes, 0.0, inv * camera["baseline_m"] * camera["fx_over_w"] * w).astype(np.float32)
+        depth = predict_depth(model, config, camera, image, sparse)
+        return np.where(holes, 1.0 / depth, inv).astype(np.float32)
+
+    return fill

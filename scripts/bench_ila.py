@@ -67,6 +67,16 @@ def panel(frame, completions: dict):
     return np.vstack([top, np.full((6, top.shape[1], 3), 255, np.uint8), bottom])
 
 
+def train_ila(cityscapes: Path, out: Path, args) -> list[dict]:
+    """Train ILA on the train split (never on the evaluated val frames); returns the round log."""
+    from fogsim.ila import ILAConfig, load_stereo_set, train_rounds
+
+    config = ILAConfig(width=args.width, use_sparse=args.sparse, rounds=args.rounds, epochs=args.epochs)
+    data = load_stereo_set(cityscapes, "train", config.size)
+    print(f"ILA: {len(data.rgb)} training frames, {config}")
+    return train_rounds(data, config, out)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=str(ROOT / "bench" / "ila"))
@@ -74,10 +84,16 @@ def main() -> int:
     ap.add_argument("--resolution", default="512x256")
     ap.add_argument("--samples", type=int, default=6)
     ap.add_argument("--panels", type=int, default=2, help="sample frames to draw")
+    ap.add_argument("--rounds", type=int, default=2, help="ILA rounds (0: classical baselines only)")
+    ap.add_argument("--epochs", type=int, default=40, help="ILA epochs per round")
+    ap.add_argument("--width", type=int, default=16, help="U-Net width (16 ≈ 2 M parameters; 64 = reference)")
+    ap.add_argument("--sparse", action="store_true", help="feed ILA the sparse disparity too")
     args = ap.parse_args()
 
     from fogsim.dataset_writer import DatasetLayout
     from fogsim.depth_bench import CLASSICAL, complete, evaluate_frame, load_stereo_frame, summarise
+    from fogsim.fill import register_fill
+    from fogsim.ila import ila_fill
     from fogsim.io import read_json, write_image, write_json, atomic_write_bytes
     from fogsim.levels import load_preset
 
@@ -88,16 +104,22 @@ def main() -> int:
     held_out = [f for f in layout.done_frames() if read_json(layout.meta(f))["stereo"]["split"] == "val"]
     frames = held_out or layout.done_frames()
     levels = load_preset("paper")
+    methods, ila_log = list(CLASSICAL), []
+    if args.rounds:
+        ila_log = train_ila(data / "cityscapes", out / "ila", args)
+        for entry in ila_log:
+            register_fill(f"ila_round{entry['round']}", ila_fill(entry["checkpoint"]))
+            methods.append(f"ila_round{entry['round']}")
     results = []
     for i, name in enumerate(frames):
         frame = load_stereo_frame(layout, name)
-        completions = {m: complete(frame, m) for m in CLASSICAL}
+        completions = {m: complete(frame, m) for m in methods}
         results.append(evaluate_frame(frame, completions, levels))
         if i < args.panels:
             write_image(out / f"panel_{name}.png", panel(frame, completions))
     summary = summarise(results)
     write_json(out / "report.json", {"frames": frames, "held_out": bool(held_out), "summary": summary,
-                                     "per_frame": results})
+                                     "ila": ila_log, "per_frame": results})
     md = [f"# Depth completion vs exact depth ({len(frames)} {'held-out ' if held_out else ''}frames, "
           f"{args.resolution}, ≤ 80 m)", "",
           f"Mean SGBM hole fraction: {sum(r['hole_fraction'] for r in results) / len(results):.3f}", ""]

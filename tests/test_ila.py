@@ -54,3 +54,27 @@ def test_tiny_ila_round_end_to_end(cityscapes_root, tmp_path):
     a = torch.load(log[0]["checkpoint"], weights_only=False)["state_dict"]
     b = torch.load(log2[0]["checkpoint"], weights_only=False)["state_dict"]
     assert all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_cli_train_predict_and_fog_with_predicted_depth(cityscapes_root, folder_dataset, tmp_path, capsys):
+    import json
+
+    from fogsim.cli import main
+    from fogsim.io import read_depth_file
+
+    ck = tmp_path / "ila"
+    assert main(["ila", "train", "--data", str(cityscapes_root), "--split", "val", "--out", str(ck), "--rounds", "1",
+                 "--epochs", "1", "--width", "4", "--size", "32x16", "--sparse", "--quiet"]) == 0
+    assert json.loads((ck / "ila_log.json").read_text())["rounds"][0]["holes_after"] == 0
+    assert main(["ila", "predict", "--checkpoint", str(ck / "round_0.pt"), "--input", str(folder_dataset / "images"),
+                 "--out", str(tmp_path / "pred"), "--quiet"]) == 0
+    d = read_depth_file(tmp_path / "pred" / "sub" / "b.exr")
+    assert d.shape == (24, 32) and np.all(d > 0)
+    out = tmp_path / "fog"
+    assert main(["fog", "--input", str(folder_dataset / "images"), "--depth-from", f"ila:{ck / 'round_0.pt'}",
+                 "--hfov", "60", "--levels", "0.06", "--out", str(out), "--quiet"]) == 0
+    meta = json.loads((out / "beta0.06" / "a.json").read_text())
+    assert meta["encoding"] == "ila" and meta["distance"] == "planar→ray"
+    assert main(["fog", "--input", str(folder_dataset / "images"), "--depth-from", "ila:/nope.pt", "--hfov", "60",
+                 "--out", str(tmp_path / "f2"), "--quiet"]) == 2
+    assert "nope.pt: ILA checkpoint not found" in capsys.readouterr().err

@@ -17,7 +17,7 @@ from ..errors import InputError
 from ..io import read_depth_file, read_uint16_map
 
 #: How a depth file is turned into metres (see :class:`DepthSpec`).
-DEPTH_ENCODINGS = ("metric", "disparity", "paper-8bit")
+DEPTH_ENCODINGS = ("metric", "disparity", "paper-8bit", "ila")
 
 
 @dataclass(frozen=True)
@@ -30,6 +30,8 @@ class DepthSpec:
         the stereo camera JSON at ``camera_path`` into planar depth Z = baseline·fx/d.
       * ``paper-8bit`` — the paper's 8-bit ILA predictions decoded with its constant
         (:func:`fogsim.camera.paper_distance_from_8bit`); already a distance, no ray step.
+      * ``ila`` — predicted from the image by the ILA checkpoint at ``path`` (planar depth,
+        see :func:`fogsim.ila.predict_depth`); read with :meth:`read_for_image`.
     ``kind``: ``planar`` (Z along the optical axis; needs intrinsics) or ``ray`` (distance).
     """
 
@@ -43,6 +45,15 @@ class DepthSpec:
     def is_ray_distance(self) -> bool:
         """True when the decoded values are already ray distances (no planar→ray step)."""
         return self.kind == "ray" or self.encoding == "paper-8bit"
+
+    def read_for_image(self, image: np.ndarray) -> tuple[np.ndarray, Intrinsics | None]:
+        """Like :meth:`read`, for encodings that need the image (``ila``)."""
+        if self.encoding == "ila":
+            from ..ila import cached_model, predict_depth
+
+            model, config, camera = cached_model(self.path)
+            return predict_depth(model, config, camera, image), None
+        return self.read(image.shape[1], image.shape[0])
 
     def read(self, width: int, height: int) -> tuple[np.ndarray, Intrinsics | None]:
         """Depth in metres (0 = hole, inf = no hit) and the intrinsics the file implies."""
