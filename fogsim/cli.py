@@ -97,6 +97,8 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--sparse", action="store_true", help="also input the sparse disparity")
     tr.add_argument("--loss", choices=("valid", "all"), default="valid",
                     help="masked to valid targets, or over all pixels as the reference (holes → 0)")
+    tr.add_argument("--loss-kind", choices=("mse", "log_l1"), default="mse",
+                    help="mse of disparity (the reference) or log-L1 (relative error)")
     tr.add_argument("--seed", type=int, default=0)
     tr.add_argument("--quiet", action="store_true")
     pr = isub.add_parser("predict", help="predict planar depth (EXR, metres) for a folder of images")
@@ -284,7 +286,8 @@ def cmd_ila(args) -> int:
         from .render_config import parse_resolution
 
         config = ila.ILAConfig(width=args.width, size=parse_resolution(args.size), use_sparse=args.sparse,
-                               loss_on=args.loss, rounds=args.rounds, epochs=args.epochs, seed=args.seed)
+                               loss_on=args.loss, loss=args.loss_kind, rounds=args.rounds, epochs=args.epochs,
+                               seed=args.seed)
         data = ila.load_stereo_set(args.data, args.split, config.size)
         log = ila.train_rounds(data, config, args.out, progress=not args.quiet)
         atomic_write_bytes(Path(args.out) / "ila_log.json", json.dumps(

@@ -44,7 +44,9 @@ class ILAConfig:
     width: int = 16             # channels of the first U-Net level (reference: 64)
     size: tuple[int, int] = (256, 128)  # training resolution W×H (reference: 480×320)
     use_sparse: bool = False    # also feed the sparse disparity and its validity mask
+    sparse_drop: float = 0.3    # share of the sparse input hidden (in blobs) per training batch
     loss_on: str = "valid"      # "valid" (masked) or "all" (the reference: holes → 0)
+    loss: str = "mse"           # "mse" of d/W (the reference) or "log_l1": |log d − log d*| (relative)
     rounds: int = 2
     epochs: int = 4
     batch: int = 4
@@ -56,6 +58,8 @@ class ILAConfig:
             raise ValueError(f"ILA size must be multiples of 16 (four 2× poolings), got {self.size}")
         if self.loss_on not in ("valid", "all"):
             raise ValueError(f"loss_on must be 'valid' or 'all', got {self.loss_on!r}")
+        if self.loss not in ("mse", "log_l1"):
+            raise ValueError(f"loss must be 'mse' or 'log_l1', got {self.loss!r}")
 
 
 @dataclass
@@ -126,19 +130,34 @@ def build_unet(config: ILAConfig):
     return UNet(5 if config.use_sparse else 3, config.width)
 
 
-def masked_loss(pred, target, valid, loss_on: str = "valid"):
-    """Mean squared error of d/W over valid target pixels (``"all"``: over every pixel)."""
+def masked_loss(pred, target, valid, loss_on: str = "valid", kind: str = "mse"):
+    """Error of d/W averaged over valid target pixels (``loss_on="all"``: over every pixel).
+
+    ``mse``: squared error of d/W, as the reference. ``log_l1``: |log d − log d*|, a relative
+    error like AbsRel (valid pixels only: a hole has no log).
+    """
     torch = _torch()
-    if loss_on == "all":
-        return torch.mean((pred - target) ** 2)
+    if kind == "log_l1":
+        err = torch.abs(torch.log(pred.clamp(min=1e-6)) - torch.log(target.clamp(min=1e-6)))
+    else:
+        err = (pred - target) ** 2
+    if loss_on == "all" and kind == "mse":
+        return torch.mean(err)
     n = valid.sum()
-    return torch.sum(((pred - target) ** 2) * valid) / torch.clamp(n, min=1)
+    return torch.sum(err * valid) / torch.clamp(n, min=1)
 
 
-def _inputs(torch, data: StereoSet, target: np.ndarray, idx, config: ILAConfig):
+def _inputs(torch, data: StereoSet, idx, config: ILAConfig, drop: float = 0.0):
+    """RGB, plus (``use_sparse``) the *stereo* disparity — never the filled targets, which have
+    no holes and would teach the net to copy its input. ``drop`` hides that share of it in
+    8×8-pixel blobs during training, so the net learns to fill holes from context."""
     x = torch.from_numpy(data.rgb[idx])
     if config.use_sparse:
-        t = torch.from_numpy(target[idx])
+        t = torch.from_numpy(data.target[idx])
+        if drop > 0:
+            b, _, h, w = t.shape
+            keep = (torch.rand(b, 1, h // 8, w // 8) >= drop).float()
+            t = t * torch.nn.functional.interpolate(keep, size=(h, w), mode="nearest")
         x = torch.cat([x, t * 100.0, (t > 0).float()], 1)
     return x
 
@@ -148,14 +167,14 @@ def fill_targets(target: np.ndarray, prediction: np.ndarray) -> np.ndarray:
     return np.where(target > 0, target, prediction).astype(np.float32)
 
 
-def predict(model, data: StereoSet, target: np.ndarray, config: ILAConfig, batch: int = 8) -> np.ndarray:
+def predict(model, data: StereoSet, config: ILAConfig, batch: int = 8) -> np.ndarray:
     torch = _torch()
     model.eval()
     out = []
     with torch.no_grad():
         for i in range(0, len(data.rgb), batch):
             idx = np.arange(i, min(i + batch, len(data.rgb)))
-            out.append(model(_inputs(torch, data, target, idx, config)).numpy())
+            out.append(model(_inputs(torch, data, idx, config)).numpy())
     return np.concatenate(out)
 
 
@@ -180,14 +199,14 @@ def train_rounds(data: StereoSet, config: ILAConfig, out: str | Path, progress: 
             for i in range(0, n, config.batch):
                 idx = order[i:i + config.batch]
                 t = torch.from_numpy(target[idx])
-                loss = masked_loss(model(_inputs(torch, data, target, idx, config)), t, (t > 0).float(),
-                                   config.loss_on)
+                loss = masked_loss(model(_inputs(torch, data, idx, config, config.sparse_drop)), t, (t > 0).float(),
+                                   config.loss_on, config.loss)
                 opt.zero_grad()
                 loss.backward()
                 opt.step()
                 losses.append(float(loss.detach()))
             bar.set_postfix(loss=f"{np.mean(losses):.3g}")
-        pred = predict(model, data, target, config)
+        pred = predict(model, data, config)
         filled = fill_targets(target, pred)
         entry = {"round": r, "loss": float(np.mean(losses)), "holes_before": float(np.mean(target == 0)),
                  "holes_after": float(np.mean(filled == 0)), "checkpoint": str(out / f"round_{r}.pt")}

@@ -71,7 +71,8 @@ def train_ila(cityscapes: Path, out: Path, args) -> list[dict]:
     """Train ILA on the train split (never on the evaluated val frames); returns the round log."""
     from fogsim.ila import ILAConfig, load_stereo_set, train_rounds
 
-    config = ILAConfig(width=args.width, use_sparse=args.sparse, rounds=args.rounds, epochs=args.epochs)
+    config = ILAConfig(width=args.width, use_sparse=args.sparse, rounds=args.rounds, epochs=args.epochs,
+                       loss=args.loss)
     data = load_stereo_set(cityscapes, "train", config.size)
     print(f"ILA: {len(data.rgb)} training frames, {config}")
     return train_rounds(data, config, out)
@@ -88,6 +89,7 @@ def main() -> int:
     ap.add_argument("--epochs", type=int, default=40, help="ILA epochs per round")
     ap.add_argument("--width", type=int, default=16, help="U-Net width (16 ≈ 2 M parameters; 64 = reference)")
     ap.add_argument("--sparse", action="store_true", help="feed ILA the sparse disparity too")
+    ap.add_argument("--loss", choices=("mse", "log_l1"), default="mse", help="ILA loss (mse = the reference's)")
     args = ap.parse_args()
 
     from fogsim.dataset_writer import DatasetLayout

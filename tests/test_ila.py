@@ -78,3 +78,11 @@ def test_cli_train_predict_and_fog_with_predicted_depth(cityscapes_root, folder_
     assert main(["fog", "--input", str(folder_dataset / "images"), "--depth-from", "ila:/nope.pt", "--hfov", "60",
                  "--out", str(tmp_path / "f2"), "--quiet"]) == 2
     assert "nope.pt: ILA checkpoint not found" in capsys.readouterr().err
+
+
+def test_log_l1_loss_is_relative_and_masked():
+    target = torch.tensor([[[[0.02, 0.0], [0.04, 0.01]]]])
+    pred = torch.tensor([[[[0.04, 5.0], [0.02, 0.01]]]])
+    valid = (target > 0).float()
+    import math
+    assert float(masked_loss(pred, target, valid, kind="log_l1")) == pytest.approx(2 * math.log(2) / 3, rel=1e-5)
