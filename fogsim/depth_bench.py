@@ -14,9 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import Intrinsics, StereoCamera, decode_disparity_png, disparity_to_depth, planar_to_ray
+from .camera import (Intrinsics, StereoCamera, decode_disparity_png, depth_to_disparity, disparity_to_depth,
+                     planar_to_ray)
 from .dataset_writer import DatasetLayout
-from .depth_metrics import depth_metrics
+from .depth_metrics import depth_metrics, laplacian_variance, reference_accuracy
 from .fill import fill_holes
 from .fog import Fogger
 from .io import read_depth_file, read_image, read_json, read_uint16_map
@@ -76,8 +77,14 @@ def evaluate_frame(frame: StereoFrame, completions: dict[str, np.ndarray], level
     fog_exact = Fogger(frame.left, planar_to_ray(frame.exact, K))
     reference = {lv.key: fog_exact(lv.beta) for lv in levels if lv.beta > 0}
     out = {"frame": frame.name, "hole_fraction": float(holes.mean()), "methods": {}}
+    b, fx = frame.camera.baseline, K.fx
+    exact_disp, sgbm_disp = depth_to_disparity(frame.exact, b, fx), depth_to_disparity(frame.sgbm, b, fx)
     for method, depth in completions.items():
         rec = {r: depth_metrics(depth, frame.exact, m, cap_m) for r, m in regions.items()}
+        disp = depth_to_disparity(depth, b, fx)
+        rec["reference"] = {"accuracy_vs_sgbm": reference_accuracy(disp, sgbm_disp),
+                            "accuracy_vs_exact": reference_accuracy(disp, exact_disp),
+                            "laplacian_variance": laplacian_variance(disp)}
         if not (depth == 0).any():  # only dense depth can be fogged
             fogger = Fogger(frame.left, planar_to_ray(depth, K))
             rec["fog"] = {key: {"psnr": psnr(fogger(lv.beta), reference[key]),

@@ -34,3 +34,17 @@ def depth_metrics(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray | None = No
             "delta2": float(np.mean(ratio < 1.25 ** 2)),
             "delta3": float(np.mean(ratio < 1.25 ** 3)),
             "pixels": n}
+
+
+def reference_accuracy(pred_disparity: np.ndarray, target_disparity: np.ndarray) -> float:
+    """The ILA reference's "accuracy": 100 − 100·Σ|pred − target| / Σ target over *all* pixels,
+    holes (target 0) included — self-referential when the target is the stereo input."""
+    total = float(np.sum(target_disparity))
+    return float("nan") if total == 0 else 100.0 - 100.0 * float(np.sum(np.abs(pred_disparity - target_disparity))) / total
+
+
+def laplacian_variance(disparity: np.ndarray) -> float:
+    """Variance of the Laplacian of a disparity map (the reference's smoothness score; lower = smoother)."""
+    import cv2
+
+    return float(cv2.Laplacian(np.asarray(disparity, np.float64), cv2.CV_64F).var())

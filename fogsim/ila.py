@@ -147,6 +147,12 @@ def masked_loss(pred, target, valid, loss_on: str = "valid", kind: str = "mse"):
     return torch.sum(err * valid) / torch.clamp(n, min=1)
 
 
+def device():
+    """CUDA when present, else CPU."""
+    torch = _torch()
+    return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+
+
 def _inputs(torch, data: StereoSet, idx, config: ILAConfig, drop: float = 0.0):
     """RGB, plus (``use_sparse``) the *stereo* disparity — never the filled targets, which have
     no holes and would teach the net to copy its input. ``drop`` hides that share of it in
@@ -159,7 +165,7 @@ def _inputs(torch, data: StereoSet, idx, config: ILAConfig, drop: float = 0.0):
             keep = (torch.rand(b, 1, h // 8, w // 8) >= drop).float()
             t = t * torch.nn.functional.interpolate(keep, size=(h, w), mode="nearest")
         x = torch.cat([x, t * 100.0, (t > 0).float()], 1)
-    return x
+    return x.to(device())
 
 
 def fill_targets(target: np.ndarray, prediction: np.ndarray) -> np.ndarray:
@@ -174,7 +180,7 @@ def predict(model, data: StereoSet, config: ILAConfig, batch: int = 8) -> np.nda
     with torch.no_grad():
         for i in range(0, len(data.rgb), batch):
             idx = np.arange(i, min(i + batch, len(data.rgb)))
-            out.append(model(_inputs(torch, data, idx, config)).numpy())
+            out.append(model(_inputs(torch, data, idx, config)).cpu().numpy())
     return np.concatenate(out)
 
 
@@ -189,7 +195,7 @@ def train_rounds(data: StereoSet, config: ILAConfig, out: str | Path, progress: 
     out.mkdir(parents=True, exist_ok=True)
     target, log = data.target.copy(), []
     for r in range(config.rounds):
-        model = build_unet(config)
+        model = build_unet(config).to(device())
         opt = torch.optim.Adam(model.parameters(), lr=config.lr)
         n = len(data.rgb)
         bar = tqdm(range(config.epochs), desc=f"ILA round {r}", disable=not progress, unit="epoch")
@@ -198,7 +204,7 @@ def train_rounds(data: StereoSet, config: ILAConfig, out: str | Path, progress: 
             losses, order = [], rng.permutation(n)
             for i in range(0, n, config.batch):
                 idx = order[i:i + config.batch]
-                t = torch.from_numpy(target[idx])
+                t = torch.from_numpy(target[idx]).to(device())
                 loss = masked_loss(model(_inputs(torch, data, idx, config, config.sparse_drop)), t, (t > 0).float(),
                                    config.loss_on, config.loss)
                 opt.zero_grad()
@@ -210,7 +216,8 @@ def train_rounds(data: StereoSet, config: ILAConfig, out: str | Path, progress: 
         filled = fill_targets(target, pred)
         entry = {"round": r, "loss": float(np.mean(losses)), "holes_before": float(np.mean(target == 0)),
                  "holes_after": float(np.mean(filled == 0)), "checkpoint": str(out / f"round_{r}.pt")}
-        torch.save({"state_dict": model.state_dict(), "config": asdict(config), "camera": data.camera,
+        torch.save({"state_dict": {k: v.cpu() for k, v in model.state_dict().items()},
+                    "config": asdict(config), "camera": data.camera,
                     "round": r, "output": "disparity / image width"},
                    out / f"round_{r}.pt")
         target = filled
@@ -234,7 +241,7 @@ def load_model(checkpoint: str | Path):
     config = ILAConfig(**{**c, "size": tuple(c["size"])})
     model = build_unet(config)
     model.load_state_dict(ck["state_dict"])
-    model.eval()
+    model.to(device()).eval()
     return model, config, ck["camera"]
 
 
@@ -252,7 +259,7 @@ def predict_depth(model, config: ILAConfig, camera: dict, rgb: np.ndarray,
         t = torch.from_numpy(cv2.resize(sp, config.size, interpolation=cv2.INTER_NEAREST)[None, None])
         x = torch.cat([x, t * 100.0, (t > 0).float()], 1)
     with torch.no_grad():
-        d_over_w = model(x).numpy()[0, 0]
+        d_over_w = model(x.to(device())).cpu().numpy()[0, 0]
     d_over_w = cv2.resize(d_over_w, (w, h), interpolation=cv2.INTER_LINEAR)
     return (camera["baseline_m"] * camera["fx_over_w"] / np.maximum(d_over_w, 1e-6)).astype(np.float32)
 

@@ -127,6 +127,11 @@ def main() -> int:
           f"Mean SGBM hole fraction: {sum(r['hole_fraction'] for r in results) / len(results):.3f}", ""]
     for region in ("holes", "valid", "all"):
         md += [f"## {region} pixels", "", table(summary, region), ""]
+    md += ["## the reference's own scores", "",
+           "| method | accuracy vs SGBM target (%) | accuracy vs exact (%) | Laplacian variance of disparity |",
+           "|---|---|---|---|"]
+    md += [f"| {m} | {r['reference']['accuracy_vs_sgbm']:.1f} | {r['reference']['accuracy_vs_exact']:.1f} | "
+           f"{r['reference']['laplacian_variance']:.3f} |" for m, r in summary.items()] + [""]
     md += ["## foggy image vs fog from exact depth", "", fog_table(summary), ""]
     atomic_write_bytes(out / "report.md", "\n".join(md).encode())
     print("\n".join(md))

@@ -80,3 +80,12 @@ def test_cityscapes_camera_json(tmp_path):
         load_cityscapes_camera(bad, 2048, 1024)
     with pytest.raises(InputError, match="missing.json.*not found"):
         load_cityscapes_camera(tmp_path / "missing.json", 2048, 1024)
+
+
+def test_cityscapes_camera_json_round_trip(tmp_path):
+    from fogsim.camera import StereoCamera
+
+    cam = StereoCamera(0.209, Intrinsics(283.0, 283.0, 127.5, 63.5, 256, 128))
+    path = tmp_path / "x_camera.json"
+    path.write_text(json.dumps(cam.to_cityscapes_json()))
+    assert load_cityscapes_camera(path, 256, 128) == cam

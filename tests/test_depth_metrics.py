@@ -33,3 +33,13 @@ def test_cap_mask_and_invalid_predictions():
     assert none["pixels"] == 0 and math.isnan(none["rmse"])
     with pytest.raises(ValueError, match="shape"):
         depth_metrics(pred[:3], gt)
+
+
+def test_reference_accuracy_and_smoothness():
+    from fogsim.depth_metrics import laplacian_variance, reference_accuracy
+
+    target = np.array([[10.0, 0.0], [20.0, 10.0]])   # a hole at (0, 1)
+    pred = np.array([[12.0, 5.0], [20.0, 10.0]])
+    assert reference_accuracy(pred, target) == pytest.approx(100 - 100 * 7 / 40)
+    flat, noisy = np.full((16, 16), 5.0), np.random.default_rng(0).uniform(0, 10, (16, 16))
+    assert laplacian_variance(flat) == 0.0 and laplacian_variance(noisy) > 1.0
