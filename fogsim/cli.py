@@ -101,6 +101,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="mse of disparity (the reference) or log-L1 (relative error)")
     tr.add_argument("--seed", type=int, default=0)
     tr.add_argument("--quiet", action="store_true")
+    fl = isub.add_parser("fill", help="fill the holes of a Cityscapes-layout split's disparity with the model")
+    fl.add_argument("--checkpoint", required=True)
+    fl.add_argument("--data", required=True, help="Cityscapes root")
+    fl.add_argument("--split", default="val")
+    fl.add_argument("--out", required=True, help="writes OUT/disparity/<split>/<city>/*_disparity.png (inputs untouched)")
+    fl.add_argument("--quiet", action="store_true")
     pr = isub.add_parser("predict", help="predict planar depth (EXR, metres) for a folder of images")
     pr.add_argument("--checkpoint", required=True)
     pr.add_argument("--input", required=True)
@@ -298,11 +304,38 @@ def cmd_ila(args) -> int:
 
     from .datasets.folder import folder_samples
 
+    if args.ila_command == "fill":
+        return _ila_fill(args)
     model, config, camera = ila.cached_model(args.checkpoint)
     samples = folder_samples(args.input, None)
     for s in tqdm(samples, unit="img", disable=args.quiet, desc="ILA depth"):
         write_depth(Path(args.out) / f"{s.key}.exr", ila.predict_depth(model, config, camera, read_image(s.source)))
     print(f"predicted planar depth (metres, EXR) for {len(samples)} images → {args.out}")
+    return EXIT_OK
+
+
+def _ila_fill(args) -> int:
+    """Holes (p = 0) of each disparity map → the ILA prediction; valid pixels are kept."""
+    from tqdm import tqdm
+
+    from .camera import (decode_disparity_png, depth_to_disparity, disparity_to_depth, encode_disparity_png,
+                         load_cityscapes_camera)
+    from .datasets.cityscapes import cityscapes_samples
+    from .fill import fill_holes, register_fill
+    from .ila import cached_model, ila_fill
+    from .io import read_image, read_uint16_map, write_image
+
+    cached_model(args.checkpoint)  # a clear error for a missing checkpoint
+    register_fill("ila", ila_fill(args.checkpoint))
+    samples = cityscapes_samples(args.data, args.split)
+    for s in tqdm(samples, unit="img", disable=args.quiet, desc="ILA fill"):
+        raw = read_uint16_map(s.depth.path)
+        cam = load_cityscapes_camera(s.depth.camera_path, raw.shape[1], raw.shape[0])
+        depth = disparity_to_depth(decode_disparity_png(raw), cam.baseline, cam.intrinsics.fx)
+        filled = fill_holes(depth, "ila", read_image(s.source))
+        rel = Path(s.depth.path).relative_to(Path(args.data))
+        write_image(Path(args.out) / rel, encode_disparity_png(depth_to_disparity(filled, cam.baseline, cam.intrinsics.fx)))
+    print(f"filled the disparity holes of {len(samples)} images → {args.out}")
     return EXIT_OK
 
 

@@ -86,3 +86,32 @@ def test_log_l1_loss_is_relative_and_masked():
     valid = (target > 0).float()
     import math
     assert float(masked_loss(pred, target, valid, kind="log_l1")) == pytest.approx(2 * math.log(2) / 3, rel=1e-5)
+
+
+def test_ila_fill_cli_changes_only_holes(cityscapes_root, tmp_path):
+    from fogsim.camera import decode_disparity_png
+    from fogsim.cli import main
+    from fogsim.io import read_uint16_map
+
+    ck = tmp_path / "ila"
+    assert main(["ila", "train", "--data", str(cityscapes_root), "--split", "val", "--out", str(ck), "--rounds", "1",
+                 "--epochs", "1", "--width", "4", "--size", "32x16", "--quiet"]) == 0
+    out = tmp_path / "filled"
+    assert main(["ila", "fill", "--checkpoint", str(ck / "round_0.pt"), "--data", str(cityscapes_root),
+                 "--split", "val", "--out", str(out), "--quiet"]) == 0
+    rel = "disparity/val/aachen/aachen_000000_000019_disparity.png"
+    before, after = read_uint16_map(cityscapes_root / rel), read_uint16_map(out / rel)
+    holes = before == 0
+    assert holes.any() and (after[holes] > 0).all()
+    assert np.abs(decode_disparity_png(after)[~holes] - decode_disparity_png(before)[~holes]).max() < 1 / 256 + 1e-6
+
+
+def test_predicted_depth_conversion_to_metres():
+    """depth = baseline · (fx/W) / (d/W): a model that predicts d/W = 0.02 everywhere."""
+    class Constant(torch.nn.Module):
+        def forward(self, x):
+            return torch.full((x.shape[0], 1, x.shape[2], x.shape[3]), 0.02)
+
+    camera = {"baseline_m": 0.209, "fx_over_w": 1.1}
+    depth = predict_depth(Constant(), ILAConfig(size=(32, 16)), camera, np.zeros((50, 100, 3), np.uint8))
+    assert depth.shape == (50, 100) and np.allclose(depth, 0.209 * 1.1 / 0.02)
