@@ -105,18 +105,24 @@ def run(job, args) -> int:
             index = job.todo[0]
             try:
                 meta = job.step()
-                t = meta["timings_s"]
-                bar.write(f"frame {meta['frame']}: " + ", ".join(f"{k} {v:.2f}s" for k, v in t.items())
-                          + f"; {sum(r['kept'] for r in meta['objects'])} boxes") if not args.quiet else None
             except Exception as exc:  # one bad frame must not stop a long run; it is reported
-                job.todo.remove(index) if index in job.todo else None
+                if index in job.todo:
+                    job.todo.remove(index)
                 failed.append((index, f"{type(exc).__name__}: {exc}"))
                 bar.write(f"error: frame {index}: {type(exc).__name__}: {exc}")
+            else:
+                if not args.quiet:  # the per-frame timing log (also kept in meta/<frame>.json)
+                    stages = ", ".join(f"{k} {v:.2f}s" for k, v in meta["timings_s"].items())
+                    bar.write(f"frame {meta['frame']}: {stages}; {sum(r['kept'] for r in meta['objects'])} boxes")
             bar.update(1)
         bar.close()
     sharded = args.shard and not args.shard.endswith("/1")
     if job.layout.done_frames() and (not sharded or args.finalize_only):
-        job.finish()  # shards leave this to one --finalize-only run over all frames
+        try:
+            job.finish()  # shards leave this to one --finalize-only run over all frames
+        except (OSError, ValueError) as exc:
+            print(f"fogsim: error: writing the dataset files of {args.out} failed: {exc}", file=sys.stderr)
+            return 1
     elif args.finalize_only:
         print(f"fogsim: error: {args.out}: no committed frames to finalize", file=sys.stderr)
         return 2
