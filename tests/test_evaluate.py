@@ -86,3 +86,22 @@ def test_yolo_predictions(tmp_path):
     (tmp_path / "000002.txt").write_text("0 0.1 0.2\n")
     with pytest.raises(Exception, match="000002.txt: line 1"):
         yolo_predictions(tmp_path, GT)
+
+
+def test_cross_density_table_and_report(tmp_path):
+    from fogsim.cross_density import cross_density, markdown, write_report
+    from fogsim.io import read_image
+
+    perfect = [det(a["image_id"], a["bbox"], 0.9) for a in GT["annotations"]]
+    half = perfect[:1] + [det(1, (150, 60, 10, 10), 0.95)]
+    gt = {"clear": GT, "beta0.12": GT}
+    table = cross_density(gt, {"clear": {"clear": perfect, "beta0.12": half},
+                               "beta0.12": {"clear": half, "beta0.12": perfect}})
+    assert table["clear"]["clear"]["ap50"] == pytest.approx(1.0)
+    assert table["clear"]["beta0.12"]["recall_max"] == pytest.approx(1 / 3)
+    md = markdown(table)
+    assert "| clear | **1.000** | 0.333 |" in md  # the best of each column in bold
+    write_report(table, tmp_path)
+    for f in ("cross_density.json", "cross_density.csv", "cross_density.md", "recall_heatmap.png", "map50_heatmap.png"):
+        assert (tmp_path / f).is_file()
+    assert read_image(tmp_path / "map50_heatmap.png").shape[0] > 100
