@@ -32,11 +32,12 @@ BINS = ((0.0, 25.0), (25.0, 50.0), (50.0, 100.0))
 
 
 def mark_far_ignored(gt: dict, max_distance_m: float) -> dict:
-    """A copy of a COCO dict whose annotations beyond ``max_distance_m`` are ``iscrowd = 1``."""
+    """A copy of a COCO dict whose annotations beyond ``max_distance_m`` are ``iscrowd = 1``
+    (annotations without ``distance_m``, e.g. from another tool, are kept)."""
     gt = copy.deepcopy(gt)
     for a in gt["annotations"]:
         d = a.get("distance_m")
-        a["iscrowd"] = int(bool(a.get("iscrowd")) or d is None or d > max_distance_m)
+        a["iscrowd"] = int(bool(a.get("iscrowd")) or (d is not None and d > max_distance_m))
     return gt
 
 
@@ -195,7 +196,7 @@ def evaluate(gt: dict, dets: list[dict], max_distance_m: float = 100.0, conf: fl
     n = max(len(real), 1)
     by_bin = {}
     for lo, hi in bins:
-        inside = [a for a in real if lo <= a["distance_m"] < hi]
+        inside = [a for a in real if a.get("distance_m") is not None and lo <= a["distance_m"] < hi]
         by_bin[f"{lo:g}-{hi:g} m"] = (sum(a["id"] in matched for a in inside) / len(inside)) if inside else None
     return {"ap50": pycocotools_ap50(gt, dets), "ap50_matcher": coco_ap(curves),
             "recall_max": len(matched) / n,

@@ -105,3 +105,10 @@ def test_cross_density_table_and_report(tmp_path):
     for f in ("cross_density.json", "cross_density.csv", "cross_density.md", "recall_heatmap.png", "map50_heatmap.png"):
         assert (tmp_path / f).is_file()
     assert read_image(tmp_path / "map50_heatmap.png").shape[0] > 100
+
+
+def test_annotations_without_distance_are_kept():
+    gt = gt_dict([[(10, 10, 30, 20)]], [[None]])
+    r = evaluate(gt, [det(1, (10, 10, 30, 20), 0.9)])
+    assert r["objects"] == 1 and r["ignored"] == 0 and r["recall_max"] == 1.0
+    assert r["recall_by_distance"]["0-25 m"] is None
