@@ -10,7 +10,6 @@ Learned completions (ILA) plug in through :func:`fogsim.fill.register_fill`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import decode_disparity_png, load_cityscapes_camera
+from .camera import decode_disparity_png, depth_to_disparity, disparity_to_depth, load_cityscapes_camera
 from .datasets.cityscapes import cityscapes_samples
 from .errors import FogsimError, InputError
 from .io import read_image, read_uint16_map
@@ -164,8 +164,13 @@ def _inputs(torch, data: StereoSet, idx, config: ILAConfig, drop: float = 0.0):
             b, _, h, w = t.shape
             keep = (torch.rand(b, 1, h // 8, w // 8) >= drop).float()
             t = t * torch.nn.functional.interpolate(keep, size=(h, w), mode="nearest")
-        x = torch.cat([x, t * 100.0, (t > 0).float()], 1)
+        x = _with_sparse(torch, x, t)
     return x.to(device())
+
+
+def _with_sparse(torch, x, t):
+    """RGB batch + the sparse d/W (scaled to O(1)) and its validity mask: 5 input channels."""
+    return torch.cat([x, t * 100.0, (t > 0).float()], 1)
 
 
 def fill_targets(target: np.ndarray, prediction: np.ndarray) -> np.ndarray:
@@ -257,26 +262,27 @@ def predict_depth(model, config: ILAConfig, camera: dict, rgb: np.ndarray,
     if config.use_sparse:
         sp = np.zeros((h, w), np.float32) if sparse_disparity is None else sparse_disparity / w
         t = torch.from_numpy(cv2.resize(sp, config.size, interpolation=cv2.INTER_NEAREST)[None, None])
-        x = torch.cat([x, t * 100.0, (t > 0).float()], 1)
+        x = _with_sparse(torch, x, t)
     with torch.no_grad():
         d_over_w = model(x.to(device())).cpu().numpy()[0, 0]
     d_over_w = cv2.resize(d_over_w, (w, h), interpolation=cv2.INTER_LINEAR)
-    return (camera["baseline_m"] * camera["fx_over_w"] / np.maximum(d_over_w, 1e-6)).astype(np.float32)
+    # d/W and fx/W: the image width cancels, so this is Z = baseline·fx/d at any resolution
+    return disparity_to_depth(np.maximum(d_over_w, 1e-6), camera["baseline_m"], camera["fx_over_w"])
 
 
 def ila_fill(checkpoint: str | Path):
     """A :func:`fogsim.fill.register_fill` function that fills holes with the model's depth.
 
-    The sparse disparity the model may take is rebuilt from the valid inverse depth with the
-    checkpoint's camera (d = baseline · fx · (1/Z), fx = fx/W · W).
+    The sparse disparity the model may take is rebuilt from the valid depth with the
+    checkpoint's camera (fx = fx/W · W).
     """
     model, config, camera = load_model(checkpoint)
 
     def fill(inv: np.ndarray, holes: np.ndarray, image: np.ndarray | None) -> np.ndarray:
         if image is None:
             raise ValueError("the ILA fill needs the RGB image")
-        w = inv.shape[1]
-        sparse = np.where(holes, 0.0, inv * camera["baseline_m"] * camera["fx_over_w"] * w).astype(np.float32)
+        valid_depth = np.divide(1.0, inv, out=np.zeros_like(inv), where=(inv > 0) & ~holes)  # sky, holes → 0
+        sparse = depth_to_disparity(valid_depth, camera["baseline_m"], camera["fx_over_w"] * inv.shape[1])
         depth = predict_depth(model, config, camera, image, sparse)
         return np.where(holes, 1.0 / depth, inv).astype(np.float32)
 

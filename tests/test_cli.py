@@ -1,6 +1,5 @@
 """The ``fogsim`` command end to end on datasets the tests build."""
 import json
-import math
 import os
 
 import numpy as np

@@ -83,7 +83,7 @@ def _boxes(material: str, boxes: list) -> dict:
 
 def street_geometry(b: _Builder, st: dict) -> None:
     """Road, terrain, curbs, sidewalks and lane markings (one object per kind)."""
-    L, n, lw, pw = st["length"], st["lanes"], st["lane_width"], st["parking_width"]
+    L, n, lw = st["length"], st["lanes"], st["lane_width"]
     curb, sw = st["curb_x"], st["sidewalk_width"]
     y0, y1 = -30.0, L + 30.0
     cy, ly = (y0 + y1) / 2, y1 - y0
