@@ -50,12 +50,13 @@ def markdown(table: dict) -> str:
     return "\n".join(lines)
 
 
-def heatmap(table: dict, metric: str, cell: int = 90) -> np.ndarray:
-    """RGB image of one metric: a cell per (model, level), value written in it, darker = higher."""
+def heatmap(table: dict, metric: str, cell: int = 90, title: str | None = None) -> np.ndarray:
+    """RGB image of one metric: a cell per (row, column), value written in it, darker = higher."""
     models, levels, g = _grid(table, metric)
-    left, top = 110, 40
+    left = 16 + max([110] + [cv2.getTextSize(m, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)[0][0] for m in models])
+    top = 40
     img = np.full((top + cell * len(models) + 10, max(360, left + cell * len(levels) + 10), 3), 255, np.uint8)
-    cv2.putText(img, f"{metric} (row: trained on, column: validated on)", (8, 20), cv2.FONT_HERSHEY_SIMPLEX,
+    cv2.putText(img, title or f"{metric} (row: trained on, column: validated on)", (8, 20), cv2.FONT_HERSHEY_SIMPLEX,
                 0.42, (0, 0, 0), 1, cv2.LINE_AA)
     for j, lv in enumerate(levels):
         cv2.putText(img, lv, (left + j * cell + 6, top - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)

@@ -1,0 +1,227 @@
+"""Ultralytics YOLO per fog level: offline set-up, training view, training, prediction.
+
+Optional extra ``detect`` (Ultralytics is AGPL-3.0; imported only here, lazily). Ultralytics
+runs offline: ``YOLO_OFFLINE=1``, ``YOLO_AUTOINSTALL=false``, its settings in a folder of
+ours with a bundled TTF as ``Arial.ttf`` (else it downloads one to draw plots), models built
+from a YAML (``yolov8n.yaml``, ``yolo12m.yaml`` …: random weights, nothing downloaded) and
+``amp=False`` (its AMP check loads pretrained weights).
+
+Ultralytics writes label caches beside the label folders, so training reads the dataset
+through a *training view* (:func:`training_view`): symlinks to ``images/<level>`` and
+``labels/<level>``, split lists and data YAMLs of its own — the dataset is never written.
+Boxes: predictions are COCO results (xywh, pixels of the original image, category = YOLO
+class + 1), the convention of :mod:`fogsim.evaluate`.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from .errors import FogsimError, InputError
+from .io import atomic_write_bytes, read_json, write_json
+from .scene.classes import LABELLED
+
+MIN_ULTRALYTICS = (8, 4, 37)  # earlier releases inflate mAP (PR curve extended to recall 1)
+MIXED_MODEL = "mixed"          # the model trained on every level at once
+MIXED_SPLIT = "all"            # the dataset's split lists / data file of every level
+
+
+@dataclass
+class TrainConfig:
+    """How each detector is trained (Ultralytics arguments of the same names)."""
+
+    model: str = "yolov8n.yaml"   # a model YAML: trained from scratch
+    epochs: int = 10
+    mixed_epochs: int | None = None  # default: epochs (same compute as the five specialists together)
+    imgsz: int = 320
+    batch: int = 16
+    device: str = "auto"          # auto: first CUDA GPU when present, else cpu
+    workers: int = 2
+    seed: int = 0
+    patience: int = 100
+    cache: bool = False           # decoded images in RAM (Ultralytics: may break determinism)
+    plots: bool = True
+
+    def epochs_for(self, model_name: str) -> int:
+        return self.mixed_epochs if model_name == MIXED_MODEL and self.mixed_epochs else self.epochs
+
+
+def _version_tuple(text: str) -> tuple[int, ...]:
+    return tuple(int(p) for p in text.split(".")[:3] if p.isdigit())
+
+
+def load_ultralytics(config_dir: str | Path):
+    """The ``ultralytics`` module, set up to run offline with its settings in ``config_dir``."""
+    config_dir = Path(config_dir).resolve()
+    os.environ.setdefault("YOLO_CONFIG_DIR", str(config_dir))
+    os.environ["YOLO_OFFLINE"] = "1"
+    os.environ["YOLO_AUTOINSTALL"] = "false"
+    try:
+        import matplotlib
+        import ultralytics
+    except ImportError as exc:
+        raise FogsimError(f"detector training needs the 'detect' extra ({exc.name} is missing): "
+                          "pip install torch==2.14.1 torchvision==0.29.1 -e '.[detect]'") from None
+    if _version_tuple(ultralytics.__version__) < MIN_ULTRALYTICS:
+        raise FogsimError(f"ultralytics {ultralytics.__version__} inflates mAP; install >= 8.4.37")
+    fonts = Path(os.environ["YOLO_CONFIG_DIR"]) / "Ultralytics"
+    fonts.mkdir(parents=True, exist_ok=True)
+    ttf = Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSans.ttf"
+    for name in ("Arial.ttf", "Arial.Unicode.ttf"):
+        if not (fonts / name).exists():
+            shutil.copyfile(ttf, fonts / name)
+    return ultralytics
+
+
+def resolve_device(device: str) -> str:
+    """``auto`` → ``"0"`` when CUDA is available, else ``"cpu"``; anything else unchanged."""
+    if device != "auto":
+        return device
+    import torch
+    return "0" if torch.cuda.is_available() else "cpu"
+
+
+# --- the dataset, read-only --------------------------------------------------------------------
+
+def dataset_levels(dataset: Path) -> list[str]:
+    """Fog level keys of a fogsim dataset, in its order (from ``dataset.json``)."""
+    manifest = dataset / "dataset.json"
+    if not manifest.is_file():
+        raise InputError(dataset, "not a fogsim dataset (no dataset.json): render one with "
+                                  "scripts/render_batch.py or pass --render")
+    levels = [lv["key"] for lv in read_json(manifest).get("levels", [])]
+    if not levels:
+        raise InputError(manifest, "lists no fog levels")
+    return levels
+
+
+def split_frames(dataset: Path, level: str, part: str) -> list[str]:
+    """Frame names of one split list (``splits/<level>_<part>.txt``), by file stem, so a moved
+    dataset still works."""
+    path = dataset / "splits" / f"{level}_{part}.txt"
+    if not path.is_file():
+        raise InputError(path, "missing split list: run scripts/render_batch.py --finalize-only")
+    frames = [Path(line.strip()).stem for line in path.read_text().splitlines() if line.strip()]
+    if not frames:
+        raise InputError(path, "split list is empty")
+    return frames
+
+
+def val_ground_truth(dataset: Path, level: str) -> dict:
+    """The level's COCO ground truth restricted to its validation frames."""
+    path = dataset / "coco" / f"{level}.json"
+    if not path.is_file():
+        raise InputError(path, "missing COCO ground truth: run scripts/render_batch.py --finalize-only")
+    gt = read_json(path)
+    val = set(split_frames(dataset, level, "val"))
+    images = [im for im in gt["images"] if Path(im["file_name"]).stem in val]
+    ids = {im["id"] for im in images}
+    return {**gt, "images": images, "annotations": [a for a in gt["annotations"] if a["image_id"] in ids]}
+
+
+# --- training view -------------------------------------------------------------------------------
+
+def training_view(dataset: Path, view: Path, levels: list[str]) -> dict[str, Path]:
+    """The dataset's YOLO layout seen through symlinks under ``view``; returns a data YAML per
+    model (each level, and ``mixed`` over every level).
+
+    ``view/<model>/<part>/<level>/{images,labels}`` link to the dataset's level folders, so
+    Ultralytics' label cache (``…/<level>/labels.cache``) is one per model and split: never in
+    the dataset, never shared by two trainings (shards may run concurrently).
+    """
+    dataset, view = dataset.resolve(), view.resolve()
+    for lv in levels:
+        for kind in ("images", "labels"):
+            if not (dataset / kind / lv).is_dir():
+                raise InputError(dataset / kind / lv, f"missing {kind} folder of fog level {lv!r}")
+    data = {}
+    for model, members in [*((lv, [lv]) for lv in levels), (MIXED_MODEL, levels)]:
+        for part in ("train", "val"):  # the mixed model validates on the mixed val split
+            paths = []
+            for lv in members:
+                base = view / model / part / lv
+                base.mkdir(parents=True, exist_ok=True)
+                for kind in ("images", "labels"):
+                    _symlink(base / kind, dataset / kind / lv)
+                paths += [base / "images" / f"{f}.png" for f in split_frames(dataset, lv, part)]
+            atomic_write_bytes(view / model / f"{part}.txt", ("\n".join(map(str, paths)) + "\n").encode())
+        text = [f"path: {json.dumps(str(view / model))}", "train: train.txt", "val: val.txt", "names:"]
+        text += [f"  {i}: {json.dumps(n)}" for i, n in enumerate(LABELLED)]
+        data[model] = view / model / "data.yaml"
+        atomic_write_bytes(data[model], ("\n".join(text) + "\n").encode())
+    return data
+
+
+def _symlink(link: Path, target: Path) -> None:
+    if link.is_symlink() and link.resolve() != target.resolve():
+        link.unlink()
+    if not link.is_symlink():
+        link.symlink_to(target, target_is_directory=True)
+
+
+# --- training ------------------------------------------------------------------------------------
+
+def train(name: str, data_yaml: Path, runs: Path, cfg: TrainConfig, config_dir: Path) -> Path:
+    """Train (or resume, or skip when done) model ``name``; returns its ``best.pt``.
+
+    The run is Ultralytics' folder ``runs/<name>`` (weights, results.csv, plots); its
+    ``fogsim_done.json``, written last, marks it trained. An interrupted run resumes from
+    ``weights/last.pt``.
+    """
+    run = (runs / name).resolve()
+    best, last, done = run / "weights" / "best.pt", run / "weights" / "last.pt", run / "fogsim_done.json"
+    if done.is_file() and best.is_file():
+        return best
+    ultralytics = load_ultralytics(config_dir)
+    if last.is_file():
+        if _resumable(last):
+            ultralytics.YOLO(str(last)).train(resume=True)
+        # else it finished (Ultralytics strips the optimizer then) before the marker was written
+    else:
+        shutil.rmtree(run, ignore_errors=True)  # a start that saved no weights: begin again
+        ultralytics.YOLO(cfg.model).train(
+            data=str(data_yaml), epochs=cfg.epochs_for(name), imgsz=cfg.imgsz, batch=cfg.batch,
+            device=resolve_device(cfg.device), workers=cfg.workers, seed=cfg.seed, deterministic=True,
+            patience=cfg.patience, cache="ram" if cfg.cache else False, plots=cfg.plots,
+            pretrained=False, amp=False, project=str(run.parent), name=name, exist_ok=True)
+    if not best.is_file():
+        raise FogsimError(f"{run}: Ultralytics finished without writing weights/best.pt")
+    write_json(done, {"model": name, "data": str(data_yaml), "config": asdict(cfg),
+                      "ultralytics": ultralytics.__version__})
+    return best
+
+
+def _resumable(checkpoint: Path) -> bool:
+    """Whether an Ultralytics checkpoint is mid-training (it keeps its optimizer and epoch until
+    the final one strips them; resuming a final one would start a new training on coco8)."""
+    import torch
+    ckpt = torch.load(checkpoint, map_location="cpu", weights_only=False)
+    return ckpt.get("optimizer") is not None and ckpt.get("epoch", -1) >= 0
+
+
+# --- prediction ----------------------------------------------------------------------------------
+
+def predict(weights: Path, gt: dict, image_root: Path, cfg: TrainConfig, config_dir: Path,
+            conf: float = 0.001, iou: float = 0.7, max_det: int = 100, chunk: int = 32) -> list[dict]:
+    """COCO results of ``weights`` on every image of ``gt`` (paths relative to ``image_root``).
+
+    ``conf``/``iou`` are Ultralytics' validation defaults (a low threshold for AP); ``max_det``
+    is COCO's maxDets.
+    """
+    model = load_ultralytics(config_dir).YOLO(str(weights))
+    device = resolve_device(cfg.device)
+    images = gt["images"]
+    out = []
+    for start in range(0, len(images), chunk):
+        batch = images[start:start + chunk]
+        paths = [str(image_root / im["file_name"]) for im in batch]
+        for im, res in zip(batch, model.predict(paths, imgsz=cfg.imgsz, conf=conf, iou=iou, max_det=max_det,
+                                                device=device, verbose=False, stream=True)):
+            boxes = res.boxes
+            for (x1, y1, x2, y2), score, cls in zip(boxes.xyxy.tolist(), boxes.conf.tolist(), boxes.cls.tolist()):
+                out.append({"image_id": im["id"], "category_id": int(cls) + 1, "score": round(float(score), 5),
+                            "bbox": [round(x1, 2), round(y1, 2), round(x2 - x1, 2), round(y2 - y1, 2)]})
+    return out

@@ -1,0 +1,160 @@
+"""The per-density detection study: train, predict, evaluate, report (driver of
+``scripts/train_per_density.py``).
+
+Models: one detector per fog level of the dataset (named by level key) and ``mixed``, trained
+on every level at once. Each is run on the validation images of every level. Report rows: the
+models, ``oracle`` (each level's own model on it: routing by the true level) and
+``routed (<estimator>)`` (each validation image sent to the model of its *estimated* level,
+:mod:`fogsim.fog_level`). Columns: validation levels.
+
+Layout under OUT::
+
+    study.json                   dataset, levels, training configuration (a rerun with other
+                                 parameters is refused)
+    yolo/                        training view of the dataset (symlinks, split lists, data YAMLs)
+    runs/<model>/                Ultralytics run; fogsim_done.json marks it trained
+    predictions/<model>/<level>.json   COCO results on the level's validation images
+    report/                      cross_density.{json,csv,md}, recall/map50 heatmaps,
+                                 fog_level.json, fog_level_<estimator>.png, report.md
+
+Every unit (a model's training, one prediction file) is skipped when done, so an interrupted
+study resumes; ``shard=(i, N)`` takes models i, i+N, … for a scheduler's array job.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from . import __version__
+from .cross_density import cross_density, heatmap, markdown, write_report
+from .detect import (MIXED_MODEL, TrainConfig, dataset_levels, predict, split_frames, train,
+                     training_view, val_ground_truth)
+from .errors import InputError
+from .evaluate import BINS
+from .fog_level import LevelEstimator, confusion, image_features, route
+from .io import atomic_write_bytes, read_image, read_json, write_image, write_json
+
+ESTIMATORS = ("features", "dark-channel")
+ESTIMATOR_TRAIN_IMAGES = 200  # per level: enough for centroids, bounded time on large datasets
+
+
+class Study:
+    """Paths and parameters of one study under ``out`` on ``dataset``."""
+
+    def __init__(self, dataset: str | Path, out: str | Path, cfg: TrainConfig):
+        self.dataset, self.out, self.cfg = Path(dataset).resolve(), Path(out).resolve(), cfg
+        self.levels = dataset_levels(self.dataset)
+        self.models = [*self.levels, MIXED_MODEL]
+        self.config_dir = self.out / "ultralytics_config"
+
+    def prediction(self, model: str, level: str) -> Path:
+        return self.out / "predictions" / model / f"{level}.json"
+
+    def check_parameters(self) -> None:
+        """Write ``study.json``, or refuse when OUT holds a study with other parameters."""
+        path = self.out / "study.json"
+        params = {"dataset": str(self.dataset), "levels": self.levels, "train": asdict(self.cfg)}
+        if path.is_file():
+            if read_json(path).get("parameters") != params:
+                raise InputError(path, "this output folder holds a study with other parameters; "
+                                       "use another --out (or delete it) rather than mixing two studies")
+            return
+        write_json(path, {"fogsim_version": __version__, "parameters": params})
+
+    def run_models(self, shard: tuple[int, int] = (0, 1), progress: bool = True) -> None:
+        """Train every model of this shard and predict with it on every level (resumable)."""
+        self.check_parameters()
+        data = training_view(self.dataset, self.out / "yolo", self.levels)
+        gts = {lv: val_ground_truth(self.dataset, lv) for lv in self.levels}
+        mine = self.models[shard[0]::shard[1]]
+        for name in tqdm(mine, desc="models", unit="model", disable=not progress):
+            best = train(name, data[name], self.out / "runs", self.cfg, self.config_dir)
+            for lv in self.levels:
+                path = self.prediction(name, lv)
+                if not path.is_file():
+                    write_json(path, predict(best, gts[lv], self.dataset, self.cfg, self.config_dir))
+
+    def missing_predictions(self) -> list[Path]:
+        return [self.prediction(m, lv) for m in self.models for lv in self.levels
+                if not self.prediction(m, lv).is_file()]
+
+    def report(self, max_distance_m: float = 100.0) -> dict:
+        """Evaluate every row on every level and write ``OUT/report``; returns the table."""
+        missing = self.missing_predictions()
+        if missing:
+            raise InputError(missing[0], f"{len(missing)} prediction files are missing: "
+                                         "run the remaining models (shards) first")
+        gts = {lv: val_ground_truth(self.dataset, lv) for lv in self.levels}
+        preds = {m: {lv: read_json(self.prediction(m, lv)) for lv in self.levels} for m in self.models}
+        rows = dict(preds)
+        rows["oracle"] = {lv: preds[lv][lv] for lv in self.levels}
+        levels_out = {}
+        for method, (est_true, est_pred, estimates) in self.estimate_levels(gts).items():
+            rows[f"routed ({method})"] = route(preds, estimates)
+            levels_out[method] = confusion(est_true, est_pred, self.levels)
+        table = cross_density(gts, rows, max_distance_m=max_distance_m)
+        out = self.out / "report"
+        write_report(table, out)
+        write_json(out / "fog_level.json", levels_out)
+        for method, conf in levels_out.items():
+            m = np.array(conf["matrix"], float)
+            share = m / np.maximum(m.sum(axis=1, keepdims=True), 1)
+            grid = {t: {p: {"share": share[i, j]} for j, p in enumerate(self.levels)}
+                    for i, t in enumerate(self.levels)}
+            write_image(out / f"fog_level_{method}.png",
+                        heatmap(grid, "share", title=f"fog level, {method}: share (row: true, column: estimated)"))
+        atomic_write_bytes(out / "report.md", self.report_markdown(table, levels_out, max_distance_m).encode())
+        return table
+
+    def estimate_levels(self, gts: dict) -> dict:
+        """Per estimator: (true levels, estimated levels, ``{level: {image_id: estimated level}}``)
+        of every validation image; fitted on training images of every level."""
+        X, y = [], []
+        for lv in self.levels:
+            frames = split_frames(self.dataset, lv, "train")
+            step = max(1, len(frames) // ESTIMATOR_TRAIN_IMAGES)
+            for f in frames[::step]:
+                X.append(image_features(read_image(self.dataset / "images" / lv / f"{f}.png")))
+                y.append(lv)
+        val = [(lv, im["id"], image_features(read_image(self.dataset / im["file_name"])))
+               for lv in self.levels for im in gts[lv]["images"]]
+        V = np.stack([v[2] for v in val])
+        out = {}
+        for method in ESTIMATORS:
+            predicted = LevelEstimator.fit(np.stack(X), y, method).predict(V)
+            estimates: dict = {lv: {} for lv in self.levels}
+            for (lv, image_id, _), p in zip(val, predicted):
+                estimates[lv][image_id] = p
+            out[method] = ([v[0] for v in val], predicted, estimates)
+        return out
+
+    def report_markdown(self, table: dict, levels_out: dict, max_distance_m: float) -> str:
+        cfg = self.cfg
+        n_train = len(split_frames(self.dataset, self.levels[0], "train"))
+        n_val = len(split_frames(self.dataset, self.levels[0], "val"))
+        lines = ["# Cross-density detection study", "",
+                 f"Dataset `{self.dataset}`: {n_train} training / {n_val} validation frames per level; "
+                 f"model `{cfg.model}` from scratch, {cfg.epochs} epochs "
+                 f"(mixed: {cfg.epochs_for(MIXED_MODEL)} over every level), {cfg.imgsz} px, batch {cfg.batch}. "
+                 f"Objects within {max_distance_m:g} m count; farther ones are ignored.",
+                 "", "Recall = Ultralytics' R (recall at the max-F1 confidence); map50 = COCO AP@0.5 "
+                 "(pycocotools). Rows: trained on (oracle = each level's own model; routed = the model "
+                 "of the estimated level); columns: validated on.", "", markdown(table),
+                 "**recall by distance** (every detection; model on its own level, mixed, routed)", "",
+                 "| row | level | " + " | ".join(f"{lo:g}–{hi:g} m" for lo, hi in BINS) + " |",
+                 "|---" * (len(BINS) + 2) + "|"]
+        for row in ("oracle", MIXED_MODEL, *(f"routed ({m})" for m in ESTIMATORS)):
+            for lv, cell in table[row].items():
+                vals = ["—" if v is None else f"{v:.3f}" for v in cell["recall_by_distance"].values()]
+                lines.append(f"| {row} | {lv} | " + " | ".join(vals) + " |")
+        lines += ["", "**fog-level estimators** on the validation images (rows: true, columns: estimated)", ""]
+        for method, conf in levels_out.items():
+            lines += [f"{method}: accuracy {conf['accuracy']:.3f}", "",
+                      "| true \\ estimated | " + " | ".join(self.levels) + " |", "|---" * (len(self.levels) + 1) + "|"]
+            lines += [f"| {lv} | " + " | ".join(str(v) for v in row) + " |"
+                      for lv, row in zip(self.levels, conf["matrix"])]
+            lines.append("")
+        return "\n".join(lines)

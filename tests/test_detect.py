@@ -1,0 +1,221 @@
+"""The per-density detection study: training view, report rows (oracle, routed, mixed), the
+driver's errors — and, when the 'detect' extra is installed, a tiny real Ultralytics training
+through scripts/train_per_density.py."""
+import importlib.util
+import json
+import time
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import tree_digest
+from fogsim.detect import MIXED_MODEL, TrainConfig, training_view, val_ground_truth
+from fogsim.errors import InputError
+from fogsim.study import Study
+from synthetic_dataset import make_dataset
+
+ROOT = Path(__file__).resolve().parents[1]
+LEVELS = ["clear", "beta0.03", "beta0.06", "beta0.09", "beta0.12"]
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    return make_dataset(tmp_path_factory.mktemp("synthetic") / "ds", frames=16)
+
+
+def perfect(gt, score=0.9):
+    return [{"image_id": a["image_id"], "category_id": a["category_id"], "bbox": a["bbox"], "score": score}
+            for a in gt["annotations"]]
+
+
+def test_training_view_reads_the_dataset_without_writing_it(dataset, tmp_path):
+    before = tree_digest(dataset)
+    data = training_view(dataset, tmp_path / "yolo", LEVELS)
+    assert set(data) == {*LEVELS, MIXED_MODEL}
+    n_train = len((dataset / "splits" / "clear_train.txt").read_text().split())
+    for model, yaml in data.items():
+        lines = (yaml.parent / "train.txt").read_text().split()
+        assert len(lines) == n_train * (len(LEVELS) if model == MIXED_MODEL else 1)
+        for line in lines:
+            image = Path(line)
+            label = Path("/labels/".join(line.rsplit("/images/", 1))).with_suffix(".txt")  # Ultralytics' rule
+            assert image.is_file() and label.is_file()
+            assert image.resolve().parent.parent == (dataset / "images").resolve()
+        assert "names:\n  0: \"car\"" in yaml.read_text()
+    # caches of different models / splits land in different folders of the view
+    assert (tmp_path / "yolo" / "clear" / "train" / "clear" / "labels").resolve() == (dataset / "labels" / "clear").resolve()
+    assert tree_digest(dataset) == before
+
+
+def test_val_ground_truth_keeps_validation_frames_only(dataset):
+    gt = val_ground_truth(dataset, "beta0.06")
+    val = {Path(p).stem for p in (dataset / "splits" / "beta0.06_val.txt").read_text().split()}
+    assert {Path(im["file_name"]).stem for im in gt["images"]} == val
+    ids = {im["id"] for im in gt["images"]}
+    assert gt["annotations"] and all(a["image_id"] in ids for a in gt["annotations"])
+
+
+def write_predictions(study, gts, models):
+    for model, by_level in models.items():
+        for lv, dets in by_level.items():
+            path = study.prediction(model, lv)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(dets))
+
+
+def test_report_rows_oracle_routed_mixed(dataset, tmp_path):
+    """Each level model finds every object on its own level only; mixed finds them everywhere.
+    Then oracle = 1 everywhere, the clear model fails in fog, and a routed row finds exactly the
+    objects of the images its estimator sent to the right model."""
+    study = Study(dataset, tmp_path / "study", TrainConfig())
+    gts = {lv: val_ground_truth(dataset, lv) for lv in LEVELS}
+    preds = {m: {lv: (perfect(gts[lv]) if m == lv else []) for lv in LEVELS} for m in LEVELS}
+    preds[MIXED_MODEL] = {lv: perfect(gts[lv], 0.5) for lv in LEVELS}
+    write_predictions(study, gts, preds)
+    with pytest.raises(InputError, match="prediction files are missing"):
+        Study(dataset, tmp_path / "empty", TrainConfig()).report()
+
+    table = study.report(max_distance_m=100.0)
+    for lv in LEVELS:
+        near = sum(a["distance_m"] <= 100 for a in gts[lv]["annotations"])
+        assert table["oracle"][lv]["objects"] == near < len(gts[lv]["annotations"])  # 140 m ignored
+        for row in ("oracle", MIXED_MODEL):
+            assert table[row][lv]["ap50"] == pytest.approx(1.0)
+            assert table[row][lv]["recall_max"] == table[row][lv]["ultralytics_R"] == pytest.approx(1.0)
+        assert table["clear"][lv]["recall_max"] == (1.0 if lv == "clear" else 0.0)
+
+    estimates = study.estimate_levels(gts)
+    for method, (true, predicted, per_image) in estimates.items():
+        for lv in LEVELS:
+            right = {i for i, est in per_image[lv].items() if est == lv}
+            real = [a for a in gts[lv]["annotations"] if a["distance_m"] <= 100]
+            expected = sum(a["image_id"] in right for a in real) / len(real)
+            assert table[f"routed ({method})"][lv]["recall_max"] == pytest.approx(expected)
+        assert len(true) == len(predicted) == sum(len(gts[lv]["images"]) for lv in LEVELS)
+
+    out = tmp_path / "study" / "report"
+    for name in ("cross_density.json", "cross_density.csv", "cross_density.md", "recall_heatmap.png",
+                 "map50_heatmap.png", "fog_level.json", "fog_level_features.png", "fog_level_dark-channel.png",
+                 "report.md"):
+        assert (out / name).stat().st_size > 0, name
+    conf = json.loads((out / "fog_level.json").read_text())
+    assert np.array(conf["features"]["matrix"]).sum() == sum(len(gts[lv]["images"]) for lv in LEVELS)
+    assert "| routed (features) |" in (out / "report.md").read_text()
+
+
+def test_study_refuses_a_folder_holding_other_parameters(dataset, tmp_path):
+    Study(dataset, tmp_path, TrainConfig(epochs=3)).check_parameters()
+    Study(dataset, tmp_path, TrainConfig(epochs=3)).check_parameters()  # same: fine
+    with pytest.raises(InputError, match="study.json.*other parameters"):
+        Study(dataset, tmp_path, TrainConfig(epochs=4)).check_parameters()
+
+
+def driver(*args, **kw):
+    return subprocess.run([sys.executable, str(ROOT / "scripts" / "train_per_density.py"), *map(str, args)],
+                          capture_output=True, text=True, cwd=ROOT, **kw)
+
+
+def test_driver_bad_input_names_the_problem(dataset, tmp_path):
+    r = driver("--out", tmp_path / "s", "--dataset", tmp_path / "nowhere")
+    assert r.returncode == 2 and "nowhere" in r.stderr and "dataset.json" in r.stderr
+    r = driver("--out", tmp_path / "s", "--dataset", dataset, "--shard", "2/2")
+    assert r.returncode == 2 and "--shard" in r.stderr
+    r = driver("--out", tmp_path / "s", "--dataset", dataset, "--epochs", "0")
+    assert r.returncode == 2 and "--epochs" in r.stderr
+    r = driver("--out", tmp_path / "s", "--dataset", dataset, "--report-only")
+    assert r.returncode == 2 and "prediction files are missing" in r.stderr
+
+
+# --- a real training (needs the 'detect' extra) ---------------------------------------------------
+
+TINY = ("--epochs", "1", "--imgsz", "64", "--batch", "4", "--workers", "0", "--no-plots", "--quiet")
+
+
+def test_tiny_real_training_resume_and_shards(dataset, tmp_path):
+    if importlib.util.find_spec("ultralytics") is None:  # not imported here: it writes settings on import
+        pytest.skip("the 'detect' extra is not installed")
+    before = tree_digest(dataset)
+    out = tmp_path / "study"
+    r = driver("--out", out, "--dataset", dataset, *TINY)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "**recall**" in r.stdout and "| routed (dark-channel) |" in r.stdout
+    models = [*LEVELS, MIXED_MODEL]
+    for m in models:
+        assert (out / "runs" / m / "weights" / "best.pt").is_file()
+        assert json.loads((out / "runs" / m / "fogsim_done.json").read_text())["config"]["epochs"] == 1
+    preds = {(m, lv): json.loads((out / "predictions" / m / f"{lv}.json").read_text()) for m in models for lv in LEVELS}
+    gt = val_ground_truth(dataset, "clear")
+    ids = {im["id"] for im in gt["images"]}
+    for dets in preds.values():
+        for d in dets:
+            assert d["image_id"] in ids and 1 <= d["category_id"] <= 8 and 0 < d["score"] <= 1
+            x, y, w, h = d["bbox"]
+            assert w > 0 and h > 0 and -1 <= x and x + w <= 97 and -1 <= y and y + h <= 65
+    table = json.loads((out / "report" / "cross_density.json").read_text())
+    assert set(table) == {*models, "oracle", "routed (features)", "routed (dark-channel)"}
+    assert tree_digest(dataset) == before  # Ultralytics' caches went to the view, not the dataset
+
+    # a model trained but not marked (killed after its last epoch) resumes, and predicts the same
+    (out / "runs" / "clear" / "fogsim_done.json").unlink()
+    for lv in LEVELS:
+        (out / "predictions" / "clear" / f"{lv}.json").unlink()
+    stamp = (out / "predictions" / "beta0.12" / "clear.json").stat().st_mtime_ns
+    r = driver("--out", out, "--dataset", dataset, *TINY)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert (out / "predictions" / "beta0.12" / "clear.json").stat().st_mtime_ns == stamp  # done: skipped
+    for lv in LEVELS:
+        assert json.loads((out / "predictions" / "clear" / f"{lv}.json").read_text()) == preds["clear", lv]
+
+    r = driver("--out", out, "--dataset", dataset, *TINY[:1], "2", *TINY[2:])
+    assert r.returncode == 2 and "other parameters" in r.stderr
+
+    # shards: each trains its own models; the last to finish writes the report
+    sharded = tmp_path / "sharded"
+    r = driver("--out", sharded, "--dataset", dataset, "--shard", "1/2", *TINY)
+    assert r.returncode == 0 and "--report-only" in r.stdout
+    assert sorted(p.name for p in (sharded / "runs").iterdir()) == sorted(models[1::2])
+    r = driver("--out", sharded, "--dataset", dataset, "--shard", "0/2", *TINY)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert (sharded / "report" / "report.md").is_file()
+    # same seed, same data: the same weights, so the same predictions (CPU training is deterministic)
+    assert json.loads((sharded / "predictions" / "mixed" / "beta0.06.json").read_text()) == preds["mixed", "beta0.06"]
+
+
+def test_interrupted_training_resumes_from_last_checkpoint(dataset, tmp_path, monkeypatch):
+    """SIGKILL between epochs (last.pt still holds its optimizer), then rerun: training resumes
+    at the next epoch instead of starting again."""
+    if importlib.util.find_spec("ultralytics") is None:
+        pytest.skip("the 'detect' extra is not installed")
+    from fogsim.detect import _resumable, load_ultralytics
+
+    monkeypatch.setenv("YOLO_CONFIG_DIR", str(tmp_path / "config"))
+    load_ultralytics(tmp_path / "config")  # imported now, not while racing the training below
+
+    out = tmp_path / "study"
+    args = [sys.executable, str(ROOT / "scripts" / "train_per_density.py"), "--out", str(out), "--dataset",
+            str(dataset), "--epochs", "3", *TINY[2:]]
+    last = out / "runs" / "clear" / "weights" / "last.pt"
+    proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        caught = False
+        while not caught and proc.poll() is None:
+            time.sleep(0.02)
+            try:
+                caught = last.is_file() and _resumable(last)  # epoch 1 saved in full
+            except Exception:  # still being written
+                pass
+        proc.kill()
+    finally:
+        proc.wait()
+    assert last.is_file() and _resumable(last), "the run was not caught between its two epochs"
+    assert not (out / "runs" / "clear" / "fogsim_done.json").exists()
+    r = driver("--out", out, "--dataset", dataset, "--epochs", "3", *TINY[2:])
+    assert r.returncode == 0, r.stderr[-3000:]
+    epochs = [line.split(",")[0].strip() for line in (out / "runs" / "clear" / "results.csv").read_text().splitlines()[1:]]
+    # the resumed run went on from the killed one's checkpoint, not from scratch (an epoch whose
+    # row was written just before the kill, but not its checkpoint, is run again: Ultralytics' way)
+    assert epochs[0] == "1" and epochs.count("1") == 1 and epochs[-1] == "3" and set(epochs) == {"1", "2", "3"}
+    assert not _resumable(last) and (out / "report" / "report.md").is_file()
