@@ -29,10 +29,10 @@ SCENE_NAME = "fogsim"
 def _check_run(layout: DatasetLayout, config: RenderConfig) -> None:
     """Refuse to add frames to a dataset made from another preset (frame count may differ)."""
     path = Path(layout.root) / RUN_FILE
-    mine = {k: v for k, v in config.to_dict().items() if k not in ("frames", "source")}
+    mine = {k: v for k, v in config.to_dict().items() if k not in ("frames", "source", "train_fraction")}
     if path.is_file():
         old = read_json(path).get("config", {})
-        old = {k: v for k, v in old.items() if k not in ("frames", "source")}
+        old = {k: v for k, v in old.items() if k not in ("frames", "source", "train_fraction")}
         old.setdefault("stereo_baseline_m", None)  # datasets from before stereo existed
         if old != mine:
             raise InputError(path, "this output folder holds a dataset made with other settings; "
@@ -91,7 +91,7 @@ class RenderJob:
                     "frame_seeds": {f: frame_seed(self.config.seed, int(f)) for f in frames},
                     "frame_seed_rule": "numpy SeedSequence([seed, frame index]).generate_state(1)[0]",
                     "blender": bpy.app.version_string, "versions": package_versions()}
-        finalize(self.layout, self.config.levels, manifest, seed=self.config.seed)
+        finalize(self.layout, self.config.levels, manifest, self.config.train_fraction, seed=self.config.seed)
 
     def close(self) -> None:
         if self.scene is not None and self.scene.name in bpy.data.scenes and len(bpy.data.scenes) > 1:

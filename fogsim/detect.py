@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -34,7 +35,7 @@ class TrainConfig:
     """How each detector is trained (Ultralytics arguments of the same names)."""
 
     model: str = "yolov8n.yaml"   # a model YAML: trained from scratch
-    epochs: int = 10
+    epochs: int = 20
     mixed_epochs: int | None = None  # default: epochs (same compute as the five specialists together)
     imgsz: int = 320
     batch: int = 16
@@ -176,6 +177,7 @@ def train(name: str, data_yaml: Path, runs: Path, cfg: TrainConfig, config_dir: 
     if done.is_file() and best.is_file():
         return best
     ultralytics = load_ultralytics(config_dir)
+    started, resumed = time.perf_counter(), last.is_file()
     if last.is_file():
         if _resumable(last):
             ultralytics.YOLO(str(last)).train(resume=True)
@@ -190,7 +192,8 @@ def train(name: str, data_yaml: Path, runs: Path, cfg: TrainConfig, config_dir: 
     if not best.is_file():
         raise FogsimError(f"{run}: Ultralytics finished without writing weights/best.pt")
     write_json(done, {"model": name, "data": str(data_yaml), "config": asdict(cfg),
-                      "ultralytics": ultralytics.__version__})
+                      "ultralytics": ultralytics.__version__, "resumed": resumed,
+                      "seconds": round(time.perf_counter() - started, 1)})
     return best
 
 

@@ -15,7 +15,7 @@ from .io import read_json
 from .levels import FogLevel, parse_levels, presets_dir
 
 KEYS = {"name", "description", "version", "style", "camera", "resolution", "quality", "fog",
-        "fog_model", "labels", "exposure", "frames", "seed", "stereo"}
+        "fog_model", "labels", "exposure", "frames", "seed", "stereo", "train_fraction"}
 
 
 @dataclass(frozen=True)
@@ -33,13 +33,14 @@ class RenderConfig:
     frames: int = 8
     seed: int = 0
     stereo_baseline: float | None = None  # metres; None = no right camera
+    train_fraction: float = 0.8  # share of frames in the train split (fogsim.dataset_writer's rule)
 
     def to_dict(self) -> dict:
         return {"name": self.name, "source": self.source, "style": self.style, "camera": self.camera,
                 "resolution": list(self.resolution), "quality": self.quality,
                 "levels": [lv.to_dict() for lv in self.levels], "fog_model": self.fog_model,
                 "labels": self.labels, "exposure": self.exposure, "frames": self.frames, "seed": self.seed,
-                "stereo_baseline_m": self.stereo_baseline}
+                "stereo_baseline_m": self.stereo_baseline, "train_fraction": self.train_fraction}
 
 
 def preset_path(name_or_path: str | None) -> Path:
@@ -102,7 +103,7 @@ def parse_resolution(text: str) -> tuple[int, int]:
 def load_render_preset(name_or_path: str | None = None, *, frames: int | None = None,
                        seed: int | None = None, resolution: str | None = None,
                        samples: int | None = None, levels: str | None = None,
-                       stereo: bool | None = None) -> RenderConfig:
+                       stereo: bool | None = None, train_fraction: float | None = None) -> RenderConfig:
     """Read a dataset preset and apply overrides; every problem names the preset file."""
     path = preset_path(name_or_path)
     if not path.is_file():
@@ -121,6 +122,8 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
     if samples is not None and samples < 1:
         raise ValueError(f"--samples must be ≥ 1, got {samples}")
     lv_override = parse_levels(levels) if levels is not None else None
+    if train_fraction is not None and not 0 < train_fraction < 1:
+        raise ValueError(f"--train-fraction must be between 0 and 1, got {train_fraction}")
     try:
         quality = dict(_component("quality", d["quality"], path))
         if samples is not None:
@@ -137,7 +140,10 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
             fog_model=dict(d.get("fog_model", {})), labels=dict(d.get("labels", {})),
             exposure=_positive(d.get("exposure", 1.0), "exposure"),
             frames=int(frames if frames is not None else d.get("frames", 8)),
-            seed=int(seed if seed is not None else d.get("seed", 0)), stereo_baseline=baseline)
+            seed=int(seed if seed is not None else d.get("seed", 0)), stereo_baseline=baseline,
+            train_fraction=float(train_fraction if train_fraction is not None else d.get("train_fraction", 0.8)))
+        if not 0 < cfg.train_fraction < 1:
+            raise ValueError(f"train_fraction must be between 0 and 1, got {cfg.train_fraction}")
         fog_settings(cfg)  # fail now, naming the preset, not after the first render
         _check_labels(cfg.labels)
         if any(lv.key == "all" for lv in cfg.levels):

@@ -150,6 +150,12 @@ class Study:
             for lv, cell in table[row].items():
                 vals = ["—" if v is None else f"{v:.3f}" for v in cell["recall_by_distance"].values()]
                 lines.append(f"| {row} | {lv} | " + " | ".join(vals) + " |")
+        lines += ["", "**training** (seconds of the run that finished each model)", "",
+                  "| model | epochs | seconds | resumed |", "|---|---|---|---|"]
+        for m in self.models:
+            done = self.out / "runs" / m / "fogsim_done.json"
+            info = read_json(done) if done.is_file() else {}
+            lines.append(f"| {m} | {cfg.epochs_for(m)} | {info.get('seconds', '—')} | {info.get('resumed', '—')} |")
         lines += ["", "**fog-level estimators** on the validation images (rows: true, columns: estimated)", ""]
         for method, conf in levels_out.items():
             lines += [f"{method}: accuracy {conf['accuracy']:.3f}", "",

@@ -60,6 +60,8 @@ def parse_args(argv):
     p.add_argument("--stereo", action="store_true",
                    help="also render the right camera (preset baseline, else the camera's, else 0.209 m) "
                         "and write SGBM disparity in Cityscapes' layout under OUT/cityscapes/")
+    p.add_argument("--train-fraction", type=float, help="share of frames in the train split (default: the "
+                   "preset's, else 0.8; the paper's 8,100/4,800: 0.628); --finalize-only re-splits without rendering")
     p.add_argument("--shard", help="i/N: render frames i, i+N, … (0-based)")
     p.add_argument("--no-resume", action="store_true", help="re-render committed frames")
     p.add_argument("--gpu", action="store_true", help="render on the GPU when one is available")
@@ -76,7 +78,7 @@ def main() -> int:
     from fogsim.render_config import load_render_preset
 
     try:
-        config = load_render_preset(args.preset, frames=args.frames, seed=args.seed,
+        config = load_render_preset(args.preset, frames=args.frames, seed=args.seed, train_fraction=args.train_fraction,
                                     resolution=args.resolution, samples=args.samples, levels=args.levels,
                                     stereo=True if args.stereo else None)
         shard = parse_shard(args.shard)

@@ -35,13 +35,13 @@ def parse_args(argv=None):
     src.add_argument("--render", type=int, metavar="FRAMES",
                      help="render (or complete) this many frames into the dataset first")
     src.add_argument("--preset", default="default", help="render preset (with --render)")
-    src.add_argument("--resolution", default="480x320", help="render resolution WxH (with --render)")
+    src.add_argument("--resolution", default="320x213", help="render resolution WxH (with --render)")
     src.add_argument("--samples", type=int, help="Cycles samples (with --render; default: the preset's)")
     src.add_argument("--render-seed", type=int, help="dataset seed (with --render)")
     tr = p.add_argument_group("training (Ultralytics)")
     tr.add_argument("--model", default="yolov8n.yaml", help="model YAML, trained from scratch "
                     "(e.g. yolo12m.yaml, the paper's)")
-    tr.add_argument("--epochs", type=int, default=10)
+    tr.add_argument("--epochs", type=int, default=20)
     tr.add_argument("--mixed-epochs", type=int, help="epochs of the mixed model (default: --epochs, i.e. "
                     "the compute of all level models together)")
     tr.add_argument("--imgsz", type=int, default=320)

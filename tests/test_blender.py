@@ -157,6 +157,10 @@ def test_shards_cover_the_dataset(tmp_path):
     res = render_dataset("bpy", out, "--finalize-only")
     assert res.returncode == 0, res.stderr[-2000:]
     check_dataset(out)
+    assert json.loads((out / "dataset.json").read_text())["split"]["train_fraction"] == 0.8
+    res = render_dataset("bpy", out, "--finalize-only", "--train-fraction", "0.5")  # re-split, no render
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert json.loads((out / "dataset.json").read_text())["split"]["train_fraction"] == 0.5
     res = run(runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(tmp_path / "empty"), "--finalize-only"))
     assert res.returncode == 2 and "not a dataset to finalize" in res.stderr
 

@@ -82,3 +82,20 @@ def test_bad_presets_fail_at_load_naming_the_file(tmp_path, change, message):
     with pytest.raises(InputError, match=message) as err:
         load_render_preset(str(path))
     assert "bad.json" in str(err.value)
+
+
+def test_train_fraction_from_preset_or_override(tmp_path):
+    import json as _json
+
+    from fogsim.levels import presets_dir
+
+    assert load_render_preset("default").train_fraction == 0.8
+    assert load_render_preset("default", train_fraction=0.628).train_fraction == 0.628  # the paper's 8,100/4,800
+    with pytest.raises(ValueError, match="--train-fraction"):
+        load_render_preset("default", train_fraction=1.0)
+    path = tmp_path / "split.json"
+    path.write_text(_json.dumps(_json.loads((presets_dir() / "default.json").read_text()) | {"train_fraction": 0.5}))
+    assert load_render_preset(str(path)).train_fraction == 0.5
+    path.write_text(_json.dumps(_json.loads((presets_dir() / "default.json").read_text()) | {"train_fraction": 2}))
+    with pytest.raises(Exception, match="split.json.*train_fraction"):
+        load_render_preset(str(path))
