@@ -38,7 +38,9 @@ class TrainConfig:
     epochs: int = 20
     mixed_epochs: int | None = None  # default: epochs (same compute as the five specialists together)
     imgsz: int = 320
-    batch: int = 16
+    batch: int = 8
+    nbs: int | None = None        # nominal batch: gradients accumulate to it; None = batch (no
+                                  # accumulation: small data needs the steps). Ultralytics' own: 64
     device: str = "auto"          # auto: first CUDA GPU when present, else cpu
     workers: int = 2
     seed: int = 0
@@ -83,6 +85,19 @@ def resolve_device(device: str) -> str:
         return device
     import torch
     return "0" if torch.cuda.is_available() else "cpu"
+
+
+def check_model(model: str, config_dir: str | Path) -> None:
+    """Refuse, before any training, a model that is neither a YAML Ultralytics knows nor an
+    existing weights file (a missing ``.pt`` name would be fetched from the hub)."""
+    ultralytics = load_ultralytics(config_dir)
+    if not (model.endswith((".yaml", ".yml")) or Path(model).is_file()):
+        raise InputError(model, "--model must be a model YAML (yolov8n.yaml, yolo11n.yaml, yolo12m.yaml …) "
+                                "or an existing weights file: nothing can be downloaded")
+    try:
+        ultralytics.YOLO(model)
+    except Exception as exc:  # Ultralytics raises FileNotFoundError, KeyError … for bad YAMLs
+        raise InputError(model, f"Ultralytics cannot build this model: {exc}") from None
 
 
 # --- the dataset, read-only --------------------------------------------------------------------
@@ -186,8 +201,8 @@ def train(name: str, data_yaml: Path, runs: Path, cfg: TrainConfig, config_dir: 
         shutil.rmtree(run, ignore_errors=True)  # a start that saved no weights: begin again
         ultralytics.YOLO(cfg.model).train(
             data=str(data_yaml), epochs=cfg.epochs_for(name), imgsz=cfg.imgsz, batch=cfg.batch,
-            device=resolve_device(cfg.device), workers=cfg.workers, seed=cfg.seed, deterministic=True,
-            patience=cfg.patience, cache="ram" if cfg.cache else False, plots=cfg.plots,
+            nbs=cfg.nbs or cfg.batch, device=resolve_device(cfg.device), workers=cfg.workers,
+            seed=cfg.seed, deterministic=True, patience=cfg.patience, cache="ram" if cfg.cache else False, plots=cfg.plots,
             pretrained=False, amp=False, project=str(run.parent), name=name, exist_ok=True)
     if not best.is_file():
         raise FogsimError(f"{run}: Ultralytics finished without writing weights/best.pt")

@@ -30,8 +30,8 @@ from tqdm import tqdm
 
 from . import __version__
 from .cross_density import cross_density, heatmap, markdown, write_report
-from .detect import (MIXED_MODEL, TrainConfig, dataset_levels, predict, split_frames, train,
-                     training_view, val_ground_truth)
+from .detect import (MIXED_MODEL, TrainConfig, check_model, dataset_levels, predict, split_frames,
+                     train, training_view, val_ground_truth)
 from .errors import InputError
 from .evaluate import BINS
 from .fog_level import LevelEstimator, confusion, image_features, route
@@ -70,6 +70,8 @@ class Study:
         data = training_view(self.dataset, self.out / "yolo", self.levels)
         gts = {lv: val_ground_truth(self.dataset, lv) for lv in self.levels}
         mine = self.models[shard[0]::shard[1]]
+        if any(not (self.out / "runs" / m / "fogsim_done.json").is_file() for m in mine):
+            check_model(self.cfg.model, self.config_dir)
         for name in tqdm(mine, desc="models", unit="model", disable=not progress):
             best = train(name, data[name], self.out / "runs", self.cfg, self.config_dir)
             for lv in self.levels:

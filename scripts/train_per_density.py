@@ -7,9 +7,10 @@ estimators) under OUT/report.
 Small study on a 2-core CPU (≈ 80 min):
     python scripts/train_per_density.py --out study --render 300
 Paper scale on a GPU (8,100 train / 4,800 val frames, 640 px, 100 epochs, YOLOv12m):
-    python scripts/render_batch.py --out ds --frames 12900 --resolution 1920x1280 --shard i/N   (array job)
+    python scripts/render_batch.py --out ds --frames 12900 --train-fraction 0.628 --shard i/N --gpu
+    python scripts/render_batch.py --out ds --frames 12900 --train-fraction 0.628 --finalize-only
     python scripts/train_per_density.py --out study --dataset ds --model yolo12m.yaml \\
-        --imgsz 640 --epochs 100 --batch 16 --shard i/6   (array job of 6: one model each)
+        --imgsz 640 --epochs 100 --batch 16 --nbs 64 --shard i/6   (array job of 6: one model each)
     python scripts/train_per_density.py --out study --dataset ds … --report-only
 
 Resumable: finished models and prediction files are skipped, an interrupted training resumes
@@ -45,7 +46,9 @@ def parse_args(argv=None):
     tr.add_argument("--mixed-epochs", type=int, help="epochs of the mixed model (default: --epochs, i.e. "
                     "the compute of all level models together)")
     tr.add_argument("--imgsz", type=int, default=320)
-    tr.add_argument("--batch", type=int, default=16)
+    tr.add_argument("--batch", type=int, default=8)
+    tr.add_argument("--nbs", type=int, help="nominal batch size: gradients accumulate to it (default: --batch, "
+                    "no accumulation — a small dataset needs the optimizer steps; Ultralytics' default is 64)")
     tr.add_argument("--device", default="auto", help="auto (CUDA GPU 0 when present, else cpu), cpu, 0, 0,1 …")
     tr.add_argument("--workers", type=int, default=2, help="data-loader workers")
     tr.add_argument("--seed", type=int, default=0)
@@ -86,10 +89,10 @@ def main(argv=None) -> int:
     out = Path(args.out)
     dataset = Path(args.dataset) if args.dataset else out / "dataset"
     cfg = TrainConfig(model=args.model, epochs=args.epochs, mixed_epochs=args.mixed_epochs, imgsz=args.imgsz,
-                      batch=args.batch, device=args.device, workers=args.workers, seed=args.seed,
+                      batch=args.batch, nbs=args.nbs, device=args.device, workers=args.workers, seed=args.seed,
                       patience=args.patience, cache=args.cache, plots=not args.no_plots)
     try:
-        if min(args.epochs, args.imgsz, args.batch, args.mixed_epochs or 1) < 1 or args.max_distance <= 0:
+        if min(args.epochs, args.imgsz, args.batch, args.mixed_epochs or 1, args.nbs or 1) < 1 or args.max_distance <= 0:
             raise ValueError("--epochs, --mixed-epochs, --imgsz, --batch and --max-distance must be positive")
         shard = parse_shard(args.shard)
         if args.render:

@@ -171,6 +171,9 @@ def test_tiny_real_training_resume_and_shards(dataset, tmp_path):
 
     r = driver("--out", out, "--dataset", dataset, *TINY[:1], "2", *TINY[2:])
     assert r.returncode == 2 and "other parameters" in r.stderr
+    for model, message in (("yolov8n.pt", "nothing can be downloaded"), ("no-such-model.yaml", "cannot build")):
+        r = driver("--out", tmp_path / model, "--dataset", dataset, "--model", model, *TINY)
+        assert r.returncode == 2 and model in r.stderr and message in r.stderr, r.stderr[-2000:]
 
     # shards: each trains its own models; the last to finish writes the report
     sharded = tmp_path / "sharded"
