@@ -6,7 +6,7 @@ Layout under the output root::
     labels/<level>/<frame>.txt   YOLO lines, identical across levels (empty = background)
     depth/<frame>.exr            planar depth, metres        masks/<frame>.png  uint16 ids
     meta/<frame>.json            the frame record, written last: its presence marks the frame done
-    coco/<level>.json            COCO detection annotations (kept objects only)
+    coco/<level>.json            COCO detection annotations (objects the filters dropped: iscrowd = 1)
     splits/<level>_{train,val}.txt, splits/all_{train,val}.txt   image lists (absolute paths)
     data/<level>.yaml, data/all.yaml                              Ultralytics data files
     dataset.json                 manifest, counts, levels;       contact_sheet.png
@@ -117,8 +117,7 @@ def coco_dataset(metas: list[dict], level: FogLevel, layout: DatasetLayout) -> d
         images.append({"id": image_id, "file_name": path.as_posix(), "width": meta["width"],
                        "height": meta["height"], "frame": meta["frame"]})
         for rec in meta["objects"]:
-            if rec["kept"]:
-                annotations.append(coco_annotation(rec, len(annotations) + 1, image_id))
+            annotations.append(coco_annotation(rec, len(annotations) + 1, image_id))
     return {"info": {"description": f"fogsim, fog level {level.key}", "fog_level": level.to_dict(),
                      "area": "visible (instance mask) pixel count",
                      "category_id": "YOLO class id + 1"},

@@ -125,7 +125,8 @@ def object_records(mask: np.ndarray, ray_distance: np.ndarray, objects: list[dic
     ``visible_fraction`` = visible pixels / pixels_in_image (≤ 1; 1 when the silhouette is
     empty, e.g. a sub-pixel object); ``truncation`` = 1 − pixels_in_image / pixels_total.
     Objects below ``min_pixels`` visible pixels or ``min_visible_fraction`` stay in the list
-    with ``kept = False`` and a ``reason``; only kept records go to YOLO and COCO.
+    with ``kept = False`` and a ``reason``; only kept records go to YOLO labels, and to COCO
+    as objects (the others as ignore regions).
     Objects with no visible pixel (hidden or outside the view) get no record.
     """
     h, w = mask.shape
@@ -182,10 +183,13 @@ def coco_categories() -> list[dict]:
 
 
 def coco_annotation(record: dict, ann_id: int, image_id: int) -> dict:
-    """A COCO annotation for a kept record; ``area`` is the visible pixel count, not the box area."""
+    """A COCO annotation; ``area`` is the visible pixel count, not the box area. A record the
+    filters dropped (too few pixels, too occluded) becomes an ignore region, ``iscrowd = 1``
+    with its ``ignore_reason``: a detection on it is neither a hit nor a false alarm, in
+    pycocotools as in :mod:`fogsim.evaluate` (COCO trainers skip crowd boxes)."""
     x0, y0, x1, y1 = record["bbox"]
     return {"id": ann_id, "image_id": image_id, "category_id": record["class_id"] + 1,
             "bbox": [float(x0), float(y0), float(x1 - x0), float(y1 - y0)],
-            "area": float(record["pixels"]), "iscrowd": 0,
+            "area": float(record["pixels"]), "iscrowd": int(not record["kept"]),
             "distance_m": record["distance_m"], "visible_fraction": record["visible_fraction"],
-            "truncation": record["truncation"]}
+            "truncation": record["truncation"]} | ({} if record["kept"] else {"ignore_reason": record["reason"]})

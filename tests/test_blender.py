@@ -69,7 +69,7 @@ def check_dataset(out: Path):
     levels = ["clear", "beta0.06", "beta0.12"]
     metas = sorted((out / "meta").glob("*.json"))
     assert len(metas) == 2
-    n_boxes = 0
+    n_boxes = n_ignored = 0
     for m in metas:
         meta = json.loads(m.read_text())
         frame = meta["frame"]
@@ -81,6 +81,7 @@ def check_dataset(out: Path):
         lines = [line for line in lines if line.strip()]
         kept = [r for r in meta["objects"] if r["kept"]]
         assert len(lines) == len(kept)
+        n_ignored += len(meta["objects"]) - len(kept)
         for rec, line in zip(kept, lines):
             v, u = np.nonzero(mask == rec["id"])
             assert rec["bbox"] == [int(u.min()), int(v.min()), int(u.max()) + 1, int(v.max()) + 1]
@@ -97,7 +98,8 @@ def check_dataset(out: Path):
             assert read_image(out / "images" / "beta0.12" / f"{frame}.png")[sky].min() == 255
     for lv in levels:
         coco = json.loads((out / "coco" / f"{lv}.json").read_text())
-        assert len(coco["images"]) == 2 and len(coco["annotations"]) == n_boxes
+        assert len(coco["images"]) == 2 and len(coco["annotations"]) == n_boxes + n_ignored
+        assert sum(a["iscrowd"] for a in coco["annotations"]) == n_ignored  # filtered: ignore regions
         assert (out / "data" / f"{lv}.yaml").is_file()
     assert (out / "data" / "all.yaml").is_file() and (out / "contact_sheet.png").is_file()
     manifest = json.loads((out / "dataset.json").read_text())

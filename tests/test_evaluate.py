@@ -47,6 +47,17 @@ def test_detection_on_an_ignored_far_object_changes_nothing():
     assert evaluate(dropped, with_far)["ultralytics_P"] < 1.0
 
 
+def test_a_filtered_object_from_the_dataset_stays_ignored_at_any_distance():
+    """The renderer writes objects its filters dropped (too small, too occluded) as iscrowd = 1."""
+    gt = gt_dict([[(10, 10, 30, 20), (150, 10, 4, 4)]], [[20.0, 15.0]])
+    gt["annotations"][1]["iscrowd"] = 1
+    base = [det(1, (10, 10, 30, 20), 0.9)]
+    a, b = evaluate(gt, base), evaluate(gt, base + [det(1, (150, 10, 4, 4), 0.95)])
+    for key in ("ap50", "ap50_matcher", "recall_max", "ultralytics_P", "ultralytics_R"):
+        assert a[key] == pytest.approx(b[key]) == pytest.approx(1.0), key
+    assert b["ignored"] == 1 and b["objects"] == 1
+
+
 def test_duplicates_are_false_positives():
     dets = [det(1, (10, 10, 30, 20), 0.9), det(1, (11, 10, 30, 20), 0.8)]
     records, matched = match(mark_far_ignored(GT, 100.0), dets)

@@ -270,13 +270,15 @@ def test_finalize_writes_coco_yaml_splits_manifest(tiny_dataset):
                                                               f"images/{lv.key}/000001.png"]
         assert all((root / im["file_name"]).is_file() for im in coco["images"])
         anns = coco["annotations"]
-        assert len(anns) == len(kept) and len({a["id"] for a in anns}) == len(anns)
+        records = [(f, r) for f, m in metas.items() for r in m["objects"]]
+        assert len(anns) == len(records) > len(kept) and len({a["id"] for a in anns}) == len(anns)
         by_image = {im["id"]: im["frame"] for im in coco["images"]}
-        for ann, (frame, rec) in zip(anns, kept):
+        for ann, (frame, rec) in zip(anns, records):
             x0, y0, x1, y1 = rec["bbox"]
             assert by_image[ann["image_id"]] == frame
             assert ann["bbox"] == [x0, y0, x1 - x0, y1 - y0] and all(isinstance(v, float) for v in ann["bbox"])
-            assert ann["area"] == rec["pixels"] and ann["iscrowd"] == 0
+            assert ann["area"] == rec["pixels"] and ann["iscrowd"] == (0 if rec["kept"] else 1)
+            assert ann.get("ignore_reason") == rec["reason"]  # filtered objects: ignore regions
             assert ann["category_id"] == rec["class_id"] + 1 == [c["id"] for c in coco["categories"]
                                                                  if c["name"] == rec["class"]][0]
             assert ann == coco_annotation(rec, ann["id"], ann["image_id"])
