@@ -125,11 +125,10 @@ def coco_dataset(metas: list[dict], level: FogLevel, layout: DatasetLayout) -> d
             "categories": coco_categories()}
 
 
-def data_yaml(root: Path, name: str, description: str) -> str:
-    """An Ultralytics data file whose train/val entries are the split lists of ``name``."""
+def data_yaml(root: Path, train: str, val: str, description: str) -> str:
+    """An Ultralytics data file: image lists ``train`` and ``val`` relative to ``root``."""
     lines = [f"# {description}", f"path: {json.dumps(str(root.resolve()))}",
-             f"train: {json.dumps(f'splits/{name}_train.txt')}",
-             f"val: {json.dumps(f'splits/{name}_val.txt')}", "names:"]
+             f"train: {json.dumps(train)}", f"val: {json.dumps(val)}", "names:"]
     lines += [f"  {i}: {json.dumps(n)}" for i, n in enumerate(LABELLED)]
     return "\n".join(lines) + "\n"
 
@@ -160,10 +159,10 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
         for part in mixed:
             mixed[part] += split[part]
         desc = f"fogsim dataset, fog level {lv.key}: beta = {lv.beta:g} 1/m"
-        atomic_write_bytes(layout.root / "data" / f"{lv.key}.yaml", data_yaml(layout.root, lv.key, desc).encode())
+        atomic_write_bytes(layout.root / "data" / f"{lv.key}.yaml", data_yaml(layout.root, f"splits/{lv.key}_train.txt", f"splits/{lv.key}_val.txt", desc).encode())
     _write_lists(layout, MIXED, mixed)
     desc = "fogsim dataset, every fog level mixed"
-    atomic_write_bytes(layout.root / "data" / f"{MIXED}.yaml", data_yaml(layout.root, MIXED, desc).encode())
+    atomic_write_bytes(layout.root / "data" / f"{MIXED}.yaml", data_yaml(layout.root, f"splits/{MIXED}_train.txt", f"splits/{MIXED}_val.txt", desc).encode())
     summary = dict(manifest) | _summary(metas, levels, train, val, train_fraction, seed)
     write_json(layout.root / "dataset.json", summary)
     write_image(layout.root / "contact_sheet.png", contact_sheet(layout, levels, frames))

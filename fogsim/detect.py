@@ -14,20 +14,20 @@ class + 1), the convention of :mod:`fogsim.evaluate`.
 """
 from __future__ import annotations
 
-import json
 import os
+import re
 import shutil
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from .errors import FogsimError, InputError
+from .dataset_writer import DatasetLayout, data_yaml
 from .io import atomic_write_bytes, read_json, write_json
-from .scene.classes import LABELLED
+from .labels import coco_category
 
 MIN_ULTRALYTICS = (8, 4, 37)  # earlier releases inflate mAP (PR curve extended to recall 1)
 MIXED_MODEL = "mixed"          # the model trained on every level at once
-MIXED_SPLIT = "all"            # the dataset's split lists / data file of every level
 
 
 @dataclass
@@ -53,7 +53,8 @@ class TrainConfig:
 
 
 def _version_tuple(text: str) -> tuple[int, ...]:
-    return tuple(int(p) for p in text.split(".")[:3] if p.isdigit())
+    """``"8.4.37rc1"`` → ``(8, 4, 37)``."""
+    return tuple(int(re.match(r"\d*", p).group() or 0) for p in text.split(".")[:3])
 
 
 def load_ultralytics(config_dir: str | Path):
@@ -114,7 +115,7 @@ def dataset_levels(dataset: Path) -> list[str]:
     return levels
 
 
-def split_frames(dataset: Path, level: str, part: str) -> list[str]:
+def read_split(dataset: Path, level: str, part: str) -> list[str]:
     """Frame names of one split list (``splits/<level>_<part>.txt``), by file stem, so a moved
     dataset still works."""
     path = dataset / "splits" / f"{level}_{part}.txt"
@@ -132,7 +133,7 @@ def val_ground_truth(dataset: Path, level: str) -> dict:
     if not path.is_file():
         raise InputError(path, "missing COCO ground truth: run scripts/render_batch.py --finalize-only")
     gt = read_json(path)
-    val = set(split_frames(dataset, level, "val"))
+    val = set(read_split(dataset, level, "val"))
     images = [im for im in gt["images"] if Path(im["file_name"]).stem in val]
     ids = {im["id"] for im in images}
     return {**gt, "images": images, "annotations": [a for a in gt["annotations"] if a["image_id"] in ids]}
@@ -149,6 +150,7 @@ def training_view(dataset: Path, view: Path, levels: list[str]) -> dict[str, Pat
     the dataset, never shared by two trainings (shards may run concurrently).
     """
     dataset, view = dataset.resolve(), view.resolve()
+    layout = DatasetLayout(dataset)
     for lv in levels:
         for kind in ("images", "labels"):
             if not (dataset / kind / lv).is_dir():
@@ -162,62 +164,72 @@ def training_view(dataset: Path, view: Path, levels: list[str]) -> dict[str, Pat
                 base.mkdir(parents=True, exist_ok=True)
                 for kind in ("images", "labels"):
                     _symlink(base / kind, dataset / kind / lv)
-                paths += [base / "images" / f"{f}.png" for f in split_frames(dataset, lv, part)]
+                paths += [base / "images" / layout.image(lv, f).name for f in read_split(dataset, lv, part)]
             atomic_write_bytes(view / model / f"{part}.txt", ("\n".join(map(str, paths)) + "\n").encode())
-        text = [f"path: {json.dumps(str(view / model))}", "train: train.txt", "val: val.txt", "names:"]
-        text += [f"  {i}: {json.dumps(n)}" for i, n in enumerate(LABELLED)]
         data[model] = view / model / "data.yaml"
-        atomic_write_bytes(data[model], ("\n".join(text) + "\n").encode())
+        desc = f"fogsim training view of {dataset}: model {model} ({', '.join(members)})"
+        atomic_write_bytes(data[model], data_yaml(view / model, "train.txt", "val.txt", desc).encode())
     return data
 
 
 def _symlink(link: Path, target: Path) -> None:
-    if link.is_symlink() and link.resolve() != target.resolve():
-        link.unlink()
-    if not link.is_symlink():
-        link.symlink_to(target, target_is_directory=True)
+    """``link`` → ``target``, also when shards build the same view at the same time."""
+    if link.is_symlink() and link.resolve() == target.resolve():
+        return
+    tmp = link.with_name(f".{link.name}.{os.getpid()}")
+    tmp.unlink(missing_ok=True)
+    tmp.symlink_to(target, target_is_directory=True)
+    os.replace(tmp, link)
 
 
 # --- training ------------------------------------------------------------------------------------
 
-def train(name: str, data_yaml: Path, runs: Path, cfg: TrainConfig, config_dir: Path) -> Path:
+def train(name: str, data_file: Path, runs: Path, cfg: TrainConfig, config_dir: Path) -> Path:
     """Train (or resume, or skip when done) model ``name``; returns its ``best.pt``.
 
     The run is Ultralytics' folder ``runs/<name>`` (weights, results.csv, plots); its
     ``fogsim_done.json``, written last, marks it trained. An interrupted run resumes from
-    ``weights/last.pt``.
+    ``weights/last.pt`` (data, folder and device of this call, in case the study moved).
     """
     run = (runs / name).resolve()
     best, last, done = run / "weights" / "best.pt", run / "weights" / "last.pt", run / "fogsim_done.json"
     if done.is_file() and best.is_file():
         return best
     ultralytics = load_ultralytics(config_dir)
-    started, resumed = time.perf_counter(), last.is_file()
-    if last.is_file():
-        if _resumable(last):
-            ultralytics.YOLO(str(last)).train(resume=True)
-        # else it finished (Ultralytics strips the optimizer then) before the marker was written
+    started, state = time.perf_counter(), "trained"
+    device = resolve_device(cfg.device)
+    if last.is_file() and _resumable(last):
+        state = "resumed"
+        ultralytics.YOLO(str(last)).train(resume=True, data=str(data_file), save_dir=str(run), device=device,
+                                          workers=cfg.workers)
+    elif last.is_file():
+        state = "finished earlier"  # its last epoch was saved, the marker was not
     else:
         shutil.rmtree(run, ignore_errors=True)  # a start that saved no weights: begin again
         ultralytics.YOLO(cfg.model).train(
-            data=str(data_yaml), epochs=cfg.epochs_for(name), imgsz=cfg.imgsz, batch=cfg.batch,
-            nbs=cfg.nbs or cfg.batch, device=resolve_device(cfg.device), workers=cfg.workers,
-            seed=cfg.seed, deterministic=True, patience=cfg.patience, cache="ram" if cfg.cache else False, plots=cfg.plots,
+            data=str(data_file), epochs=cfg.epochs_for(name), imgsz=cfg.imgsz, batch=cfg.batch,
+            nbs=cfg.nbs or cfg.batch, device=device, workers=cfg.workers, seed=cfg.seed, deterministic=True,
+            patience=cfg.patience, cache="ram" if cfg.cache else False, plots=cfg.plots,
             pretrained=False, amp=False, project=str(run.parent), name=name, exist_ok=True)
     if not best.is_file():
         raise FogsimError(f"{run}: Ultralytics finished without writing weights/best.pt")
-    write_json(done, {"model": name, "data": str(data_yaml), "config": asdict(cfg),
-                      "ultralytics": ultralytics.__version__, "resumed": resumed,
-                      "seconds": round(time.perf_counter() - started, 1)})
+    write_json(done, {"model": name, "data": str(data_file), "config": asdict(cfg),
+                      "ultralytics": ultralytics.__version__, "state": state,
+                      "seconds_this_run": round(time.perf_counter() - started, 1)})
     return best
 
 
 def _resumable(checkpoint: Path) -> bool:
-    """Whether an Ultralytics checkpoint is mid-training (it keeps its optimizer and epoch until
-    the final one strips them; resuming a final one would start a new training on coco8)."""
+    """Whether an Ultralytics checkpoint is mid-training: it has its optimizer and epochs left.
+    (The final epoch's checkpoint keeps the optimizer until the final evaluation strips it.)"""
     import torch
-    ckpt = torch.load(checkpoint, map_location="cpu", weights_only=False)
-    return ckpt.get("optimizer") is not None and ckpt.get("epoch", -1) >= 0
+    try:
+        ckpt = torch.load(checkpoint, map_location="cpu", weights_only=False)
+        epochs = int(ckpt["train_args"]["epochs"])
+    except Exception as exc:  # a kill while Ultralytics wrote it (it writes in place)
+        raise FogsimError(f"{checkpoint}: unreadable checkpoint ({exc}); delete its run folder "
+                          f"({checkpoint.parent.parent}) to train this model again") from None
+    return ckpt.get("optimizer") is not None and 0 <= ckpt.get("epoch", -1) and ckpt["epoch"] + 1 < epochs
 
 
 # --- prediction ----------------------------------------------------------------------------------
@@ -235,11 +247,14 @@ def predict(weights: Path, gt: dict, image_root: Path, cfg: TrainConfig, config_
     out = []
     for start in range(0, len(images), chunk):
         batch = images[start:start + chunk]
-        paths = [str(image_root / im["file_name"]) for im in batch]
-        for im, res in zip(batch, model.predict(paths, imgsz=cfg.imgsz, conf=conf, iou=iou, max_det=max_det,
+        paths = [image_root / im["file_name"] for im in batch]
+        for path in paths:
+            if not path.is_file():
+                raise InputError(path, "validation image listed in the COCO file is missing")
+        for im, res in zip(batch, model.predict([str(p) for p in paths], imgsz=cfg.imgsz, conf=conf, iou=iou, max_det=max_det,
                                                 device=device, verbose=False, stream=True)):
             boxes = res.boxes
             for (x1, y1, x2, y2), score, cls in zip(boxes.xyxy.tolist(), boxes.conf.tolist(), boxes.cls.tolist()):
-                out.append({"image_id": im["id"], "category_id": int(cls) + 1, "score": round(float(score), 5),
+                out.append({"image_id": im["id"], "category_id": coco_category(int(cls)), "score": round(float(score), 5),
                             "bbox": [round(x1, 2), round(y1, 2), round(x2 - x1, 2), round(y2 - y1, 2)]})
     return out

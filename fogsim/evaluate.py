@@ -27,6 +27,7 @@ import numpy as np
 
 from .errors import FogsimError, InputError
 from .io import read_json
+from .labels import coco_category
 
 BINS = ((0.0, 25.0), (25.0, 50.0), (50.0, 100.0))
 
@@ -56,7 +57,7 @@ def yolo_predictions(folder: str | Path, gt: dict) -> list[dict]:
                 raise InputError(path, f"line {n}: expected 'class cx cy w h confidence', got {line!r}")
             c, cx, cy, w, h, conf = int(parts[0]), *map(float, parts[1:])
             W, H = img["width"], img["height"]
-            out.append({"image_id": img["id"], "category_id": c + 1, "score": conf,
+            out.append({"image_id": img["id"], "category_id": coco_category(c), "score": conf,
                         "bbox": [(cx - w / 2) * W, (cy - h / 2) * H, w * W, h * H]})
     return out
 

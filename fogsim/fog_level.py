@@ -75,8 +75,10 @@ def route(predictions: dict[str, dict[str, list]], estimates: dict[str, dict[int
 
     ``predictions[model][level]`` are COCO results; ``estimates[level][image_id]`` a model name.
     """
-    routed = {}
-    for level, per_image in estimates.items():
-        routed[level] = [d for image_id, model in per_image.items()
-                         for d in predictions[model][level] if d["image_id"] == image_id]
-    return routed
+    by_image: dict = {}  # (model, level, image id) → its detections, grouped once
+    for model, levels in predictions.items():
+        for level, dets in levels.items():
+            for d in dets:
+                by_image.setdefault((model, level, d["image_id"]), []).append(d)
+    return {level: [d for image_id, model in per_image.items() for d in by_image.get((model, level, image_id), [])]
+            for level, per_image in estimates.items()}

@@ -177,9 +177,14 @@ def parse_yolo_line(line: str, width: int, height: int) -> tuple[int, list[int]]
 
 
 # ----------------------------------------------------------------------------- COCO
+def coco_category(class_id: int) -> int:
+    """COCO category id of a YOLO class id: one more (COCO ids start at 1)."""
+    return class_id + 1
+
+
 def coco_categories() -> list[dict]:
-    """COCO categories: id = YOLO class id + 1, in YOLO order."""
-    return [{"id": CLASS_ID[name] + 1, "name": name, "supercategory": "street"} for name in LABELLED]
+    """COCO categories in YOLO order."""
+    return [{"id": coco_category(CLASS_ID[name]), "name": name, "supercategory": "street"} for name in LABELLED]
 
 
 def coco_annotation(record: dict, ann_id: int, image_id: int) -> dict:
@@ -188,7 +193,7 @@ def coco_annotation(record: dict, ann_id: int, image_id: int) -> dict:
     with its ``ignore_reason``: a detection on it is neither a hit nor a false alarm, in
     pycocotools as in :mod:`fogsim.evaluate` (COCO trainers skip crowd boxes)."""
     x0, y0, x1, y1 = record["bbox"]
-    return {"id": ann_id, "image_id": image_id, "category_id": record["class_id"] + 1,
+    return {"id": ann_id, "image_id": image_id, "category_id": coco_category(record["class_id"]),
             "bbox": [float(x0), float(y0), float(x1 - x0), float(y1 - y0)],
             "area": float(record["pixels"]), "iscrowd": int(not record["kept"]),
             "distance_m": record["distance_m"], "visible_fraction": record["visible_fraction"],

@@ -22,6 +22,9 @@ study resumes; ``shard=(i, N)`` takes models i, i+N, … for a scheduler's array
 """
 from __future__ import annotations
 
+import hashlib
+import json
+import shutil
 from dataclasses import asdict
 from pathlib import Path
 
@@ -30,8 +33,9 @@ from tqdm import tqdm
 
 from . import __version__
 from .cross_density import cross_density, heatmap, markdown, write_report
-from .detect import (MIXED_MODEL, TrainConfig, check_model, dataset_levels, predict, split_frames,
-                     train, training_view, val_ground_truth)
+from .dataset_writer import DatasetLayout
+from .detect import (MIXED_MODEL, TrainConfig, check_model, dataset_levels, predict, read_split, train,
+                     training_view, val_ground_truth)
 from .errors import InputError
 from .evaluate import BINS
 from .fog_level import LevelEstimator, confusion, image_features, route
@@ -42,37 +46,66 @@ ESTIMATOR_TRAIN_IMAGES = 200  # per level: enough for centroids, bounded time on
 
 
 class Study:
-    """Paths and parameters of one study under ``out`` on ``dataset``."""
+    """Paths and parameters of one study under ``out`` on ``dataset``. ``cfg`` is needed to
+    train; the report reads the training parameters the study was run with from ``study.json``."""
 
-    def __init__(self, dataset: str | Path, out: str | Path, cfg: TrainConfig):
+    def __init__(self, dataset: str | Path, out: str | Path, cfg: TrainConfig | None = None):
         self.dataset, self.out, self.cfg = Path(dataset).resolve(), Path(out).resolve(), cfg
         self.levels = dataset_levels(self.dataset)
+        clash = [lv for lv in self.levels if lv in (MIXED_MODEL, "oracle") or lv.startswith("routed")]
+        if clash:
+            raise InputError(self.dataset / "dataset.json", f"fog level keys {clash} clash with the study's "
+                                                            "row names (mixed, oracle, routed …)")
         self.models = [*self.levels, MIXED_MODEL]
         self.config_dir = self.out / "ultralytics_config"
+        self.layout = DatasetLayout(self.dataset)
 
     def prediction(self, model: str, level: str) -> Path:
         return self.out / "predictions" / model / f"{level}.json"
 
-    def check_parameters(self) -> None:
+    def _dataset_parameters(self, gts: dict) -> dict:
+        """What ties predictions to the dataset: its path, levels and validation images (ids and
+        files — they change when frames are added or the split is redrawn)."""
+        images = {lv: [[im["id"], im["file_name"]] for im in gts[lv]["images"]] for lv in self.levels}
+        digest = hashlib.sha256(json.dumps(images, sort_keys=True).encode()).hexdigest()
+        return {"dataset": str(self.dataset), "levels": self.levels, "validation_images_sha256": digest}
+
+    def check_parameters(self, gts: dict) -> None:
         """Write ``study.json``, or refuse when OUT holds a study with other parameters."""
         path = self.out / "study.json"
-        params = {"dataset": str(self.dataset), "levels": self.levels, "train": asdict(self.cfg)}
+        params = self._dataset_parameters(gts) | {"train": asdict(self.cfg)}
         if path.is_file():
             if read_json(path).get("parameters") != params:
-                raise InputError(path, "this output folder holds a study with other parameters; "
-                                       "use another --out (or delete it) rather than mixing two studies")
+                raise InputError(path, "this output folder holds a study with other parameters (training, "
+                                       "dataset or its validation split); use another --out (or delete it) "
+                                       "rather than mixing two studies")
             return
         write_json(path, {"fogsim_version": __version__, "parameters": params})
 
+    def stored_config(self, gts: dict) -> TrainConfig:
+        """The training parameters in ``study.json``, after checking it is this dataset's study."""
+        path = self.out / "study.json"
+        if not path.is_file():
+            raise InputError(path, "no study here: train the models first")
+        stored = read_json(path).get("parameters", {})
+        if {k: stored.get(k) for k in ("dataset", "levels", "validation_images_sha256")} != self._dataset_parameters(gts):
+            raise InputError(path, f"this study was run on another dataset or validation split than {self.dataset}")
+        return TrainConfig(**stored["train"])
+
+    def ground_truth(self) -> dict:
+        return {lv: val_ground_truth(self.dataset, lv) for lv in self.levels}
+
     def run_models(self, shard: tuple[int, int] = (0, 1), progress: bool = True) -> None:
         """Train every model of this shard and predict with it on every level (resumable)."""
-        self.check_parameters()
-        data = training_view(self.dataset, self.out / "yolo", self.levels)
-        gts = {lv: val_ground_truth(self.dataset, lv) for lv in self.levels}
+        gts = self.ground_truth()
         mine = self.models[shard[0]::shard[1]]
         if any(not (self.out / "runs" / m / "fogsim_done.json").is_file() for m in mine):
-            check_model(self.cfg.model, self.config_dir)
+            check_model(self.cfg.model, self.config_dir)  # before study.json: a typo must not lock OUT
+        self.check_parameters(gts)
+        data = training_view(self.dataset, self.out / "yolo", self.levels)
         for name in tqdm(mine, desc="models", unit="model", disable=not progress):
+            if not (self.out / "runs" / name / "fogsim_done.json").is_file():
+                shutil.rmtree(self.out / "predictions" / name, ignore_errors=True)  # from older weights
             best = train(name, data[name], self.out / "runs", self.cfg, self.config_dir)
             for lv in self.levels:
                 path = self.prediction(name, lv)
@@ -89,7 +122,8 @@ class Study:
         if missing:
             raise InputError(missing[0], f"{len(missing)} prediction files are missing: "
                                          "run the remaining models (shards) first")
-        gts = {lv: val_ground_truth(self.dataset, lv) for lv in self.levels}
+        gts = self.ground_truth()
+        cfg = self.stored_config(gts)
         preds = {m: {lv: read_json(self.prediction(m, lv)) for lv in self.levels} for m in self.models}
         rows = dict(preds)
         rows["oracle"] = {lv: preds[lv][lv] for lv in self.levels}
@@ -108,7 +142,7 @@ class Study:
                     for i, t in enumerate(self.levels)}
             write_image(out / f"fog_level_{method}.png",
                         heatmap(grid, "share", title=f"fog level, {method}: share (row: true, column: estimated)"))
-        atomic_write_bytes(out / "report.md", self.report_markdown(table, levels_out, max_distance_m).encode())
+        atomic_write_bytes(out / "report.md", self.report_markdown(table, levels_out, max_distance_m, cfg).encode())
         return table
 
     def estimate_levels(self, gts: dict) -> dict:
@@ -116,10 +150,10 @@ class Study:
         of every validation image; fitted on training images of every level."""
         X, y = [], []
         for lv in self.levels:
-            frames = split_frames(self.dataset, lv, "train")
+            frames = read_split(self.dataset, lv, "train")
             step = max(1, len(frames) // ESTIMATOR_TRAIN_IMAGES)
             for f in frames[::step]:
-                X.append(image_features(read_image(self.dataset / "images" / lv / f"{f}.png")))
+                X.append(image_features(read_image(self.layout.image(lv, f))))
                 y.append(lv)
         val = [(lv, im["id"], image_features(read_image(self.dataset / im["file_name"])))
                for lv in self.levels for im in gts[lv]["images"]]
@@ -133,13 +167,13 @@ class Study:
             out[method] = ([v[0] for v in val], predicted, estimates)
         return out
 
-    def report_markdown(self, table: dict, levels_out: dict, max_distance_m: float) -> str:
-        cfg = self.cfg
-        n_train = len(split_frames(self.dataset, self.levels[0], "train"))
-        n_val = len(split_frames(self.dataset, self.levels[0], "val"))
+    def report_markdown(self, table: dict, levels_out: dict, max_distance_m: float, cfg: TrainConfig) -> str:
+        n_train = len(read_split(self.dataset, self.levels[0], "train"))
+        n_val = len(read_split(self.dataset, self.levels[0], "val"))
         lines = ["# Cross-density detection study", "",
                  f"Dataset `{self.dataset}`: {n_train} training / {n_val} validation frames per level; "
-                 f"model `{cfg.model}` from scratch, {cfg.epochs} epochs "
+                 f"model `{cfg.model}`{' from scratch' if cfg.model.endswith(('.yaml', '.yml')) else ''}, "
+                 f"{cfg.epochs} epochs "
                  f"(mixed: {cfg.epochs_for(MIXED_MODEL)} over every level), {cfg.imgsz} px, batch {cfg.batch}. "
                  f"Objects within {max_distance_m:g} m count; farther ones are ignored.",
                  "", "Recall = Ultralytics' R (recall at the max-F1 confidence); map50 = COCO AP@0.5 "
@@ -148,16 +182,16 @@ class Study:
                  "**recall by distance** (every detection; model on its own level, mixed, routed)", "",
                  "| row | level | " + " | ".join(f"{lo:g}–{hi:g} m" for lo, hi in BINS) + " |",
                  "|---" * (len(BINS) + 2) + "|"]
-        for row in ("oracle", MIXED_MODEL, *(f"routed ({m})" for m in ESTIMATORS)):
+        for row in ("oracle", MIXED_MODEL, *(r for r in table if r.startswith("routed"))):
             for lv, cell in table[row].items():
                 vals = ["—" if v is None else f"{v:.3f}" for v in cell["recall_by_distance"].values()]
                 lines.append(f"| {row} | {lv} | " + " | ".join(vals) + " |")
         lines += ["", "**training** (seconds of the run that finished each model)", "",
-                  "| model | epochs | seconds | resumed |", "|---|---|---|---|"]
+                  "| model | epochs | seconds | state |", "|---|---|---|---|"]
         for m in self.models:
             done = self.out / "runs" / m / "fogsim_done.json"
             info = read_json(done) if done.is_file() else {}
-            lines.append(f"| {m} | {cfg.epochs_for(m)} | {info.get('seconds', '—')} | {info.get('resumed', '—')} |")
+            lines.append(f"| {m} | {cfg.epochs_for(m)} | {info.get('seconds_this_run', '—')} | {info.get('state', '—')} |")
         lines += ["", "**fog-level estimators** on the validation images (rows: true, columns: estimated)", ""]
         for method, conf in levels_out.items():
             lines += [f"{method}: accuracy {conf['accuracy']:.3f}", "",

@@ -21,6 +21,7 @@ if .venv/bin/python -m pip install -q "torch==2.14.1" "torchvision==0.29.1" \
   fi
 else
   echo "note: the 'detect' extra could not be installed: detector-training tests will skip" >&2
+  .venv/bin/python -m pip uninstall -q -y ultralytics torchvision 2>/dev/null || true
   .venv/bin/python -m pip install -q "torch==2.13.0"
   .venv/bin/python -m pip install -q -e ".[dev,blender,waymo,ila]"
 fi

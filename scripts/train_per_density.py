@@ -28,6 +28,9 @@ sys.path.insert(0, str(ROOT))
 
 
 def parse_args(argv=None):
+    from fogsim.detect import TrainConfig
+
+    d = TrainConfig()
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, help="study folder (resumed when it exists)")
@@ -39,30 +42,44 @@ def parse_args(argv=None):
     src.add_argument("--resolution", default="320x213", help="render resolution WxH (with --render)")
     src.add_argument("--samples", type=int, help="Cycles samples (with --render; default: the preset's)")
     src.add_argument("--render-seed", type=int, help="dataset seed (with --render)")
-    tr = p.add_argument_group("training (Ultralytics)")
-    tr.add_argument("--model", default="yolov8n.yaml", help="model YAML, trained from scratch "
-                    "(e.g. yolo12m.yaml, the paper's)")
-    tr.add_argument("--epochs", type=int, default=20)
+    tr = p.add_argument_group("training (Ultralytics; --report-only reads them from OUT/study.json)")
+    tr.add_argument("--model", default=d.model, help="model YAML, trained from scratch (e.g. yolo12m.yaml, "
+                    "the paper's), or an existing weights file")
+    tr.add_argument("--epochs", type=int, default=d.epochs)
     tr.add_argument("--mixed-epochs", type=int, help="epochs of the mixed model (default: --epochs, i.e. "
                     "the compute of all level models together)")
-    tr.add_argument("--imgsz", type=int, default=320)
-    tr.add_argument("--batch", type=int, default=8)
+    tr.add_argument("--imgsz", type=int, default=d.imgsz)
+    tr.add_argument("--batch", type=int, default=d.batch)
     tr.add_argument("--nbs", type=int, help="nominal batch size: gradients accumulate to it (default: --batch, "
                     "no accumulation — a small dataset needs the optimizer steps; Ultralytics' default is 64)")
-    tr.add_argument("--device", default="auto", help="auto (CUDA GPU 0 when present, else cpu), cpu, 0, 0,1 …")
-    tr.add_argument("--workers", type=int, default=2, help="data-loader workers")
-    tr.add_argument("--seed", type=int, default=0)
-    tr.add_argument("--patience", type=int, default=100, help="early-stopping patience (epochs)")
+    tr.add_argument("--device", default=d.device, help="auto (CUDA GPU 0 when present, else cpu), cpu, 0, 0,1 …")
+    tr.add_argument("--workers", type=int, default=d.workers, help="data-loader workers")
+    tr.add_argument("--seed", type=int, default=d.seed)
+    tr.add_argument("--patience", type=int, default=d.patience, help="early-stopping patience (epochs)")
     tr.add_argument("--cache", action="store_true", help="keep decoded images in RAM (faster on large "
                     "images; Ultralytics warns it may make training non-deterministic)")
     tr.add_argument("--no-plots", action="store_true", help="skip Ultralytics' training plots")
     ev = p.add_argument_group("evaluation")
     ev.add_argument("--max-distance", type=float, default=100.0, help="objects farther (m) are ignored")
     ev.add_argument("--shard", help="i/N: train and predict models i, i+N, … only (array jobs)")
-    ev.add_argument("--report-only", action="store_true", help="only evaluate and write OUT/report")
-    ev.add_argument("--no-report", action="store_true", help="train and predict only")
+    what = ev.add_mutually_exclusive_group()
+    what.add_argument("--report-only", action="store_true", help="only evaluate and write OUT/report")
+    what.add_argument("--no-report", action="store_true", help="train and predict only")
     ev.add_argument("--quiet", action="store_true", help="no progress bar")
     return p.parse_args(argv)
+
+
+def check_args(args) -> None:
+    """Usage errors (ValueError) before anything runs."""
+    positive = {"--epochs": args.epochs, "--mixed-epochs": args.mixed_epochs, "--imgsz": args.imgsz,
+                "--batch": args.batch, "--nbs": args.nbs, "--max-distance": args.max_distance,
+                "--render": args.render}
+    bad = [name for name, v in positive.items() if v is not None and not v > 0]
+    if bad:
+        raise ValueError(f"{', '.join(bad)} must be positive")
+    if args.render and args.shard:
+        raise ValueError("--render with --shard would make every array task render the same dataset: "
+                         "render first (scripts/render_batch.py --shard), then train with --dataset")
 
 
 def render(dataset: Path, args) -> None:
@@ -92,9 +109,12 @@ def main(argv=None) -> int:
                       batch=args.batch, nbs=args.nbs, device=args.device, workers=args.workers, seed=args.seed,
                       patience=args.patience, cache=args.cache, plots=not args.no_plots)
     try:
-        if min(args.epochs, args.imgsz, args.batch, args.mixed_epochs or 1, args.nbs or 1) < 1 or args.max_distance <= 0:
-            raise ValueError("--epochs, --mixed-epochs, --imgsz, --batch and --max-distance must be positive")
+        check_args(args)
         shard = parse_shard(args.shard)
+    except ValueError as exc:
+        print(f"fogsim: error: {exc}", file=sys.stderr)
+        return 2
+    try:
         if args.render:
             render(dataset, args)
         study = Study(dataset, out, cfg)
@@ -107,7 +127,7 @@ def main(argv=None) -> int:
                   f"write the report with --report-only")
             return 0
         study.report(args.max_distance)
-    except (InputError, ValueError) as exc:
+    except InputError as exc:
         print(f"fogsim: error: {exc}", file=sys.stderr)
         return 2
     except FogsimError as exc:

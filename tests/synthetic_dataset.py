@@ -17,7 +17,8 @@ from fogsim.levels import parse_levels
 COLOURS = ((200, 30, 30), (30, 160, 40), (40, 60, 200), (230, 200, 40))
 
 
-def make_dataset(root: Path, frames: int = 10, width: int = 96, height: int = 64, seed: int = 0) -> Path:
+def make_dataset(root: Path, frames: int = 10, width: int = 96, height: int = 64, seed: int = 0,
+                 train_fraction: float = 0.8) -> Path:
     levels = parse_levels("paper")
     layout = DatasetLayout(root)
     rng = np.random.default_rng(seed)
@@ -39,6 +40,6 @@ def make_dataset(root: Path, frames: int = 10, width: int = 96, height: int = 64
             write_image(layout.image(lv.key, frame), fogger(lv.beta))
         write_frame_labels(layout, frame, levels, records, width, height)
         write_json(layout.meta(frame), {"frame": frame, "width": width, "height": height, "objects": records})
-    finalize(layout, levels, {"preset": "synthetic (tests)"})
+    finalize(layout, levels, {"preset": "synthetic (tests)"}, train_fraction)
     return root
 

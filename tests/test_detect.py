@@ -23,7 +23,7 @@ LEVELS = ["clear", "beta0.03", "beta0.06", "beta0.09", "beta0.12"]
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
-    return make_dataset(tmp_path_factory.mktemp("synthetic") / "ds", frames=16)
+    return make_dataset(tmp_path_factory.mktemp("synthetic") / "ds", frames=16, train_fraction=0.5)
 
 
 def perfect(gt, score=0.9):
@@ -71,7 +71,8 @@ def test_report_rows_oracle_routed_mixed(dataset, tmp_path):
     Then oracle = 1 everywhere, the clear model fails in fog, and a routed row finds exactly the
     objects of the images its estimator sent to the right model."""
     study = Study(dataset, tmp_path / "study", TrainConfig())
-    gts = {lv: val_ground_truth(dataset, lv) for lv in LEVELS}
+    gts = study.ground_truth()
+    study.check_parameters(gts)
     preds = {m: {lv: (perfect(gts[lv]) if m == lv else []) for lv in LEVELS} for m in LEVELS}
     preds[MIXED_MODEL] = {lv: perfect(gts[lv], 0.5) for lv in LEVELS}
     write_predictions(study, gts, preds)
@@ -107,10 +108,83 @@ def test_report_rows_oracle_routed_mixed(dataset, tmp_path):
 
 
 def test_study_refuses_a_folder_holding_other_parameters(dataset, tmp_path):
-    Study(dataset, tmp_path, TrainConfig(epochs=3)).check_parameters()
-    Study(dataset, tmp_path, TrainConfig(epochs=3)).check_parameters()  # same: fine
+    study = Study(dataset, tmp_path / "s", TrainConfig(epochs=3))
+    gts = study.ground_truth()
+    study.check_parameters(gts)
+    Study(dataset, tmp_path / "s", TrainConfig(epochs=3)).check_parameters(gts)  # same: fine
     with pytest.raises(InputError, match="study.json.*other parameters"):
-        Study(dataset, tmp_path, TrainConfig(epochs=4)).check_parameters()
+        Study(dataset, tmp_path / "s", TrainConfig(epochs=4)).check_parameters(gts)
+    assert study.stored_config(gts) == TrainConfig(epochs=3)  # what the report describes
+    # the same dataset re-split (or grown): its predictions no longer fit, so the report refuses
+    other = gts | {"clear": dict(gts["clear"], images=gts["clear"]["images"][1:])}
+    with pytest.raises(InputError, match="another dataset or validation split"):
+        study.stored_config(other)
+    with pytest.raises(InputError, match="no study here"):
+        Study(dataset, tmp_path / "none").stored_config(gts)
+
+
+def test_misrouted_images_lose_their_objects(dataset, tmp_path, monkeypatch):
+    """Routing by hand: the first validation image of every level goes to a wrong model."""
+    study = Study(dataset, tmp_path / "study", TrainConfig())
+    gts = study.ground_truth()
+    study.check_parameters(gts)
+    preds = {m: {lv: (perfect(gts[lv]) if m == lv else []) for lv in LEVELS} for m in LEVELS}
+    preds[MIXED_MODEL] = {lv: [] for lv in LEVELS}
+    write_predictions(study, gts, preds)
+    wrong = {lv: gts[lv]["images"][0]["id"] for lv in LEVELS}
+    estimates = {lv: {im["id"]: ("beta0.12" if lv == "clear" else "clear") if im["id"] == wrong[lv] else lv
+                      for im in gts[lv]["images"]} for lv in LEVELS}
+    monkeypatch.setattr(Study, "estimate_levels", lambda self, gts: {"features": ([], [], estimates)})
+    monkeypatch.setattr("fogsim.study.confusion", lambda *a: {"levels": LEVELS, "matrix": [[0] * 5] * 5,
+                                                              "accuracy": 0.0})
+    table = study.report()
+    for lv in LEVELS:
+        real = [a for a in gts[lv]["annotations"] if a["distance_m"] <= 100]
+        kept = sum(a["image_id"] != wrong[lv] for a in real) / len(real)
+        assert len(gts[lv]["images"]) > 1 and kept < 1.0
+        assert table["routed (features)"][lv]["recall_max"] == pytest.approx(kept)
+        assert table["oracle"][lv]["recall_max"] == 1.0
+
+
+class FakeBoxes:
+    def __init__(self, rows):
+        self.xyxy = FakeTensor([r[:4] for r in rows])
+        self.conf = FakeTensor([r[4] for r in rows])
+        self.cls = FakeTensor([r[5] for r in rows])
+
+
+class FakeTensor(list):
+    def tolist(self):
+        return list(self)
+
+
+def test_predict_writes_coco_results_in_image_pixels(dataset, tmp_path, monkeypatch):
+    """Ultralytics' xyxy boxes (original-image pixels) → COCO xywh, class + 1, per image id."""
+    import fogsim.detect as detect
+
+    gt = val_ground_truth(dataset, "beta0.03")
+    seen = []
+
+    class FakeYOLO:
+        def __init__(self, weights):
+            assert weights == "w.pt"
+
+        def predict(self, paths, **kw):
+            seen.extend(paths)
+            assert kw["conf"] == 0.001 and kw["max_det"] == 100 and kw["imgsz"] == 320
+            for n, _ in enumerate(paths):
+                yield type("Result", (), {"boxes": FakeBoxes([(10 + n, 20, 40, 60, 0.75, 2)])})()
+
+    monkeypatch.setattr(detect, "load_ultralytics", lambda config_dir: type("U", (), {"YOLO": FakeYOLO}))
+    monkeypatch.setattr(detect, "resolve_device", lambda device: "cpu")
+    dets = detect.predict(Path("w.pt"), gt, dataset, TrainConfig(), tmp_path, chunk=2)
+    assert seen == [str(dataset / im["file_name"]) for im in gt["images"]]
+    assert [d["image_id"] for d in dets] == [im["id"] for im in gt["images"]]
+    assert dets[0] == {"image_id": gt["images"][0]["id"], "category_id": 3, "score": 0.75, "bbox": [10, 20, 30, 40]}
+    assert [d["bbox"][0] for d in dets] == [10 + (n % 2) for n in range(len(dets))]  # n restarts per chunk
+    missing = dict(gt, images=[dict(gt["images"][0], file_name="images/beta0.03/gone.png")])
+    with pytest.raises(InputError, match="gone.png.*missing"):
+        detect.predict(Path("w.pt"), missing, dataset, TrainConfig(), tmp_path)
 
 
 def driver(*args, **kw):
@@ -131,7 +205,8 @@ def test_driver_bad_input_names_the_problem(dataset, tmp_path):
 
 # --- a real training (needs the 'detect' extra) ---------------------------------------------------
 
-TINY = ("--epochs", "1", "--imgsz", "64", "--batch", "4", "--workers", "0", "--no-plots", "--quiet")
+TINY = ("--epochs", "1", "--imgsz", "64", "--batch", "4", "--workers", "0", "--device", "cpu", "--no-plots",
+        "--quiet")
 
 
 def test_tiny_real_training_resume_and_shards(dataset, tmp_path):
@@ -158,7 +233,7 @@ def test_tiny_real_training_resume_and_shards(dataset, tmp_path):
     assert set(table) == {*models, "oracle", "routed (features)", "routed (dark-channel)"}
     assert tree_digest(dataset) == before  # Ultralytics' caches went to the view, not the dataset
 
-    # a model trained but not marked (killed after its last epoch) resumes, and predicts the same
+    # a model trained but not marked (killed after its last epoch) is taken as done, predicts the same
     (out / "runs" / "clear" / "fogsim_done.json").unlink()
     for lv in LEVELS:
         (out / "predictions" / "clear" / f"{lv}.json").unlink()
@@ -166,6 +241,7 @@ def test_tiny_real_training_resume_and_shards(dataset, tmp_path):
     r = driver("--out", out, "--dataset", dataset, *TINY)
     assert r.returncode == 0, r.stderr[-3000:]
     assert (out / "predictions" / "beta0.12" / "clear.json").stat().st_mtime_ns == stamp  # done: skipped
+    assert json.loads((out / "runs" / "clear" / "fogsim_done.json").read_text())["state"] == "finished earlier"
     for lv in LEVELS:
         assert json.loads((out / "predictions" / "clear" / f"{lv}.json").read_text()) == preds["clear", lv]
 
@@ -222,3 +298,9 @@ def test_interrupted_training_resumes_from_last_checkpoint(dataset, tmp_path, mo
     # row was written just before the kill, but not its checkpoint, is run again: Ultralytics' way)
     assert epochs[0] == "1" and epochs.count("1") == 1 and epochs[-1] == "3" and set(epochs) == {"1", "2", "3"}
     assert not _resumable(last) and (out / "report" / "report.md").is_file()
+    assert json.loads((out / "runs" / "clear" / "fogsim_done.json").read_text())["state"] == "resumed"
+    # a checkpoint cut short by a kill: a clear error naming it, not a traceback
+    (out / "runs" / "clear" / "fogsim_done.json").unlink()
+    last.write_bytes(last.read_bytes()[:1000])
+    r = driver("--out", out, "--dataset", dataset, "--epochs", "3", *TINY[2:])
+    assert r.returncode == 1 and "last.pt: unreadable checkpoint" in r.stderr and "Traceback" not in r.stderr
