@@ -1,32 +1,70 @@
 #!/usr/bin/env bash
 # Install what the tests need (idempotent) and run them: the README's test command.
 #   bash scripts/test.sh [pytest args]
+# Fast tier only: bash scripts/test.sh -m "not blender and not torch and not detect and not slow"
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3.11}
 command -v "$PY" >/dev/null || PY=python3
 [ -x .venv/bin/python ] || "$PY" -m venv .venv
-.venv/bin/python -m pip install -q --upgrade pip
+PIP=(.venv/bin/python -m pip)
+"${PIP[@]}" install -q --upgrade pip
 # torch: pinned (an unpinned torch pulls the newest multi-GB CUDA build). The 'detect' extra
 # (Ultralytics) needs torchvision, and torch 2.14.1 + torchvision 0.29.1 is the pair this
 # machine kind serves from its disk; where it cannot be had, the CPU build 2.13.0 serves the
 # ILA extra and the detector-training tests skip.
-if .venv/bin/python -m pip install -q "torch==2.14.1" "torchvision==0.29.1" \
-   && .venv/bin/python -m pip install -q -e ".[dev,blender,waymo,ila,detect]"; then
-  # Ultralytics pulls opencv-python, which shares the cv2 folder with the contrib build:
-  # put the contrib build back when its modules are gone (DESIGN.md §5)
-  if ! .venv/bin/python -c "import cv2, sys; sys.exit(not hasattr(cv2, 'ximgproc'))"; then
-    CV=$(.venv/bin/python -m pip show opencv-contrib-python-headless | sed -n 's/^Version: //p')
-    .venv/bin/python -m pip install -q --force-reinstall --no-deps "opencv-contrib-python-headless==$CV"
-  fi
+if "${PIP[@]}" install -q "torch==2.14.1" "torchvision==0.29.1" \
+   && "${PIP[@]}" install -q -e ".[dev,blender,waymo,ila,detect]"; then
+  :
 else
   echo "note: the 'detect' extra could not be installed: detector-training tests will skip" >&2
-  .venv/bin/python -m pip uninstall -q -y ultralytics torchvision 2>/dev/null || true
-  .venv/bin/python -m pip install -q "torch==2.13.0"
-  .venv/bin/python -m pip install -q -e ".[dev,blender,waymo,ila]"
+  "${PIP[@]}" uninstall -q -y ultralytics torchvision 2>/dev/null || true
+  "${PIP[@]}" install -q "torch==2.13.0"
+  "${PIP[@]}" install -q -e ".[dev,blender,waymo,ila]"
 fi
-.venv/bin/python -c "import cv2; cv2.ximgproc" \
-  || { echo "error: cv2 lacks ximgproc: opencv-contrib-python-headless is not the cv2 in place" >&2; exit 1; }
+
+# --- OpenCV: the contrib build must be the cv2 in place, whatever was installed in what order.
+# opencv-python (pulled by Ultralytics), opencv-python-headless and opencv-contrib-python all
+# write the same cv2/ folder as opencv-contrib-python-headless; whichever came last wins and
+# can leave cv2.ximgproc an empty namespace (so hasattr(cv2, "ximgproc") proves nothing).
+# Check the functions fogsim calls (DESIGN.md §5).
+CV2_CHECK='import sys
+try:
+    import cv2
+except Exception as exc:
+    sys.exit(f"import cv2 failed: {exc}")
+x = getattr(cv2, "ximgproc", None)
+missing = [n for n in ("guidedFilter", "createRightMatcher", "createDisparityWLSFilter") if not hasattr(x, n)]
+if missing:
+    sys.exit("cv2 %s (%s) lacks cv2.ximgproc: %s" % (cv2.__version__, cv2.__file__, " ".join(missing)))'
+OTHER_OPENCV=(opencv-python opencv-python-headless opencv-contrib-python)
+ensure_opencv_contrib() {  # $1: the venv's python
+  local py=$1 version spec d others=()
+  for d in "${OTHER_OPENCV[@]}"; do
+    if "$py" -m pip show -q "$d" >/dev/null 2>&1; then others+=("$d"); fi
+  done
+  # done only when the functions are there AND nothing else can overwrite cv2/ later
+  # (a later upgrade or uninstall of opencv-python would break it again)
+  if "$py" -c "$CV2_CHECK" 2>/dev/null; then
+    [ ${#others[@]} -eq 0 ] && return 0
+  else
+    "$py" -c "$CV2_CHECK" || true   # say what is wrong
+  fi
+  version=$("$py" -m pip show opencv-contrib-python-headless 2>/dev/null | sed -n 's/^Version: //p')
+  # not installed at all: what the 'blender' extra requires (numpy < 2 holds it below 4.12)
+  if [ -n "$version" ]; then spec="opencv-contrib-python-headless==$version"
+  else spec="opencv-contrib-python-headless>=4.8,<4.12"; fi
+  echo "note: putting the contrib build back: $spec" >&2
+  for d in "${others[@]}"; do
+    echo "note: uninstalling $d (it shares cv2/ with opencv-contrib-python-headless)" >&2
+    "$py" -m pip uninstall -q -y "$d"
+  done
+  "$py" -m pip install -q --force-reinstall --no-deps "$spec"
+  "$py" -c "$CV2_CHECK" || {
+    echo "error: cv2 still lacks the opencv-contrib modules after reinstalling $spec" >&2; return 1; }
+}
+ensure_opencv_contrib .venv/bin/python
+
 # Debian's Blender 3.4 for the `blender -b -P` tests
 if ! command -v blender >/dev/null 2>&1; then
   if [ "$(id -u)" = 0 ]; then
