@@ -1,3 +1,22 @@
-"""fogsim — labeled images in fog: Koschmieder fog for rendered and real datasets."""
+"""fogsim — labeled images in fog: Koschmieder fog for rendered and real datasets.
 
-__version__ = "0.1.0"
+The public fog API is re-exported here::
+
+    from fogsim import koschmieder, Fogger, Kernel, Intrinsics, planar_to_ray, load_preset
+
+Subpackages, one per concern (see CONTRIBUTING.md for the dependency rules):
+``fog`` (the engine), ``readers`` (Waymo, Cityscapes, folders), ``scene`` (procedural street
+scenes), ``dataset`` (fogsim's on-disk format), ``render`` (frames → dataset; ``render.blender``
+is the only code that imports bpy), ``depth`` (stereo, hole filling, ILA, metrics),
+``detection`` (YOLO training, COCO evaluation, the cross-density study) and ``cli``.
+"""
+
+__version__ = "0.2.0"
+
+from fogsim.camera import Intrinsics, StereoCamera, planar_to_ray  # noqa: E402
+from fogsim.fog import (Fogger, FogLevel, Kernel, beta_from_visibility, estimate_airlight, koschmieder,  # noqa: E402
+                        koschmieder_extended, load_preset, parse_levels, transmission, visibility_from_beta)
+
+__all__ = ["__version__", "FogLevel", "Fogger", "Intrinsics", "Kernel", "StereoCamera", "beta_from_visibility",
+           "estimate_airlight", "koschmieder", "koschmieder_extended", "load_preset", "parse_levels",
+           "planar_to_ray", "transmission", "visibility_from_beta"]

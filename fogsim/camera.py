@@ -4,7 +4,9 @@ Conventions (OpenCV): K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]; integer pixel c
 are pixel centres, so a centred principal point is cx = (W − 1)/2. ``depth`` is planar Z
 along the optical axis in metres (what Cycles' Depth pass and stereo give); the fog model
 needs the *ray distance* ℓ = Z·sqrt(1 + ((u−cx)/fx)² + ((v−cy)/fy)²). This module is the
-one place where that conversion, and disparity decoding, happen.
+one place where that conversion, and disparity decoding, happen. It holds geometry only:
+dataset files are read in :mod:`fogsim.readers` (Cityscapes' camera JSON and disparity PNG in
+:mod:`fogsim.readers.cityscapes`, the paper's 8-bit depth in :mod:`fogsim.readers.paper`).
 
 Depth maps use two special values: 0 = hole (unknown, to be filled) and +inf = no hit (sky).
 """
@@ -13,11 +15,10 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from fogsim.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -85,6 +86,11 @@ def _ray_factor(fx: float, fy: float, cx: float, cy: float, width: int, height: 
     return factor
 
 
+def clear_ray_cache() -> None:
+    """Forget the cached ray-factor maps (benchmarks measure the uncached cost with it)."""
+    _ray_factor.cache_clear()
+
+
 def ray_factor(K: Intrinsics) -> np.ndarray:
     """H×W float32 map ℓ/Z = sqrt(1 + ((u−cx)/fx)² + ((v−cy)/fy)²), cached per camera."""
     return _ray_factor(K.fx, K.fy, K.cx, K.cy, K.width, K.height)
@@ -135,7 +141,8 @@ def depth_to_disparity(depth: np.ndarray, baseline_m: float, fx: float) -> np.nd
 
 @dataclass(frozen=True)
 class StereoCamera:
-    """A rectified stereo rig as Cityscapes' ``camera/*.json`` describes it."""
+    """A rectified stereo rig as Cityscapes' ``camera/*.json`` describes it (read by
+    :func:`fogsim.readers.cityscapes.load_cityscapes_camera`)."""
 
     baseline: float  # metres
     intrinsics: Intrinsics
@@ -145,37 +152,3 @@ class StereoCamera:
         return {"extrinsic": {"baseline": self.baseline},
                 "intrinsic": {"fx": K.fx, "fy": K.fy, "u0": K.cx, "v0": K.cy},
                 "sensor": {"width": K.width, "height": K.height}}
-
-
-def load_cityscapes_camera(path: str | Path, width: int, height: int) -> StereoCamera:
-    """Read a Cityscapes camera JSON (``extrinsic.baseline``, ``intrinsic.fx/fy/u0/v0``)."""
-    from .io import read_json
-
-    d = read_json(path)
-    try:
-        intr = d["intrinsic"]
-        baseline = float(d["extrinsic"]["baseline"])
-        K = Intrinsics(float(intr["fx"]), float(intr["fy"]), float(intr["u0"]), float(intr["v0"]),
-                       width, height)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(path, f"not a Cityscapes camera file (missing {exc})") from None
-    if baseline <= 0 or K.fx <= 0:
-        raise InputError(path, f"baseline ({baseline}) and fx ({K.fx}) must be positive")
-    return StereoCamera(baseline, K)
-
-
-# ----------------------------------------------------------------------------- paper compatibility
-#: The reference fog code (Chaar & Weidl) decodes its 8-bit ILA predictions p ∈ [0, 126] with
-#: baseline 22 (cm) × focal 5.6, divides by 100 and uses the result directly as the distance
-#: in Koschmieder's law (no planar→ray step): ℓ = 0.22·5.6·256/(p − 1) m, and p < 2 → 320 m.
-PAPER_BASELINE_TIMES_FOCAL = 22 * 5.6 / 100  # = 1.232
-PAPER_FAR_DISTANCE = 320.0
-
-
-def paper_distance_from_8bit(raw: np.ndarray) -> np.ndarray:
-    """Distance in metres exactly as the paper's reference code computes it from 8-bit values."""
-    p = raw.astype(np.float64)
-    with np.errstate(divide="ignore"):
-        dist = PAPER_BASELINE_TIMES_FOCAL * 256.0 / (p - 1.0)
-    dist[p < 2] = PAPER_FAR_DISTANCE
-    return dist.astype(np.float32)

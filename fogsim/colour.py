@@ -1,4 +1,5 @@
-"""Pixel value scales and the sRGB transfer function — the one place for both.
+"""Pixel value scales, float → integer rounding and the sRGB transfer function — the one place
+for each (images, asset colours, previews and the renderer's 8-bit output all call these).
 
 Images keep their dtype end to end: uint8 (0–255), uint16 (0–65535) or float (0–1).
 Airlight is always given in 8-bit units (255 = white), as in the paper, and scaled here.
@@ -20,16 +21,18 @@ def full_scale(dtype) -> float:
     raise TypeError(f"unsupported image dtype {dtype} (use uint8, uint16 or float)")
 
 
-def srgb_to_linear(x: np.ndarray) -> np.ndarray:
-    """sRGB-encoded values in [0, 1] → linear light in [0, 1] (IEC 61966-2-1)."""
-    x = np.asarray(x, dtype=np.float32)
-    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
+def srgb_to_linear(x: np.ndarray, dtype=np.float32) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] → linear light in [0, 1] (IEC 61966-2-1), computed in and
+    returned as ``dtype`` (float32 for images; float64 for colour constants)."""
+    x = np.asarray(x, dtype=dtype)
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(dtype)
 
 
-def linear_to_srgb(x: np.ndarray) -> np.ndarray:
-    """Linear light in [0, 1] → sRGB-encoded values in [0, 1]."""
-    x = np.clip(np.asarray(x, dtype=np.float32), 0.0, None)
-    return np.where(x <= 0.0031308, x * 12.92, 1.055 * x ** (1 / 2.4) - 0.055).astype(np.float32)
+def linear_to_srgb(x: np.ndarray, dtype=np.float32) -> np.ndarray:
+    """Linear light in [0, 1] → sRGB-encoded values in [0, 1] (negatives clip to 0), computed in
+    and returned as ``dtype``."""
+    x = np.clip(np.asarray(x, dtype=dtype), 0.0, None)
+    return np.where(x <= 0.0031308, x * 12.92, 1.055 * x ** (1 / 2.4) - 0.055).astype(dtype)
 
 
 def from_float(x: np.ndarray, dtype) -> np.ndarray:
@@ -41,3 +44,18 @@ def from_float(x: np.ndarray, dtype) -> np.ndarray:
     np.add(x, 0.5, out=x)
     np.clip(x, 0.0, top, out=x)
     return x.astype(dtype)
+
+
+def to_uint8(image: np.ndarray) -> np.ndarray:
+    """An image of any supported dtype → uint8 (0–255): rescaled, rounded half up, clipped.
+    uint8 input comes back as is (not copied)."""
+    if image.dtype == np.uint8:
+        return image
+    return from_float(image.astype(np.float32) * (255.0 / full_scale(image.dtype)), np.uint8)
+
+
+def linear_to_srgb8(rgb_linear: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """Scene-linear light → 8-bit sRGB: exposure scale, clip at white, sRGB transfer, rounded
+    half up."""
+    x = linear_to_srgb(np.clip(rgb_linear * np.float32(exposure), 0.0, 1.0))
+    return from_float(np.multiply(x, 255.0, out=x), np.uint8)

@@ -1,4 +1,5 @@
-"""Errors that reach the user as one clear line naming the file and the problem."""
+"""Errors that reach the user as one clear line naming the file and the problem, and the one
+error → exit-code policy of the command line."""
 
 
 class FogsimError(Exception):
@@ -15,3 +16,36 @@ class InputError(FogsimError):
         self.source = str(source)
         self.problem = problem
         super().__init__(f"{self.source}: {problem}")
+
+
+class MissingDependency(FogsimError):
+    """An optional extra (bpy, torch, Ultralytics, pyarrow …) is needed but not installed."""
+
+
+# ----------------------------------------------------------------------------- exit codes
+#: The one error → exit-code policy of every front door (``fogsim …``, ``render_batch.py``).
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+def exit_code(exc: BaseException) -> int:
+    """Exit code for an error that ended a command.
+
+    Usage and setup errors — a bad flag or value (``ValueError``), a bad input
+    (:class:`InputError`), a missing extra, an unwritable path (``OSError``) — exit 2; any
+    other fogsim error is a failure of the work itself and exits 1; Ctrl-C exits 130.
+    """
+    if isinstance(exc, KeyboardInterrupt):
+        return EXIT_INTERRUPTED
+    if isinstance(exc, (InputError, MissingDependency, ValueError, OSError)):
+        return EXIT_USAGE
+    return EXIT_FAILED
+
+
+def describe(exc: BaseException) -> str:
+    """The one line printed for an error: what and where, never a traceback."""
+    if isinstance(exc, KeyboardInterrupt):
+        return "interrupted"
+    if isinstance(exc, OSError) and not isinstance(exc, FogsimError):
+        where = exc.filename or ""
+        return f"{where}: {exc.strerror or exc}" if where else str(exc)
+    return str(exc)

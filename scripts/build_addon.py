@@ -15,6 +15,7 @@ Install: Edit ▸ Preferences ▸ Add-ons ▸ Install… (3.x) or Get Extensions
 from __future__ import annotations
 
 import argparse
+import re
 import shutil
 import subprocess
 import sys
@@ -39,11 +40,28 @@ def download_wheels(dest: Path, platform: str, with_numpy: bool) -> list[Path]:
 
 def stage(dest: Path) -> None:
     """Add-on modules at ``dest``, the fogsim library and presets in ``dest/lib``."""
-    ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
-    for f in (ROOT / "blender_addon").glob("*.py"):
-        shutil.copy(f, dest / f.name)
-    shutil.copytree(ROOT / "fogsim", dest / "lib" / "fogsim", ignore=ignore)
-    shutil.copytree(ROOT / "presets", dest / "lib" / "fogsim" / "presets", ignore=ignore)
+    from fogsim import __version__
+
+    init = (ROOT / "blender_addon" / "__init__.py").read_text()
+    stamped = re.sub(r'"version": \(\d+, \d+, \d+\)', f'"version": {_version_tuple(__version__)}', init, count=1)
+    if stamped == init and "(0, 0, 0)" in init:
+        raise SystemExit("build_addon: could not stamp bl_info['version'] in blender_addon/__init__.py")
+    (dest / "__init__.py").write_text(stamped)
+    shutil.copytree(ROOT / "fogsim", dest / "lib" / "fogsim", ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+
+
+def _version_tuple(version: str) -> tuple[int, int, int]:
+    """``"0.2.0"`` → ``(0, 2, 0)`` for bl_info (pre-release tags dropped)."""
+    nums = [int(re.match(r"\d+", part).group()) for part in version.split(".")[:3]]
+    return tuple(nums + [0] * (3 - len(nums)))
+
+
+def stamp_manifest(text: str, version: str) -> str:
+    """The manifest with its ``version = "…"`` line set to ``version``."""
+    out, n = re.subn(r'(?m)^version = "[^"]*".*$', f'version = "{version}"', text, count=1)
+    if n != 1:
+        raise SystemExit("build_addon: blender_manifest.toml has no version line")
+    return out
 
 
 def zip_tree(src: Path, out: Path, prefix: str = "") -> None:
@@ -63,7 +81,7 @@ def build_extension(out_dir: Path, platform: str, tmp: Path) -> Path:
     manifest = (ROOT / "blender_addon" / "blender_manifest.toml").read_text()
     listed = ", ".join(f'"./wheels/{w.name}"' for w in wheels)
     manifest = manifest.replace("wheels = []", f'wheels = [{listed}]\nplatforms = ["{_blender_platform(platform)}"]')
-    manifest = manifest.replace('version = "0.1.0"', f'version = "{__version__}"')
+    manifest = stamp_manifest(manifest, __version__)
     (stage_dir / "blender_manifest.toml").write_text(manifest)
     out = out_dir / f"fogsim-{__version__}-extension.zip"
     zip_tree(stage_dir, out)

@@ -13,6 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from fogsim.colour import linear_to_srgb
 from fogsim.scene.assets import ASSET_TYPES, asset_extent, build_asset, sample_asset
 from fogsim.scene.materials import material
 
@@ -30,8 +31,8 @@ def view_axes(azimuth_deg: float, elevation_deg: float) -> tuple[np.ndarray, np.
 
 
 def to_srgb(rgb) -> np.ndarray:
-    c = np.clip(np.asarray(rgb, float), 0.0, 1.0)
-    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+    """Linear colours → sRGB-encoded float64 in [0, 1] (clipped at white)."""
+    return linear_to_srgb(np.clip(np.asarray(rgb, float), 0.0, 1.0), np.float64)
 
 
 def triangles(spec: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -6,7 +6,27 @@ import numpy as np
 import pytest
 
 from fogsim.camera import Intrinsics, encode_disparity_png, depth_to_disparity
-from fogsim.io import write_depth, write_image
+from fogsim.fileio import write_depth, write_image
+
+
+def expected_yolo_lines(mask: np.ndarray, objects: list[dict], visible_fraction: dict, min_pixels: int,
+                        min_visible_fraction: float) -> list[str]:
+    """A frame's YOLO label lines recomputed from its instance mask by brute force, without the
+    label code: every labelled object (scene order) with at least ``min_pixels`` mask pixels and
+    ``visible_fraction[id] >= min_visible_fraction``; its tight pixel-edge box [x0, y0, x1, y1)
+    as "cls cx cy w h", normalised by the image size, 6 decimals."""
+    from fogsim.scene.classes import CLASS_ID, LABELLED
+
+    h, w = mask.shape
+    lines = []
+    for obj in objects:
+        v, u = np.nonzero(mask == obj["id"])
+        if obj["class"] not in LABELLED or len(u) < min_pixels or visible_fraction[obj["id"]] < min_visible_fraction:
+            continue
+        x0, y0, x1, y1 = int(u.min()), int(v.min()), int(u.max()) + 1, int(v.max()) + 1
+        lines.append(f"{CLASS_ID[obj['class']]} {(x0 + x1) / 2 / w:.6f} {(y0 + y1) / 2 / h:.6f} "
+                     f"{(x1 - x0) / w:.6f} {(y1 - y0) / h:.6f}")
+    return lines
 
 
 def tree_digest(root: Path) -> str:

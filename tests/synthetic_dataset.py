@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.camera import planar_to_ray
-from fogsim.dataset_writer import DatasetLayout, finalize, write_frame_labels
-from fogsim.demo import demo_scene
-from fogsim.fog import Fogger
-from fogsim.io import write_image, write_json
-from fogsim.levels import parse_levels
+from fogsim.dataset.writer import DatasetLayout, finalize, write_frame_labels
+from fogsim.fog.synthetic import demo_scene
+from fogsim.fog.model import Fogger
+from fogsim.fileio import write_image, write_json
+from fogsim.fog.levels import parse_levels
 
 COLOURS = ((200, 30, 30), (30, 160, 40), (40, 60, 200), (230, 200, 40))
 

@@ -19,7 +19,8 @@ MAX_FACES = {"car": 3000, "van": 3000, "truck": 3000, "bus": 3000, "pedestrian":
              "building": 5000}
 REQUIRED = ("body_paint glass tyre rim headlight taillight plastic_black skin hair cloth_top cloth_bottom shoe "
             "bike_frame asphalt lane_paint sidewalk curb facade_brick facade_concrete facade_plaster window door "
-            "roof pole_metal signal_housing signal_red signal_amber signal_green sign_face sign_back bark foliage").split()
+            "roof pole_metal signal_housing signal_red signal_amber signal_green sign_face sign_back "
+            "bark foliage").split()
 
 
 def spec_of(asset_type: str, seed: int, **constraints) -> dict:

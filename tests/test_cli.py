@@ -8,8 +8,8 @@ import pytest
 from conftest import tree_digest
 from fogsim.camera import Intrinsics, decode_disparity_png, disparity_to_depth, planar_to_ray
 from fogsim.cli import main
-from fogsim.fill import fill_holes
-from fogsim.io import read_depth_file, read_image, read_uint16_map, write_depth, write_image
+from fogsim.depth.fill import fill_holes
+from fogsim.fileio import read_depth_file, read_image, read_uint16_map, write_depth, write_image
 
 
 def fog_args(ds, out, *extra):
@@ -74,7 +74,8 @@ def test_resume_shards_and_workers(folder_dataset, tmp_path, capsys):
     par = tmp_path / "par"
     assert main(fog_args(ds, par, "--levels", "0.03", "--workers", "2")) == 0
     for name in ("a", "sub/b"):
-        assert read_image(par / "beta0.03" / f"{name}.png").tobytes() == read_image(out / "beta0.03" / f"{name}.png").tobytes()
+        single, sharded = (read_image(d / "beta0.03" / f"{name}.png") for d in (par, out))
+        assert single.tobytes() == sharded.tobytes()
     assert not list(out.rglob("*.part"))
 
 
@@ -184,7 +185,9 @@ def test_demo_writes_strip(tmp_path):
     assert far > near  # the sky row turns white in fog
 
 
-def test_review_fixes_bad_inputs(folder_dataset, tmp_path, capsys):
+def test_bad_hfov_scale_intrinsics_changed_inputs_and_name_clashes_exit_2(folder_dataset, tmp_path, capsys):
+    """Usage errors naming their cause: --hfov 0, --heterogeneity-scale 0, a resumed run with
+    another field of view, intrinsics with fx = 0, two images whose outputs would collide."""
     ds = folder_dataset
     base = ["fog", "--input", str(ds / "images"), "--depth", str(ds / "depth"), "--levels", "0.1", "--quiet"]
     assert main(base + ["--hfov", "0", "--out", str(tmp_path / "h0")]) == 2

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from fogsim.depth_metrics import depth_metrics
+from fogsim.depth.metrics import depth_metrics
 
 
 def test_metrics_by_hand():
@@ -36,7 +36,7 @@ def test_cap_mask_and_invalid_predictions():
 
 
 def test_reference_accuracy_and_smoothness():
-    from fogsim.depth_metrics import laplacian_variance, reference_accuracy
+    from fogsim.depth.metrics import laplacian_variance, reference_accuracy
 
     target = np.array([[10.0, 0.0], [20.0, 10.0]])   # a hole at (0, 1)
     pred = np.array([[12.0, 5.0], [20.0, 10.0]])

@@ -1,6 +1,9 @@
 """The per-density detection study: training view, report rows (oracle, routed, mixed), the
 driver's errors — and, when the 'detect' extra is installed, a tiny real Ultralytics training
-through scripts/train_per_density.py."""
+through scripts/train_per_density.py.
+
+Markers: the report tests need pycocotools and the real trainings Ultralytics (``detect``; the
+trainings are also ``slow``); the others need neither and stay in the fast tier."""
 import importlib.util
 import json
 import time
@@ -12,9 +15,10 @@ import numpy as np
 import pytest
 
 from conftest import tree_digest
-from fogsim.detect import MIXED_MODEL, TrainConfig, training_view, val_ground_truth
+from fogsim.dataset.reader import val_ground_truth
+from fogsim.detection.yolo import MIXED_MODEL, TrainConfig, training_view
 from fogsim.errors import InputError
-from fogsim.study import Study
+from fogsim.detection.study import Study
 from synthetic_dataset import make_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -46,7 +50,8 @@ def test_training_view_reads_the_dataset_without_writing_it(dataset, tmp_path):
             assert image.resolve().parent.parent == (dataset / "images").resolve()
         assert "names:\n  0: \"car\"" in yaml.read_text()
     # caches of different models / splits land in different folders of the view
-    assert (tmp_path / "yolo" / "clear" / "train" / "clear" / "labels").resolve() == (dataset / "labels" / "clear").resolve()
+    view = tmp_path / "yolo" / "clear" / "train" / "clear" / "labels"
+    assert view.resolve() == (dataset / "labels" / "clear").resolve()
     assert tree_digest(dataset) == before
 
 
@@ -66,10 +71,14 @@ def write_predictions(study, gts, models):
             path.write_text(json.dumps(dets))
 
 
+@pytest.mark.detect
 def test_report_rows_oracle_routed_mixed(dataset, tmp_path):
     """Each level model finds every object on its own level only; mixed finds them everywhere.
     Then oracle = 1 everywhere, the clear model fails in fog, and a routed row finds exactly the
-    objects of the images its estimator sent to the right model."""
+    objects of the images its estimator sent to the right model. On this dataset the dark channel
+    routes every image right (routed = oracle); the features estimator never misroutes clear air
+    and misroutes a few fogged images, each to the next thicker level."""
+    pytest.importorskip("pycocotools")
     study = Study(dataset, tmp_path / "study", TrainConfig())
     gts = study.ground_truth()
     study.check_parameters(gts)
@@ -88,7 +97,20 @@ def test_report_rows_oracle_routed_mixed(dataset, tmp_path):
             assert table[row][lv]["recall_max"] == table[row][lv]["ultralytics_R"] == pytest.approx(1.0)
         assert table["clear"][lv]["recall_max"] == (1.0 if lv == "clear" else 0.0)
 
+    # routing by hand: every image sent to its own level's model, what a perfect estimator does
+    truth = {lv: {im["id"]: lv for im in gts[lv]["images"]} for lv in LEVELS}
     estimates = study.estimate_levels(gts)
+    assert set(estimates) == {"features", "dark-channel"}
+    assert estimates["dark-channel"][2] == truth
+    for lv in LEVELS:
+        assert table["routed (dark-channel)"][lv]["recall_max"] == pytest.approx(1.0)
+    features = estimates["features"][2]
+    assert features["clear"] == truth["clear"]
+    assert table["routed (features)"]["clear"]["recall_max"] == pytest.approx(1.0)
+    misrouted = [(lv, est) for lv in LEVELS for est in features[lv].values() if est != lv]
+    assert len(misrouted) <= 0.2 * sum(len(truth[lv]) for lv in LEVELS)
+    assert all(LEVELS.index(est) == LEVELS.index(lv) + 1 for lv, est in misrouted), misrouted
+    # the routing plumbing: a routed row finds exactly the objects of the images sent to the right model
     for method, (true, predicted, per_image) in estimates.items():
         for lv in LEVELS:
             right = {i for i, est in per_image[lv].items() if est == lv}
@@ -96,6 +118,7 @@ def test_report_rows_oracle_routed_mixed(dataset, tmp_path):
             expected = sum(a["image_id"] in right for a in real) / len(real)
             assert table[f"routed ({method})"][lv]["recall_max"] == pytest.approx(expected)
         assert len(true) == len(predicted) == sum(len(gts[lv]["images"]) for lv in LEVELS)
+        assert true == [lv for lv in LEVELS for _ in gts[lv]["images"]]
 
     out = tmp_path / "study" / "report"
     for name in ("cross_density.json", "cross_density.csv", "cross_density.md", "recall_heatmap.png",
@@ -104,6 +127,8 @@ def test_report_rows_oracle_routed_mixed(dataset, tmp_path):
         assert (out / name).stat().st_size > 0, name
     conf = json.loads((out / "fog_level.json").read_text())
     assert np.array(conf["features"]["matrix"]).sum() == sum(len(gts[lv]["images"]) for lv in LEVELS)
+    assert conf["dark-channel"]["matrix"] == np.diag([len(gts[lv]["images"]) for lv in LEVELS]).tolist()
+    assert np.array(conf["features"]["matrix"]).sum(axis=1).tolist() == [len(gts[lv]["images"]) for lv in LEVELS]
     assert "| routed (features) |" in (out / "report.md").read_text()
 
 
@@ -123,8 +148,10 @@ def test_study_refuses_a_folder_holding_other_parameters(dataset, tmp_path):
         Study(dataset, tmp_path / "none").stored_config(gts)
 
 
+@pytest.mark.detect
 def test_misrouted_images_lose_their_objects(dataset, tmp_path, monkeypatch):
     """Routing by hand: the first validation image of every level goes to a wrong model."""
+    pytest.importorskip("pycocotools")
     study = Study(dataset, tmp_path / "study", TrainConfig())
     gts = study.ground_truth()
     study.check_parameters(gts)
@@ -135,7 +162,7 @@ def test_misrouted_images_lose_their_objects(dataset, tmp_path, monkeypatch):
     estimates = {lv: {im["id"]: ("beta0.12" if lv == "clear" else "clear") if im["id"] == wrong[lv] else lv
                       for im in gts[lv]["images"]} for lv in LEVELS}
     monkeypatch.setattr(Study, "estimate_levels", lambda self, gts: {"features": ([], [], estimates)})
-    monkeypatch.setattr("fogsim.study.confusion", lambda *a: {"levels": LEVELS, "matrix": [[0] * 5] * 5,
+    monkeypatch.setattr("fogsim.detection.study.confusion", lambda *a: {"levels": LEVELS, "matrix": [[0] * 5] * 5,
                                                               "accuracy": 0.0})
     table = study.report()
     for lv in LEVELS:
@@ -160,7 +187,7 @@ class FakeTensor(list):
 
 def test_predict_writes_coco_results_in_image_pixels(dataset, tmp_path, monkeypatch):
     """Ultralytics' xyxy boxes (original-image pixels) → COCO xywh, class + 1, per image id."""
-    import fogsim.detect as detect
+    import fogsim.detection.yolo as detect
 
     gt = val_ground_truth(dataset, "beta0.03")
     seen = []
@@ -209,9 +236,16 @@ TINY = ("--epochs", "1", "--imgsz", "64", "--batch", "4", "--workers", "0", "--d
         "--quiet")
 
 
+def _need_detect_extra():
+    # not imported here: Ultralytics writes settings on import
+    if importlib.util.find_spec("ultralytics") is None or importlib.util.find_spec("pycocotools") is None:
+        pytest.skip("the 'detect' extra (Ultralytics, pycocotools) is not installed")
+
+
+@pytest.mark.detect
+@pytest.mark.slow
 def test_tiny_real_training_resume_and_shards(dataset, tmp_path):
-    if importlib.util.find_spec("ultralytics") is None:  # not imported here: it writes settings on import
-        pytest.skip("the 'detect' extra is not installed")
+    _need_detect_extra()
     before = tree_digest(dataset)
     out = tmp_path / "study"
     r = driver("--out", out, "--dataset", dataset, *TINY)
@@ -231,7 +265,7 @@ def test_tiny_real_training_resume_and_shards(dataset, tmp_path):
             assert w > 0 and h > 0 and -1 <= x and x + w <= 97 and -1 <= y and y + h <= 65
     table = json.loads((out / "report" / "cross_density.json").read_text())
     assert set(table) == {*models, "oracle", "routed (features)", "routed (dark-channel)"}
-    assert tree_digest(dataset) == before  # Ultralytics' caches went to the view, not the dataset
+    assert tree_digest(dataset) == before
 
     # a model trained but not marked (killed after its last epoch) is taken as done, predicts the same
     (out / "runs" / "clear" / "fogsim_done.json").unlink()
@@ -263,12 +297,13 @@ def test_tiny_real_training_resume_and_shards(dataset, tmp_path):
     assert json.loads((sharded / "predictions" / "mixed" / "beta0.06.json").read_text()) == preds["mixed", "beta0.06"]
 
 
+@pytest.mark.detect
+@pytest.mark.slow
 def test_interrupted_training_resumes_from_last_checkpoint(dataset, tmp_path, monkeypatch):
     """SIGKILL between epochs (last.pt still holds its optimizer), then rerun: training resumes
     at the next epoch instead of starting again."""
-    if importlib.util.find_spec("ultralytics") is None:
-        pytest.skip("the 'detect' extra is not installed")
-    from fogsim.detect import _resumable, load_ultralytics
+    _need_detect_extra()
+    from fogsim.detection.yolo import _resumable, load_ultralytics
 
     monkeypatch.setenv("YOLO_CONFIG_DIR", str(tmp_path / "config"))
     load_ultralytics(tmp_path / "config")  # imported now, not while racing the training below
@@ -293,7 +328,8 @@ def test_interrupted_training_resumes_from_last_checkpoint(dataset, tmp_path, mo
     assert not (out / "runs" / "clear" / "fogsim_done.json").exists()
     r = driver("--out", out, "--dataset", dataset, "--epochs", "3", *TINY[2:])
     assert r.returncode == 0, r.stderr[-3000:]
-    epochs = [line.split(",")[0].strip() for line in (out / "runs" / "clear" / "results.csv").read_text().splitlines()[1:]]
+    results = (out / "runs" / "clear" / "results.csv").read_text().splitlines()[1:]
+    epochs = [line.split(",")[0].strip() for line in results]
     # the resumed run went on from the killed one's checkpoint, not from scratch (an epoch whose
     # row was written just before the kill, but not its checkpoint, is run again: Ultralytics' way)
     assert epochs[0] == "1" and epochs.count("1") == 1 and epochs[-1] == "3" and set(epochs) == {"1", "2", "3"}

@@ -2,9 +2,10 @@
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.detect
 pytest.importorskip("pycocotools")
 
-from fogsim.evaluate import evaluate, match, mark_far_ignored, yolo_predictions  # noqa: E402
+from fogsim.detection.coco_eval import evaluate, match, mark_far_ignored, yolo_predictions  # noqa: E402
 
 
 def gt_dict(boxes, distances, cats=None, size=(200, 100)):
@@ -13,8 +14,8 @@ def gt_dict(boxes, distances, cats=None, size=(200, 100)):
     for i, (bs, ds) in enumerate(zip(boxes, distances), start=1):
         images.append({"id": i, "file_name": f"images/clear/{i:06d}.png", "width": size[0], "height": size[1]})
         for j, (b, d) in enumerate(zip(bs, ds)):
-            anns.append({"id": k, "image_id": i, "category_id": (cats[i - 1][j] if cats else 1), "bbox": list(map(float, b)),
-                         "area": float(b[2] * b[3]), "iscrowd": 0, "distance_m": d})
+            anns.append({"id": k, "image_id": i, "category_id": (cats[i - 1][j] if cats else 1),
+                         "bbox": list(map(float, b)), "area": float(b[2] * b[3]), "iscrowd": 0, "distance_m": d})
             k += 1
     return {"images": images, "annotations": anns, "categories": [{"id": c, "name": f"c{c}"} for c in (1, 2, 3)]}
 
@@ -100,8 +101,8 @@ def test_yolo_predictions(tmp_path):
 
 
 def test_cross_density_table_and_report(tmp_path):
-    from fogsim.cross_density import cross_density, markdown, write_report
-    from fogsim.io import read_image
+    from fogsim.detection.table import cross_density, markdown, write_report
+    from fogsim.fileio import read_image
 
     perfect = [det(a["image_id"], a["bbox"], 0.9) for a in GT["annotations"]]
     half = perfect[:1] + [det(1, (150, 60, 10, 10), 0.95)]

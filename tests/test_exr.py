@@ -4,7 +4,7 @@ import OpenEXR
 import pytest
 
 from fogsim.errors import InputError
-from fogsim.exr import read_exr
+from fogsim.render.exr_reader import read_exr
 
 
 def channels(rng, h=37, w=23):
@@ -20,7 +20,8 @@ def test_single_part_matches_openexr(tmp_path, compression):
     data = channels(np.random.default_rng(1))
     data["smooth"] = np.zeros((37, 23), np.float32)  # compresses well: exercises zlib path
     path = tmp_path / "a.exr"
-    OpenEXR.File({"compression": compression, "type": OpenEXR.scanlineimage}, dict(data)).write(str(path))  # File() swaps arrays for Channels in the dict it is given
+    # File() swaps arrays for Channels in the dict it is given: pass a copy
+    OpenEXR.File({"compression": compression, "type": OpenEXR.scanlineimage}, dict(data)).write(str(path))
     got = read_exr(path)
     assert set(got) == set(data)
     for k, v in data.items():

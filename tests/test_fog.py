@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from fogsim.colour import linear_to_srgb, srgb_to_linear
-from fogsim.fog import (Fogger, Kernel, density_field, estimate_airlight, koschmieder,
+from fogsim.fog.model import (Fogger, Kernel, density_field, estimate_airlight, koschmieder,
                         koschmieder_extended, smooth_transmission, transmission)
 
 
@@ -67,8 +67,10 @@ def test_linear_space_blend(rng):
     img = rng.integers(0, 256, (10, 12, 3), dtype=np.uint8)
     dist = rng.uniform(0, 60, (10, 12)).astype(np.float32)
     got = koschmieder(img, dist, 0.04, airlight=(255, 128, 64), space="linear")
-    lin = lambda c: np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-    enc = lambda c: np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+    def lin(c):
+        return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    def enc(c):
+        return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
     t = np.exp(-0.04 * dist.astype(np.float64))[..., None]
     a = lin(np.array([255, 128, 64]) / 255.0)
     ref = enc(lin(img / 255.0) * t + a * (1 - t)) * 255
@@ -151,9 +153,18 @@ def test_guided_kernel_keeps_sky_fog_off_near_object():
 def test_fogger_levels_share_work_and_match_single_calls(rng):
     img = rng.integers(0, 256, (12, 14, 3), dtype=np.uint8)
     dist = rng.uniform(0, 100, (12, 14)).astype(np.float32)
+    dist[0, :3] = np.inf  # sky
     f = Fogger(img, dist)
+    first = {}
     for beta in (0.0, 0.03, 0.12):
-        assert np.array_equal(f(beta), koschmieder(img, dist, beta))
+        got = f(beta)
+        ref = reference_standard(img, dist, beta, 255) if beta > 0 else img.astype(np.float64)
+        assert got.dtype == np.uint8 and np.abs(got - ref).max() <= 0.5 + 1e-3, beta  # Eq. 2, correctly rounded
+        assert np.array_equal(got, koschmieder(img, dist, beta))  # a fresh Fogger: no state from earlier calls
+        first[beta] = got
+    for beta in (0.12, 0.0, 0.03):  # again, in another order: nothing leaks between levels
+        assert np.array_equal(f(beta), first[beta])
+    assert np.array_equal(first[0.0], img) and (first[0.12][0, :3] == 255).all()
     assert np.all(np.diff([f(b).astype(int).sum() for b in (0.03, 0.06, 0.09)]) > 0)  # thicker = brighter
 
 

@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from fogsim.demo import demo_scene
-from fogsim.fog import Fogger
+from fogsim.fog.synthetic import demo_scene
+from fogsim.fog.model import Fogger
 from fogsim.camera import planar_to_ray
-from fogsim.fog_level import LevelEstimator, confusion, image_features, route
+from fogsim.detection.level_estimation import LevelEstimator, confusion, image_features, route
 
 LEVELS = {"clear": 0.0, "beta0.03": 0.03, "beta0.06": 0.06, "beta0.09": 0.09, "beta0.12": 0.12}
 
@@ -27,10 +27,25 @@ def test_estimators_separate_fog_levels(method):
     Xtr, ytr = fogged_set(0, 6)
     Xva, yva = fogged_set(1, 3)
     est = LevelEstimator.fit(Xtr, ytr, method)
-    c = confusion(yva, est.predict(Xva), list(LEVELS))
-    assert np.array(c["matrix"]).sum() == 15
+    predicted = est.predict(Xva)
+    c = confusion(yva, predicted, list(LEVELS))
+    m = np.array(c["matrix"])
+    # rows are the true levels, columns the estimated ones: every cell counted by hand
+    assert m.tolist() == [[sum(t == a and p == b for t, p in zip(yva, predicted)) for b in LEVELS] for a in LEVELS]
+    assert m.sum(axis=1).tolist() == [yva.count(lv) for lv in LEVELS] == [3] * len(LEVELS)
+    right = sum(t == p for t, p in zip(yva, predicted))
+    assert c["accuracy"] == pytest.approx(np.trace(m) / len(yva)) == pytest.approx(right / len(yva))
     assert c["accuracy"] >= (0.8 if method == "features" else 0.6)
+    assert np.diag(m).min() >= (2 if method == "features" else 1)  # every level is recognised
     assert est.predict(Xva[:1]) == ["clear"]  # clear air is never mistaken
+    assert m[0].tolist() == [3, 0, 0, 0, 0]  # ... for any of the clear images
+
+
+def test_confusion_rows_are_true_levels_columns_estimates():
+    c = confusion(["clear", "clear", "beta0.06", "beta0.12"], ["clear", "beta0.03", "beta0.12", "beta0.12"],
+                  list(LEVELS))
+    assert c["matrix"] == [[1, 1, 0, 0, 0], [0, 0, 0, 0, 0], [0, 0, 0, 0, 1], [0, 0, 0, 0, 0], [0, 0, 0, 0, 1]]
+    assert c["accuracy"] == 0.5 and c["levels"] == list(LEVELS)
 
 
 def test_dark_channel_rises_with_fog():

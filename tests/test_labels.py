@@ -7,14 +7,14 @@ import pytest
 import trimesh
 
 from fogsim.camera import Intrinsics
-from fogsim.dataset_writer import (DatasetLayout, contact_sheet, finalize, split_frames,
+from fogsim.dataset.writer import (DatasetLayout, contact_sheet, finalize, split_frames,
                                    write_frame_labels)
-from fogsim.io import read_image, write_image, write_json
-from fogsim.labels import (boxes_from_mask, coco_annotation, coco_categories, median_distance,
-                           object_records, parse_yolo_line, yolo_line)
-from fogsim.levels import FogLevel
+from fogsim.fileio import read_image, write_image, write_json
+from fogsim.boxes import boxes_from_mask, median_distance, parse_yolo_line, yolo_line
+from fogsim.render.labels import coco_annotation, coco_categories, object_records
+from fogsim.fog.levels import FogLevel
 from fogsim.scene.classes import CLASS_ID, LABELLED
-from fogsim.silhouette import NEAR, clip_near, covered_pixels, project_points, silhouette_areas
+from fogsim.render.silhouette import NEAR, clip_near, covered_pixels, project_points, silhouette_areas
 
 
 def demo_mask():
@@ -298,7 +298,8 @@ def test_finalize_writes_coco_yaml_splits_manifest(tiny_dataset):
     assert manifest["levels"] == [lv.to_dict() for lv in LEVELS] and manifest["classes"] == list(LABELLED)
     assert manifest["counts"]["car"] == 1 and manifest["counts"]["bus"] == 1 and manifest["counts"]["van"] == 0
     assert manifest["filtered"] == {"too few pixels": 2}
-    assert read_image(root / "contact_sheet.png").shape == (2 * (28 + 256) + 4, 2 * 384 + 4, 3)  # 640×426 tiles at 384 px
+    # 640×426 tiles at 384 px
+    assert read_image(root / "contact_sheet.png").shape == (2 * (28 + 256) + 4, 2 * 384 + 4, 3)
 
 
 def test_split_deterministic_and_stable():

@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from fogsim.render_config import load_render_preset
+from fogsim.render.preset import load_render_preset
 from fogsim.scene.classes import LABELLED, STUFF
 from fogsim.scene.layout import SIDEWALK_HEIGHT, _footprint, sample_scene
 
@@ -37,7 +37,8 @@ def test_layout_makes_sense(config):
         for i in range(len(boxes)):  # no two footprints overlap
             for j in range(i + 1, len(boxes)):
                 a, b = boxes[i], boxes[j]
-                assert a[1] <= b[0] or b[1] <= a[0] or a[3] <= b[2] or b[3] <= a[2], (placed[i]["class"], placed[j]["class"])
+                apart = a[1] <= b[0] or b[1] <= a[0] or a[3] <= b[2] or b[3] <= a[2]
+                assert apart, (placed[i]["class"], placed[j]["class"])
         for o in s["objects"]:
             M = np.asarray(o["transform"])
             x, z = M[0, 3], M[2, 3]
@@ -60,21 +61,24 @@ def test_camera_follows_preset(config):
     assert 0 < s["camera"]["position"][0] < s["street"]["lanes"] * s["street"]["lane_width"]
 
 
-@pytest.mark.parametrize("change, message", [
-    ({"resolution": [640]}, "malformed preset"),
-    ({"resolution": [0, 0]}, "at least 8×8"),
-    ({"exposure": "abc"}, "malformed preset"),
-    ({"fog_model": {"extended": True, "kernel": "boxx"}}, "kernel must be"),
-    ({"fog_model": {"airlight": 300}}, "airlight"),
-    ({"labels": {"min_pixels": 0}}, "min_pixels"),
-    ({"fog": [0.03, -1]}, "β must be"),
-    ({"camera": "nope"}, "unknown camera"),
-])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"resolution": [640]}, "malformed preset"),
+        ({"resolution": [0, 0]}, "at least 8×8"),
+        ({"exposure": "abc"}, "malformed preset"),
+        ({"fog_model": {"extended": True, "kernel": "boxx"}}, "kernel must be"),
+        ({"fog_model": {"airlight": 300}}, "airlight"),
+        ({"labels": {"min_pixels": 0}}, "min_pixels"),
+        ({"fog": [0.03, -1]}, "β must be"),
+        ({"camera": "nope"}, "unknown camera"),
+    ],
+)
 def test_bad_presets_fail_at_load_naming_the_file(tmp_path, change, message):
     import json as _json
 
     from fogsim.errors import InputError
-    from fogsim.levels import presets_dir
+    from fogsim.presets import presets_dir
 
     d = _json.loads((presets_dir() / "default.json").read_text()) | change
     path = tmp_path / "bad.json"
@@ -87,7 +91,7 @@ def test_bad_presets_fail_at_load_naming_the_file(tmp_path, change, message):
 def test_train_fraction_from_preset_or_override(tmp_path):
     import json as _json
 
-    from fogsim.levels import presets_dir
+    from fogsim.presets import presets_dir
 
     assert load_render_preset("default").train_fraction == 0.8
     assert load_render_preset("default", train_fraction=0.628).train_fraction == 0.628  # the paper's 8,100/4,800

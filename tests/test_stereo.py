@@ -4,7 +4,7 @@ import pytest
 
 from fogsim.camera import Intrinsics, StereoCamera
 from fogsim.scene.pose import camera_to_world, world_to_camera
-from fogsim.stereo import (SGBMParams, disparity_range, hole_fraction, right_world_to_camera, sgbm_disparity,
+from fogsim.depth.stereo import (SGBMParams, disparity_range, hole_fraction, right_world_to_camera, sgbm_disparity,
                            wls_disparity)
 
 

@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from fogsim.camera import Intrinsics
-from fogsim.datasets import protobuf_wire as pw
-from fogsim.datasets import tfrecord
-from fogsim.datasets.base import DepthSpec
-from fogsim.datasets.tfrecord import (crc32c_python, index_tfrecord, masked_crc32c, read_record,
+from fogsim.readers import protobuf_wire as pw
+from fogsim.readers import tfrecord
+from fogsim.readers.base import DepthSpec
+from fogsim.readers.tfrecord import (crc32c_python, index_tfrecord, masked_crc32c, read_record,
                                       write_tfrecord)
-from fogsim.datasets.waymo import waymo_v1_samples, waymo_v2_samples
+from fogsim.readers.waymo import waymo_v1_samples, waymo_v2_samples
 from fogsim.errors import FogsimError, InputError
-from fogsim.io import encode_image
+from fogsim.fileio import encode_image
 
 CONTEXT = "1005081002024129653_5313_150_5333_150"
 TIMESTAMPS = (1510593602340000, 1510593602440000)
@@ -282,7 +282,7 @@ def test_v2_errors(tmp_path, monkeypatch):
 def test_cli_fogs_waymo_with_depth_dir(v1_file, tmp_path, capsys):
     from fogsim.camera import Intrinsics, planar_to_ray
     from fogsim.cli import main
-    from fogsim.io import read_image, write_depth
+    from fogsim.fileio import read_image, write_depth
 
     depth = np.random.default_rng(4).uniform(2, 80, (H, W)).astype(np.float32)
     for t in (0, 1):

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from . import assets_buildings, assets_people, assets_street, assets_vehicles
-from .assets_parts import Part, merge, parts_extent
+from fogsim.scene import assets_buildings, assets_people, assets_street, assets_vehicles
+from fogsim.scene.assets_parts import Part, merge, parts_extent
 
 ASSET_TYPES = ("car", "van", "truck", "bus", "pedestrian", "cyclist",
                "traffic_light", "traffic_sign", "pole", "tree", "building")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .assets_parts import Part, box, draw, draw_choice, pick_colour
+from fogsim.scene.assets_parts import Part, box, draw, draw_choice, pick_colour
 
 FACADES = {
     "facade_brick": {"#9c4a32": 3, "#7e3426": 2, "#b5835a": 1, "#6e3b2c": 1, "#a8685a": 1},
@@ -30,7 +30,8 @@ def sample_building(rng: np.random.Generator, c: dict) -> tuple[dict, dict]:
     facade = draw_choice(rng, c, "facade", tuple(FACADES), (0.35, 0.3, 0.35))
     p = {"width": draw(rng, c, "width", 8.0, 25.0), "depth": draw(rng, c, "depth", 8.0, 16.0),
          "height": draw(rng, c, "height", 7.0, 30.0), "facade": facade,
-         "floor_height": draw(rng, c, "floor_height", 2.9, 3.4), "ground_height": draw(rng, c, "ground_height", 3.3, 4.2),
+         "floor_height": draw(rng, c, "floor_height", 2.9, 3.4),
+         "ground_height": draw(rng, c, "ground_height", 3.3, 4.2),
          "bay": draw(rng, c, "bay", 2.3, 3.3), "window_width": draw(rng, c, "window_width", 0.45, 0.65),
          "window_height": draw(rng, c, "window_height", 1.3, 1.7), "recess": draw(rng, c, "recess", 0.12, 0.25),
          "roof_height": draw(rng, c, "roof_height", 0.5, 0.9),

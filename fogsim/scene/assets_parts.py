@@ -15,6 +15,8 @@ from typing import Callable, NamedTuple
 import numpy as np
 import trimesh
 
+from fogsim.colour import srgb_to_linear
+
 
 class Part(NamedTuple):
     """One primitive: material slot, bounding box corners (lo, hi), and a (vertices, faces) maker."""
@@ -206,8 +208,7 @@ def merge(parts: list[Part]) -> list[tuple[trimesh.Trimesh, str]]:
 def srgb(hex_colour: str) -> list[float]:
     """Linear RGB of an sRGB hex colour like ``"#a0b0c0"``."""
     c = np.array([int(hex_colour[i:i + 2], 16) for i in (1, 3, 5)]) / 255.0
-    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-    return [round(float(x), 4) for x in lin]
+    return [round(float(x), 4) for x in srgb_to_linear(c, np.float64)]
 
 
 def pick_colour(rng: np.random.Generator, palette: dict[str, float], jitter: float = 0.06) -> list[float]:

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .assets_parts import Part, blob, box, cylinder, draw, draw_choice, ellipse, loft, pick_colour, torus, tube
+from fogsim.scene.assets_parts import (Part, blob, box, cylinder, draw, draw_choice, ellipse, loft, pick_colour, torus,
+                                       tube)
 
 SKIN = {"#f1c7a8": 3, "#e0ac8a": 3, "#c68863": 2, "#8d5a3c": 2, "#5c3a26": 1}
 HAIR = {"#1a1410": 4, "#3b2618": 3, "#6b4a2b": 2, "#b08850": 1, "#8a8a88": 1}
@@ -30,7 +31,8 @@ def sample_person(rng: np.random.Generator, c: dict) -> tuple[dict, dict]:
          "sleeves": draw_choice(rng, c, "sleeves", ("long", "short"), (0.7, 0.3)),
          "seed": int(rng.integers(0, 2 ** 31))}
     mats = {"skin": {"color": pick_colour(rng, SKIN)}, "hair": {"color": pick_colour(rng, HAIR)},
-            "cloth_top": {"color": pick_colour(rng, TOPS, 0.15)}, "cloth_bottom": {"color": pick_colour(rng, BOTTOMS, 0.1)},
+            "cloth_top": {"color": pick_colour(rng, TOPS, 0.15)},
+            "cloth_bottom": {"color": pick_colour(rng, BOTTOMS, 0.1)},
             "shoe": {"color": pick_colour(rng, SHOES)}}
     return p, mats
 

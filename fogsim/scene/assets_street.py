@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .assets_parts import Part, blob, box, cylinder, draw, draw_choice, loft, pick_colour, srgb, tube
+from fogsim.scene.assets_parts import Part, blob, box, cylinder, draw, draw_choice, loft, pick_colour, srgb, tube
 
 LIT = {"red": "#ff2a10", "amber": "#ffa000", "green": "#10ff70"}
 SIGN_SCHEMES = {  # shape: [(border hex, face hex, weight)]
@@ -101,7 +101,8 @@ def pole_parts(p: dict) -> list[Part]:
     parts = [tube("pole_metal", [[0, 0, 0], [0, 0, h - 0.4]], [0.09, 0.055], n=12),
              cylinder("pole_metal", [0, 0, 0], [0, 0, 0.6], 0.13, n=12)]
     for s in ((1, -1) if p["double"] else (1,)):
-        parts += [tube("pole_metal", [[0, 0, h - 0.7], [0, s * 0.35, h - 0.18], [0, s * (arm - 0.1), h - 0.1]], 0.04, n=8),
+        arm_path = [[0, 0, h - 0.7], [0, s * 0.35, h - 0.18], [0, s * (arm - 0.1), h - 0.1]]
+        parts += [tube("pole_metal", arm_path, 0.04, n=8),
                   box("pole_metal", [-0.17, s * (arm - 0.4), h - 0.14], [0.17, s * (arm + 0.15), h]),
                   box("street_lamp", [-0.13, s * (arm - 0.35), h - 0.16], [0.13, s * (arm + 0.1), h - 0.14])]
     return parts

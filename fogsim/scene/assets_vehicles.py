@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .assets_parts import Part, box, cylinder, draw, draw_choice, loft, pick_colour, prism, tube
+from fogsim.scene.assets_parts import Part, box, cylinder, draw, draw_choice, loft, pick_colour, prism, tube
 
 #: body colours (sRGB hex: weight), roughly the world's car-colour shares
 CAR_PALETTE = {"#f2f2f0": 25, "#e6e4dc": 4, "#101112": 20, "#5a5d61": 14, "#3b3e42": 5,
@@ -201,7 +201,8 @@ def _bus_sides(p: dict, hw: float, zb: float) -> list[Part]:
     for s in (1, -1):
         for i, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
             door = s > 0 and i in (middle, len(edges) - 2)
-            parts.append(box("glass", [s * hw, a + 0.06, zb + 0.05 if door else wb], [s * (hw + 0.012), b - 0.06, H - 0.35]))
+            lo = [s * hw, a + 0.06, zb + 0.05 if door else wb]
+            parts.append(box("glass", lo, [s * (hw + 0.012), b - 0.06, H - 0.35]))
     return parts
 
 

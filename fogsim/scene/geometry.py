@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from .assets_parts import box_arrays
+from fogsim.scene.assets_parts import box_arrays
 
 
 def local_parts(asset: dict) -> list[tuple[trimesh.Trimesh, str]]:
@@ -24,7 +24,7 @@ def local_parts(asset: dict) -> list[tuple[trimesh.Trimesh, str]]:
         p = asset["params"]
         boxes = [[0.0, 0.0, 0.0, *p["size"]]] if asset["type"] == "box" else p["boxes"]
         return [(_boxes_mesh(np.asarray(boxes, dtype=np.float64)), p["material"])]
-    from .assets import build_asset
+    from fogsim.scene.assets import build_asset
 
     return build_asset(asset)
 

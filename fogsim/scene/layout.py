@@ -12,9 +12,9 @@ import math
 
 import numpy as np
 
-from ..camera import Intrinsics
-from .assets import asset_extent, sample_asset
-from .pose import camera_to_world, transform, world_to_camera
+from fogsim.camera import Intrinsics
+from fogsim.scene.assets import asset_extent, sample_asset
+from fogsim.scene.pose import camera_to_world, transform, world_to_camera
 
 SIDEWALK_HEIGHT = 0.15
 VERSION = 1
@@ -181,11 +181,13 @@ def street_furniture(b: _Builder, st: dict, style: dict) -> None:
         yaw_to_road = 90.0 * side
         if style["pole_spacing"] > 0:
             for y in np.arange(float(rng.uniform(0, style["pole_spacing"])), st["length"], style["pole_spacing"]):
-                b.place("pole", sample_asset("pole", rng), side * (curb + 0.5), float(y), SIDEWALK_HEIGHT, yaw_to_road, 0.1)
+                b.place("pole", sample_asset("pole", rng), side * (curb + 0.5), float(y), SIDEWALK_HEIGHT,
+                        yaw_to_road, 0.1)
         if style["tree_spacing"] > 0:
             for y in np.arange(float(rng.uniform(0, style["tree_spacing"])), st["length"], style["tree_spacing"]):
                 x = side * (curb + st["sidewalk_width"] - 1.0)
-                b.place("tree", sample_asset("tree", rng), x, float(y) + float(rng.normal(0, 1)), SIDEWALK_HEIGHT, float(rng.uniform(0, 360)), 0.2)
+                b.place("tree", sample_asset("tree", rng), x, float(y) + float(rng.normal(0, 1)), SIDEWALK_HEIGHT,
+                        float(rng.uniform(0, 360)), 0.2)
         for yc in st["crosswalks"]:
             b.place("traffic_light", sample_asset("traffic_light", rng), side * (curb + 0.6),
                     yc - side * 3.0, SIDEWALK_HEIGHT, 0.0 if side < 0 else 180.0, 0.1)

@@ -1,0 +1,75 @@
+"""``fogsim bench fog | render | ila``: the speed and accuracy benchmarks.
+
+Each prints its figures beside a baseline measured in the same run (ratios of medians:
+these machines are noisy); none of them is a test, and CI times nothing.
+"""
+from __future__ import annotations
+
+import argparse
+
+
+def add_parsers(sub) -> None:
+    bench = sub.add_parser("bench", help="benchmarks: fog speed, render speed, depth completion (ILA)")
+    bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="BENCH")
+
+    fog = bsub.add_parser("fog", help="fog engine speed, 1920×1280, one core, against Eq. 2 in float64 "
+                          "and the reference's per-pixel loop")
+    fog.add_argument("--repeat", type=int, default=15, help="interleaved repeats (medians)")
+    fog.set_defaults(run=lambda args: _fog(args))
+
+    render = bsub.add_parser("render", help="seconds per frame by stage and RSS over many frames (needs bpy), "
+                             "against factory Cycles settings")
+    render.add_argument("--frames", type=int, default=100)
+    render.add_argument("--preset", default="default")
+    render.add_argument("--resolution", default="640x426")
+    render.add_argument("--baseline-frames", type=int, default=3)
+    render.add_argument("--out", help="dataset folder (default: a temporary one)")
+    render.set_defaults(run=lambda args: _render(args))
+
+    ila = bsub.add_parser("ila", help="depth completion (classical fills, ILA) scored against exact rendered "
+                          "depth; renders a stereo dataset first (needs bpy; torch for ILA)",
+                          formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ila.add_argument("--out", default="bench/ila", help="benchmark folder (dataset, ILA checkpoints, report)")
+    ila.add_argument("--frames", type=int, default=12)
+    ila.add_argument("--resolution", default="512x256")
+    ila.add_argument("--samples", type=int, default=6)
+    ila.add_argument("--panels", type=int, default=2, help="sample frames to draw")
+    from fogsim.cli.ila import add_training_options
+
+    add_training_options(ila)  # --rounds 0: classical baselines only
+    ila.set_defaults(run=lambda args: _ila(args))
+
+
+def _positive(**values) -> None:
+    bad = [f"--{k.replace('_', '-')}" for k, v in values.items() if not v > 0]
+    if bad:
+        raise ValueError(f"{', '.join(bad)} must be positive")
+
+
+def _fog(args) -> int:
+    from fogsim.fog.bench import run
+
+    _positive(repeat=args.repeat)
+    return run(args.repeat)
+
+
+def _render(args) -> int:
+    _positive(frames=args.frames, baseline_frames=args.baseline_frames)
+    from fogsim.cli.render import require_bpy
+
+    require_bpy()
+    from fogsim.render.blender.bench import run
+
+    return run(args)
+
+
+def _ila(args) -> int:
+    from fogsim.depth.bench import run_benchmark
+
+    _positive(frames=args.frames, samples=args.samples, epochs=args.epochs)
+    config = None
+    if args.rounds:
+        from fogsim.cli.ila import training_config
+
+        config = training_config(args)
+    return run_benchmark(args.out, args.frames, args.resolution, args.samples, args.panels, config)

@@ -1,0 +1,255 @@
+"""``fogsim fog``, ``fogsim demo`` and ``fogsim levels``: fog datasets with the library alone."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from fogsim.errors import EXIT_FAILED, EXIT_OK, InputError
+from fogsim.fog.model import KERNELS, SPACES
+from fogsim.readers.base import DEPTH_ENCODINGS
+
+
+def _add_fog_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("fog")
+    g.add_argument("--levels", help="preset name (paper, foggy-cityscapes) or comma-separated β in 1/m "
+                                     "(default: paper)")
+    g.add_argument("--visibility", help="comma-separated visibilities in metres instead of β (β = ln20/V)")
+    g.add_argument("--extended", action="store_true", help="extended (smoothed-transmission) form")
+    g.add_argument("--kernel", choices=KERNELS, default="box",
+                   help="weights of the extended form (default box, as the paper's reference run)")
+    g.add_argument("--kernel-size", type=int, default=19, help="kernel size k in pixels, odd (default 19)")
+    g.add_argument("--sigma", type=float, default=5.0, help="Gaussian std in pixels (default 5)")
+    g.add_argument("--eps", type=float, default=1e-3, help="guided-filter regularisation (default 1e-3)")
+    g.add_argument("--airlight", default="255",
+                   help="airlight in 8-bit units: one value, R,G,B, or 'estimate' (dark channel)")
+    g.add_argument("--space", choices=SPACES, default="srgb",
+                   help="blend gamma-encoded values (srgb, the paper's) or linear light")
+    g.add_argument("--fill", default=None,
+                   help="hole fill for depth: none, inpaint, ipbasic (default: none; inpaint for Cityscapes)")
+    g.add_argument("--heterogeneity", type=float, default=0.0,
+                   help="patchy fog: amplitude a in [0,1) of a mean-1 density field (default 0 = off)")
+    g.add_argument("--heterogeneity-scale", type=float, default=64.0, help="patch size in pixels")
+    g.add_argument("--seed", type=int, default=0, help="run seed (per-sample seeds derive from it)")
+
+
+def _add_batch_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("batch")
+    g.add_argument("--out", required=True, help="output folder (OUT/<level>/<input tree>)")
+    g.add_argument("--format", dest="image_format", choices=("png", "jpg"), default="png")
+    g.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
+    g.add_argument("--shard", help="i/N: process every N-th sample starting at i (0-based), "
+                                   "e.g. $SLURM_ARRAY_TASK_ID/N")
+    g.add_argument("--no-resume", action="store_true", help="redo samples whose outputs exist")
+    g.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_parsers(sub) -> None:
+    fog = sub.add_parser("fog", help="fog a dataset at several densities",
+                         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    src = fog.add_argument_group("input (one of)").add_mutually_exclusive_group(required=True)
+    src.add_argument("--input", help="folder of images (paired with --depth by name)")
+    src.add_argument("--cityscapes", help="Cityscapes root (leftImg8bit/, disparity/, camera/)")
+    src.add_argument("--waymo", help="Waymo v1 .tfrecord file or folder, or a Waymo v2 parquet root")
+    d = fog.add_argument_group("depth")
+    d.add_argument("--depth", help="folder of depth maps for --input, matched by relative name")
+    d.add_argument("--depth-dir", help="folder of depth maps for --waymo (<segment>/<time>_<CAMERA>.*)")
+    d.add_argument("--depth-suffix", default="", help="depth name = image stem + this + extension")
+    d.add_argument("--depth-encoding", choices=DEPTH_ENCODINGS, default="metric",
+                   help="metric: metres (EXR/.npy/16-bit PNG × --depth-scale); paper-8bit: the paper's "
+                        "8-bit ILA maps decoded with its constant")
+    d.add_argument("--depth-scale", type=float, help="metres per unit of 16-bit PNG depth (e.g. 0.001)")
+    d.add_argument("--depth-kind", choices=("planar", "ray"), default="planar",
+                   help="planar Z (converted to ray distance with the intrinsics) or ray distance")
+    d.add_argument("--intrinsics", help="JSON with fx, fy, cx, cy, width, height (or K, width, height)")
+    d.add_argument("--hfov", type=float, help="horizontal field of view in degrees (centred, square pixels)")
+    d.add_argument("--depth-from", help="ila:CHECKPOINT — predict depth for every image with an ILA model "
+                                        "(for datasets without depth, e.g. Waymo)")
+    fog.add_argument("--split", default="val", help="Cityscapes split(s), comma-separated")
+    fog.add_argument("--cameras", default="FRONT", help="Waymo cameras, comma-separated (FRONT, FRONT_LEFT, …)")
+    _add_fog_options(fog)
+    _add_batch_options(fog)
+
+    fog.set_defaults(run=cmd_fog)
+
+    demo = sub.add_parser("demo", help="fog the built-in procedural street images (no dataset needed)")
+    demo.add_argument("--out", default="demo_out", help="output folder (default demo_out)")
+    demo.add_argument("--frames", type=int, default=3)
+    demo.add_argument("--seed", type=int, default=0)
+    demo.add_argument("--levels", default="paper")
+    demo.add_argument("--quiet", action="store_true")
+
+    demo.set_defaults(run=cmd_demo)
+
+    sub.add_parser("levels", help="list the fog presets with β and visibility").set_defaults(run=cmd_levels)
+
+
+def _samples(args):
+    from dataclasses import replace
+
+    from fogsim.camera import Intrinsics
+    from fogsim.readers.base import DepthSpec
+    from fogsim.fileio import read_json
+
+    spec = DepthSpec("", args.depth_encoding, args.depth_kind, args.depth_scale)
+    K = None
+    if args.intrinsics:
+        K = Intrinsics.from_dict(read_json(args.intrinsics), args.intrinsics)
+    if args.input:
+        from dataclasses import replace as _replace
+
+        from fogsim.readers.folder import folder_samples
+
+        samples = folder_samples(args.input, args.depth, spec, args.depth_suffix, K)
+        if args.hfov is not None and K is None:
+            if not 0 < args.hfov < 180:
+                raise ValueError(f"--hfov must be in (0, 180) degrees, got {args.hfov}")
+            h, w = samples[0].read_image().shape[:2]
+            K = Intrinsics.from_hfov(args.hfov, w, h)
+            samples = [_replace(smp, intrinsics=K) for smp in samples]
+        return samples
+    if args.cityscapes:
+        from fogsim.readers.cityscapes import cityscapes_samples
+
+        return cityscapes_samples(args.cityscapes, args.split)
+    from fogsim.readers.waymo import waymo_samples
+
+    cameras = tuple(c.strip().upper() for c in args.cameras.split(",") if c.strip())
+    return waymo_samples(args.waymo, cameras, args.depth_dir, replace(spec, path=""))
+
+
+def _with_depth_from(samples, depth_from: str | None):
+    """``--depth-from ila:CKPT``: every sample's depth is predicted by that model."""
+    if not depth_from:
+        return samples
+    from dataclasses import replace
+
+    from fogsim.depth.ila import ILADepth
+    from fogsim.readers.base import DepthSpec
+
+    kind, _, path = depth_from.partition(":")
+    if kind != "ila" or not path:
+        raise ValueError(f"--depth-from takes ila:CHECKPOINT, got {depth_from!r}")
+    if not Path(path).is_file():
+        raise InputError(path, "ILA checkpoint not found")
+    checkpoint = str(Path(path).resolve())
+    spec = DepthSpec(checkpoint, kind="planar", reader=ILADepth(checkpoint))
+    return [replace(s, depth=spec) for s in samples]
+
+
+def _job(args, out: str):
+    from fogsim.fog.batch import FogJob
+    from fogsim.fog.model import Kernel
+    from fogsim.fog.levels import parse_levels
+
+    levels = tuple(parse_levels(args.levels, args.visibility))
+    if args.airlight.strip().lower() == "estimate":
+        airlight = "estimate"
+    else:
+        vals = [float(x) for x in args.airlight.split(",")]
+        if len(vals) not in (1, 3):
+            raise ValueError(f"--airlight takes one value or R,G,B, got {args.airlight!r}")
+        airlight = tuple(vals * 3 if len(vals) == 1 else vals)
+        if any(not 0 <= a <= 255 for a in airlight):
+            raise ValueError(f"--airlight values must lie in [0, 255], got {args.airlight}")
+    kernel = Kernel(args.kernel, args.kernel_size, args.sigma, args.eps) if args.extended else None
+    if not 0 <= args.heterogeneity < 1:
+        raise ValueError(f"--heterogeneity must be in [0, 1), got {args.heterogeneity}")
+    if not args.heterogeneity_scale > 0:
+        raise ValueError(f"--heterogeneity-scale must be > 0 pixels, got {args.heterogeneity_scale}")
+    fill = args.fill or ("inpaint" if getattr(args, "cityscapes", None) else "none")
+    from fogsim.depth.fill import fill_methods
+
+    if fill not in fill_methods():
+        raise ValueError(f"--fill must be one of {', '.join(fill_methods())}, got {fill!r}")
+    return FogJob(levels, out, airlight, args.space, kernel, fill, args.heterogeneity,
+                  args.heterogeneity_scale, args.seed, getattr(args, "image_format", "png"), _inputs(args))
+
+
+def _inputs(args) -> dict:
+    """What the run reads and how, recorded so a resumed run with other inputs is refused."""
+    keys = ("input", "depth", "cityscapes", "split", "waymo", "depth_dir", "cameras", "depth_suffix",
+            "depth_encoding", "depth_scale", "depth_kind", "intrinsics", "hfov", "depth_from")
+    out = {k: getattr(args, k) for k in keys if getattr(args, k, None) not in (None, "")}
+    for k in ("input", "depth", "cityscapes", "waymo", "depth_dir", "intrinsics"):
+        if k in out:
+            out[k] = str(Path(out[k]).resolve())
+    if getattr(args, "intrinsics", None):
+        from fogsim.fileio import read_json
+
+        out["intrinsics_values"] = read_json(args.intrinsics)
+    return out
+
+
+def environment() -> dict:
+    from fogsim.deps import package_versions
+
+    return package_versions()
+
+
+def cmd_fog(args) -> int:
+    from fogsim.fog.batch import run
+    from fogsim.runs import parse_shard, select_shard
+
+    if args.workers < 1:
+        raise ValueError("--workers must be ≥ 1")
+    job = _job(args, args.out)
+    shard = parse_shard(args.shard)
+    samples = select_shard(_with_depth_from(_samples(args), args.depth_from), shard)
+    summary = run(samples, job, args.workers, not args.no_resume, not args.quiet, environment())
+    print(summary.line(job))
+    for source, error in summary.failed:
+        print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
+    return EXIT_FAILED if summary.failed else EXIT_OK
+
+
+def cmd_demo(args) -> int:
+    import numpy as np
+
+    from fogsim.fog.batch import FogJob, check_run_file, run
+    from fogsim.readers.folder import folder_samples
+    from fogsim.readers.base import DepthSpec
+    from fogsim.fog.synthetic import demo_scene
+    from fogsim.fileio import read_image, write_depth, write_image
+    from fogsim.fog.levels import parse_levels
+    from fogsim.viz import colorize_depth, strip
+
+    out = Path(args.out)
+    if args.frames < 1:
+        raise ValueError(f"--frames must be ≥ 1, got {args.frames}")
+    levels = tuple(parse_levels(args.levels))
+    job = FogJob(levels, str(out / "fog"), seed=args.seed, inputs={"demo_seed": args.seed, "frames": args.frames})
+    check_run_file(job, environment())  # before writing inputs: never overwrite another run's
+    rng = np.random.default_rng(args.seed)
+    K = None
+    for i in range(args.frames):
+        rgb, depth, K = demo_scene(rng)
+        write_image(out / "input" / "images" / f"street_{i:03d}.png", rgb)
+        write_depth(out / "input" / "depth" / f"street_{i:03d}.exr", depth)
+    samples = folder_samples(out / "input" / "images", out / "input" / "depth", DepthSpec(""), "", K)
+    summary = run(samples, job, progress=not args.quiet, environment=environment())
+    print(summary.line(job))
+    first = samples[0]
+    tiles = [colorize_depth(depth_of(out, first.key))] + [read_image(job.paths(first, lv)[0]) for lv in levels]
+    captions = ["depth (m)"] + [lv.name if lv.beta == 0 else f"{lv.name}, b={lv.beta:g}" for lv in levels]
+    write_image(out / "fog_strip.png", strip(tiles, captions, width=320))
+    print(f"fog strip: {out / 'fog_strip.png'}")
+    return EXIT_FAILED if summary.failed else EXIT_OK
+
+
+def depth_of(out: Path, key: str):
+    from fogsim.fileio import read_depth_file
+
+    return read_depth_file(out / "input" / "depth" / f"{key}.exr")
+
+
+def cmd_levels(args) -> int:
+    from fogsim.fog.levels import load_preset, preset_names
+
+    for name in preset_names():
+        print(name)
+        for lv in load_preset(name):
+            vis = lv.to_dict()["visibility_m"]
+            shown = "∞" if vis is None else f"{vis:.0f} m"
+            print(f"  {lv.key:<12} β = {lv.beta:<6g} 1/m  visibility {shown:>6}  {lv.name}")
+    return EXIT_OK

@@ -1,0 +1,105 @@
+"""``fogsim ila train | fill | predict``: ILA depth completion (needs the ``ila`` extra: torch)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from fogsim.errors import EXIT_OK
+
+
+def add_training_options(p, rounds: int = 2) -> None:
+    """ILA training flags, shared by ``fogsim ila train`` and ``fogsim bench ila`` (one meaning each)."""
+    g = p.add_argument_group("ILA training")
+    g.add_argument("--rounds", type=int, default=rounds, help=f"ILA rounds (default {rounds})")
+    g.add_argument("--epochs", type=int, default=40, help="epochs per round (default 40)")
+    g.add_argument("--width", type=int, default=16, help="U-Net width: 16 ≈ 2 M parameters, 64 = the reference's 31 M")
+    g.add_argument("--size", default="256x128", help="training resolution WxH, multiples of 16")
+    g.add_argument("--sparse", action="store_true", help="also input the sparse disparity")
+    g.add_argument("--loss", choices=("valid", "all"), default="valid",
+                   help="masked to valid targets, or over all pixels as the reference (holes → 0)")
+    g.add_argument("--loss-kind", choices=("mse", "log_l1"), default="mse",
+                   help="mse of disparity (the reference) or log-L1 (relative error)")
+    g.add_argument("--seed", type=int, default=0)
+
+
+def training_config(args):
+    """The ``ILAConfig`` of the training flags."""
+    from fogsim.depth.ila import ILAConfig
+    from fogsim.render.preset import parse_resolution
+
+    return ILAConfig(width=args.width, size=parse_resolution(args.size), use_sparse=args.sparse, loss_on=args.loss,
+                     loss=args.loss_kind, rounds=args.rounds, epochs=args.epochs, seed=args.seed)
+
+
+def add_parsers(sub) -> None:
+    ila = sub.add_parser("ila", help="train ILA depth completion, or predict depth with it")
+    isub = ila.add_subparsers(dest="ila_command", required=True)
+    tr = isub.add_parser("train", help="train ILA rounds on a Cityscapes-layout split")
+    tr.add_argument("--data", required=True, help="Cityscapes root (real, or OUT/cityscapes of a --stereo render)")
+    tr.add_argument("--split", default="train")
+    tr.add_argument("--out", required=True, help="folder for round_<r>.pt and ila_log.json")
+    add_training_options(tr)
+    tr.add_argument("--quiet", action="store_true")
+    fl = isub.add_parser("fill", help="fill the holes of a Cityscapes-layout split's disparity with the model")
+    fl.add_argument("--checkpoint", required=True)
+    fl.add_argument("--data", required=True, help="Cityscapes root")
+    fl.add_argument("--split", default="val")
+    fl.add_argument("--out", required=True,
+                    help="writes OUT/disparity/<split>/<city>/*_disparity.png (inputs untouched)")
+    fl.add_argument("--quiet", action="store_true")
+    pr = isub.add_parser("predict", help="predict planar depth (EXR, metres) for a folder of images")
+    pr.add_argument("--checkpoint", required=True)
+    pr.add_argument("--input", required=True)
+    pr.add_argument("--out", required=True)
+    pr.add_argument("--quiet", action="store_true")
+    ila.set_defaults(run=cmd_ila)
+
+
+def cmd_ila(args) -> int:
+    import json
+
+    from fogsim.depth import ila
+    from fogsim.fileio import atomic_write_bytes, read_image, write_depth
+
+    if args.ila_command == "train":
+        config = training_config(args)
+        data = ila.load_stereo_set(args.data, args.split, config.size)
+        log = ila.train_rounds(data, config, args.out, progress=not args.quiet)
+        atomic_write_bytes(Path(args.out) / "ila_log.json", json.dumps(
+            {"config": str(config), "frames": data.keys, "camera": data.camera, "rounds": log}, indent=2).encode())
+        print(f"trained {len(log)} ILA rounds on {len(data.keys)} frames → {log[-1]['checkpoint']}")
+        return EXIT_OK
+    from tqdm import tqdm
+
+    from fogsim.readers.folder import folder_samples
+
+    if args.ila_command == "fill":
+        return _ila_fill(args)
+    model, config, camera = ila.cached_model(args.checkpoint)
+    samples = folder_samples(args.input, None)
+    for s in tqdm(samples, unit="img", disable=args.quiet, desc="ILA depth"):
+        write_depth(Path(args.out) / f"{s.key}.exr", ila.predict_depth(model, config, camera, read_image(s.source)))
+    print(f"predicted planar depth (metres, EXR) for {len(samples)} images → {args.out}")
+    return EXIT_OK
+
+
+def _ila_fill(args) -> int:
+    """Holes (p = 0) of each disparity map → the ILA prediction; valid pixels are kept."""
+    from tqdm import tqdm
+
+    from fogsim.camera import depth_to_disparity, encode_disparity_png
+    from fogsim.depth.fill import fill_holes, register_fill
+    from fogsim.depth.ila import cached_model, ila_fill
+    from fogsim.fileio import read_image, write_image
+    from fogsim.readers.cityscapes import cityscapes_samples, read_cityscapes_depth
+
+    cached_model(args.checkpoint)  # a clear error for a missing checkpoint
+    register_fill("ila", ila_fill(args.checkpoint))
+    samples = cityscapes_samples(args.data, args.split)
+    for s in tqdm(samples, unit="img", disable=args.quiet, desc="ILA fill"):
+        depth, cam = read_cityscapes_depth(s.depth.path, s.depth.camera_path)
+        filled = fill_holes(depth, "ila", read_image(s.source))
+        rel = Path(s.depth.path).relative_to(Path(args.data))
+        disparity = depth_to_disparity(filled, cam.baseline, cam.intrinsics.fx)
+        write_image(Path(args.out) / rel, encode_disparity_png(disparity))
+    print(f"filled the disparity holes of {len(samples)} images → {args.out}")
+    return EXIT_OK

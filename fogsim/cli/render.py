@@ -1,0 +1,122 @@
+"""``fogsim render``: render a labeled foggy dataset of procedural street scenes.
+
+    fogsim render --preset default --frames 200 --out OUT                   # bpy module (5.0)
+    blender -b -P scripts/render_batch.py -- --preset default --out OUT      # Blender binary (3.4+)
+
+Each frame is rendered once (RGB, planar depth, object index) and fogged at every level of
+the preset. A frame is committed atomically (``meta/<frame>.json`` last); a restarted run
+skips committed frames, and ``--shard i/N`` renders frames i, i+N, … for a Slurm array or a
+Kubernetes indexed job (run ``--finalize-only`` once after all shards to rebuild COCO, YAMLs
+and the contact sheet over every frame). Needs bpy (the ``blender`` extra) or Blender itself.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from fogsim.errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE, InputError, MissingDependency
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--preset", help="bundled preset name (default, suburban, arterial, cityscapes-stereo) "
+                                    "or a path to a preset JSON; default: default")
+    p.add_argument("--out", required=True, help="dataset folder")
+    p.add_argument("--frames", type=int, help="number of frames (overrides the preset)")
+    p.add_argument("--seed", type=int, help="dataset seed (overrides the preset)")
+    p.add_argument("--resolution", help="WxH, e.g. 640x426 (intrinsics scale with it)")
+    p.add_argument("--samples", type=int, help="Cycles samples (overrides the quality preset)")
+    p.add_argument("--levels", help="fog levels: preset name or comma-separated β (overrides the preset)")
+    p.add_argument("--stereo", action="store_true",
+                   help="also render the right camera (preset baseline, else the camera's, else 0.209 m) "
+                        "and write SGBM disparity in Cityscapes' layout under OUT/cityscapes/")
+    p.add_argument("--train-fraction", type=float, help="share of frames in the train split (default: the "
+                   "preset's, else 0.8; the paper's 8,100/4,800: 0.628); --finalize-only re-splits without rendering")
+    p.add_argument("--shard", help="i/N: render frames i, i+N, … (0-based), e.g. $SLURM_ARRAY_TASK_ID/N")
+    p.add_argument("--no-resume", action="store_true", help="re-render committed frames")
+    p.add_argument("--gpu", action="store_true", help="render on the GPU when one is available")
+    p.add_argument("--finalize-only", action="store_true", help="only rebuild COCO/YAML/manifest/contact sheet")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser("render", help="render a labeled foggy dataset of street scenes (needs Blender / bpy)",
+                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(p)
+    p.set_defaults(run=cmd_render)
+
+
+def require_bpy() -> None:
+    """bpy must be importable: the bpy module (``blender`` extra) or Blender's own Python.
+
+    Only checks (``find_spec``): bpy itself is imported by ``fogsim.render.blender`` alone.
+    """
+    from importlib.util import find_spec
+
+    if sys.modules.get("bpy") is None and find_spec("bpy") is None:
+        raise MissingDependency("rendering needs Blender: pip install 'fogsim[blender]' (the bpy module, "
+                                "Python 3.11), or run blender -b -P scripts/render_batch.py -- …")
+
+
+def cmd_render(args) -> int:
+    """Set up (every usage and setup error before anything is rendered), then loop over frames."""
+    from fogsim.render.preset import load_render_preset
+    from fogsim.runs import parse_shard
+
+    config = load_render_preset(args.preset, frames=args.frames, seed=args.seed, train_fraction=args.train_fraction,
+                                resolution=args.resolution, samples=args.samples, levels=args.levels,
+                                stereo=True if args.stereo else None)
+    shard = parse_shard(args.shard)
+    require_bpy()
+    from fogsim.render.blender.job import RUN_FILE, RenderJob
+
+    if args.finalize_only and not (Path(args.out) / RUN_FILE).is_file():
+        raise InputError(args.out, f"no {RUN_FILE} here: not a dataset to finalize")
+    job = RenderJob(config, args.out, shard, resume=not args.no_resume, gpu=args.gpu)
+    try:
+        return _render(job, args, shard)
+    finally:
+        job.close()
+
+
+def _render(job, args, shard) -> int:
+    from tqdm import tqdm
+
+    from fogsim.render.loop import FrameLoop, frame_log
+    from fogsim.runs import is_sharded
+
+    loop = FrameLoop(job)
+    t0 = time.perf_counter()
+    if not args.finalize_only:
+        with tqdm(total=loop.total, unit="frame", desc="render", disable=args.quiet) as bar:
+            def on_frame(index, meta, error):
+                if error is not None:
+                    bar.write(f"error: frame {index}: {error}")
+                elif not args.quiet:  # the per-frame timing log (also kept in meta/<frame>.json)
+                    bar.write(frame_log(meta))
+                bar.update(1)
+
+            loop.run(on_frame)
+    if args.finalize_only and not job.layout.done_frames():
+        print(f"fogsim: error: {args.out}: no committed frames to finalize", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        loop.finish(sharded=is_sharded(shard) and not args.finalize_only)
+    except (OSError, ValueError) as exc:
+        print(f"fogsim: error: writing the dataset files of {args.out} failed: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    print(f"rendered {loop.done} frames ({job.skipped} already done, {len(loop.failed)} failed) "
+          f"in {time.perf_counter() - t0:.1f} s → {args.out}")
+    for index, error in loop.failed:
+        print(f"  failed: frame {index}: {error}", file=sys.stderr)
+    return EXIT_FAILED if loop.failed else EXIT_OK
+
+
+def main(argv: list[str] | None = None, prog: str = "fogsim render") -> int:
+    """Entry of ``scripts/render_batch.py`` (``blender -b -P``): the same command, its own prog name."""
+    from fogsim.cli import run_command
+
+    p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(p)
+    return run_command(cmd_render, p.parse_args(argv), prog="fogsim")

@@ -1,0 +1,127 @@
+"""``fogsim study``: the per-density detection study in one command: render (or reuse) a fogsim dataset, train one
+YOLO per fog level plus one on every level mixed, predict on every level's validation images,
+and write the cross-density report (Recall / mAP@50, oracle and routed rows, fog-level
+estimators) under OUT/report.
+
+Small study on a 2-core CPU (≈ 80 min):
+    fogsim study --out study --render 300
+Paper scale on a GPU (8,100 train / 4,800 val frames, 640 px, 100 epochs, YOLOv12m):
+    fogsim render --out ds --frames 12900 --train-fraction 0.628 --shard i/N --gpu
+    fogsim render --out ds --frames 12900 --train-fraction 0.628 --finalize-only
+    fogsim study --out study --dataset ds --model yolo12m.yaml \\
+        --imgsz 640 --epochs 100 --batch 16 --nbs 64 --shard i/6   (array job of 6: one model each)
+    fogsim study --out study --dataset ds … --report-only
+
+Resumable: finished models and prediction files are skipped, an interrupted training resumes
+from its last.pt. Needs the 'detect' extra. Exit 0 done, 1 failed, 2 bad input.
+"""
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+from pathlib import Path
+
+from fogsim.errors import EXIT_OK
+
+
+def add_parsers(sub) -> None:
+    from fogsim.detection.yolo import TrainConfig
+
+    d = TrainConfig()
+    p = sub.add_parser("study", help="train one detector per fog level (+ mixed) and write the cross-density "
+                       "report (needs the 'detect' extra)", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", required=True, help="study folder (resumed when it exists)")
+    src = p.add_argument_group("dataset")
+    src.add_argument("--dataset", help="an existing fogsim dataset (default: OUT/dataset)")
+    src.add_argument("--render", type=int, metavar="FRAMES",
+                     help="render (or complete) this many frames into the dataset first")
+    src.add_argument("--preset", default="default", help="render preset (with --render)")
+    src.add_argument("--resolution", default="320x213", help="render resolution WxH (with --render)")
+    src.add_argument("--samples", type=int, help="Cycles samples (with --render; default: the preset's)")
+    src.add_argument("--render-seed", type=int, help="dataset seed (with --render)")
+    tr = p.add_argument_group("training (Ultralytics; --report-only reads them from OUT/study.json)")
+    tr.add_argument("--model", default=d.model, help="model YAML, trained from scratch (e.g. yolo12m.yaml, "
+                    "the paper's), or an existing weights file")
+    tr.add_argument("--epochs", type=int, default=d.epochs)
+    tr.add_argument("--mixed-epochs", type=int, help="epochs of the mixed model (default: --epochs, i.e. "
+                    "the compute of all level models together)")
+    tr.add_argument("--imgsz", type=int, default=d.imgsz)
+    tr.add_argument("--batch", type=int, default=d.batch)
+    tr.add_argument("--nbs", type=int, help="nominal batch size: gradients accumulate to it (default: --batch, "
+                    "no accumulation — a small dataset needs the optimizer steps; Ultralytics' default is 64)")
+    tr.add_argument("--device", default=d.device, help="auto (CUDA GPU 0 when present, else cpu), cpu, 0, 0,1 …")
+    tr.add_argument("--workers", type=int, default=d.workers, help="data-loader workers")
+    tr.add_argument("--seed", type=int, default=d.seed)
+    tr.add_argument("--patience", type=int, default=d.patience, help="early-stopping patience (epochs)")
+    tr.add_argument("--cache", action="store_true", help="keep decoded images in RAM (faster on large "
+                    "images; Ultralytics warns it may make training non-deterministic)")
+    tr.add_argument("--no-plots", action="store_true", help="skip Ultralytics' training plots")
+    ev = p.add_argument_group("evaluation")
+    ev.add_argument("--max-distance", type=float, default=100.0, help="objects farther (m) are ignored")
+    ev.add_argument("--shard", help="i/N: train and predict models i, i+N, … only (array jobs)")
+    what = ev.add_mutually_exclusive_group()
+    what.add_argument("--report-only", action="store_true", help="only evaluate and write OUT/report")
+    what.add_argument("--no-report", action="store_true", help="train and predict only")
+    ev.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(run=cmd_study)
+
+
+
+def check_args(args) -> None:
+    """Usage errors (ValueError) before anything runs."""
+    positive = {"--epochs": args.epochs, "--mixed-epochs": args.mixed_epochs, "--imgsz": args.imgsz,
+                "--batch": args.batch, "--nbs": args.nbs, "--max-distance": args.max_distance,
+                "--render": args.render}
+    bad = [name for name, v in positive.items() if v is not None and not v > 0]
+    if bad:
+        raise ValueError(f"{', '.join(bad)} must be positive")
+    if args.render and args.shard:
+        raise ValueError("--render with --shard would make every array task render the same dataset: "
+                         "render first (fogsim render --shard), then train with --dataset")
+
+
+def render(dataset: Path, args) -> None:
+    """Render (or complete) the dataset in a process of its own: bpy keeps its memory until exit."""
+    cmd = [sys.executable, "-m", "fogsim", "render", "--out", str(dataset), "--preset",
+           args.preset, "--frames", str(args.render), "--resolution", args.resolution]
+    if args.samples:
+        cmd += ["--samples", str(args.samples)]
+    if args.render_seed is not None:
+        cmd += ["--seed", str(args.render_seed)]
+    if args.quiet:
+        cmd.append("--quiet")
+    code = subprocess.run(cmd).returncode
+    if code:
+        raise SystemExit(code)
+
+
+def cmd_study(args) -> int:
+    from fogsim.detection.study import Study
+    from fogsim.detection.yolo import TrainConfig
+    from fogsim.runs import parse_shard
+
+    out = Path(args.out)
+    dataset = Path(args.dataset) if args.dataset else out / "dataset"
+    cfg = TrainConfig(model=args.model, epochs=args.epochs, mixed_epochs=args.mixed_epochs, imgsz=args.imgsz,
+                      batch=args.batch, nbs=args.nbs, device=args.device, workers=args.workers, seed=args.seed,
+                      patience=args.patience, cache=args.cache, plots=not args.no_plots)
+    check_args(args)
+    shard = parse_shard(args.shard)
+    if args.render:
+        render(dataset, args)
+    study = Study(dataset, out, cfg)
+    if not args.report_only:
+        study.run_models(shard, progress=not args.quiet)
+    if args.no_report:
+        return EXIT_OK
+    if not args.report_only and study.missing_predictions():
+        print(f"fogsim: shard {shard[0]}/{shard[1]} done; when every shard has finished, "
+              f"write the report with --report-only")
+        return EXIT_OK
+    study.report(args.max_distance)
+    report = out / "report"
+    print((report / "cross_density.md").read_text())
+    print(f"report: {report / 'report.md'} (heatmaps: recall_heatmap.png, map50_heatmap.png)")
+    return EXIT_OK

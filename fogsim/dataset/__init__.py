@@ -1,0 +1,4 @@
+"""fogsim's on-disk dataset format, one owner: :mod:`~fogsim.dataset.layout` (every path and
+reserved name), :mod:`~fogsim.dataset.writer` (labels, COCO, split lists and the split rule,
+data files, manifest) and :mod:`~fogsim.dataset.reader` (what every consumer — the study, the
+depth benchmark — reads). Producers (renderer, ``fogsim fog``) write through the writer."""

@@ -1,0 +1,103 @@
+"""The on-disk dataset format, one owner: every path under a dataset root and its reserved names.
+
+Layout under the root::
+
+    images/<level>/<frame>.png   fogged RGB per fog level
+    labels/<level>/<frame>.txt   YOLO lines, identical across levels (empty = background)
+    depth/<frame>.exr            planar depth, metres        masks/<frame>.png  uint16 ids
+    meta/<frame>.json            the frame record, written last: its presence marks the frame done
+    cityscapes/<kind>/<split>/fogsim/<frame>_<kind>.{png,json}   the stereo pair (``--stereo``)
+    coco/<level>.json            COCO detection annotations (objects the filters dropped: iscrowd = 1)
+    splits/<level>_{train,val}.txt, splits/all_{train,val}.txt   image lists (absolute paths)
+    data/<level>.yaml, data/all.yaml                              Ultralytics data files
+    dataset.json                 manifest, counts, levels;       contact_sheet.png
+
+Two names mean "every fog level at once", one per side, and both are part of the format:
+
+* :data:`MIXED_SPLIT` = ``"all"``: the dataset's split lists and data file over every level
+  (``splits/all_*.txt``, ``data/all.yaml``); no fog level may use this key.
+* :data:`MIXED_MODEL` = ``"mixed"``: the detector a study trains on every level
+  (``runs/mixed``, ``predictions/mixed`` under the study folder, the ``mixed`` report row).
+
+Writing is :mod:`fogsim.dataset.writer`'s, reading :mod:`fogsim.dataset.reader`'s; both take
+their paths from :class:`DatasetLayout`.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+MIXED_SPLIT = "all"     # split lists and data file mixing every level (a dataset path)
+MIXED_MODEL = "mixed"   # the detector trained on every level at once (a study name, not a dataset path)
+PARTS = ("train", "val")
+
+
+class DatasetLayout:
+    """Paths of one dataset under ``root``."""
+
+    def __init__(self, root: str | Path):
+        self.root = Path(root)
+
+    # --- per frame
+    def images_dir(self, level_key: str) -> Path:
+        return self.root / "images" / level_key
+
+    def labels_dir(self, level_key: str) -> Path:
+        return self.root / "labels" / level_key
+
+    def image(self, level_key: str, frame: str) -> Path:
+        return self.images_dir(level_key) / f"{frame}.png"
+
+    def label(self, level_key: str, frame: str) -> Path:
+        return self.labels_dir(level_key) / f"{frame}.txt"
+
+    def depth(self, frame: str) -> Path:
+        return self.root / "depth" / f"{frame}.exr"
+
+    def mask(self, frame: str) -> Path:
+        return self.root / "masks" / f"{frame}.png"
+
+    def meta_dir(self) -> Path:
+        return self.root / "meta"
+
+    def meta(self, frame: str) -> Path:
+        return self.meta_dir() / f"{frame}.json"
+
+    def cityscapes_root(self) -> Path:
+        """The root of the stereo pairs' Cityscapes tree (what Cityscapes' loaders take)."""
+        return self.root / "cityscapes"
+
+    def cityscapes(self, kind: str, frame: str, split: str) -> Path:
+        """The stereo pair in Cityscapes' tree (city "fogsim"), so its loader reads it:
+        ``kind`` = leftImg8bit | rightImg8bit | disparity (.png) | camera (.json)."""
+        ext = "json" if kind == "camera" else "png"
+        return self.cityscapes_root() / kind / split / "fogsim" / f"{frame}_{kind}.{ext}"
+
+    # --- per dataset (written by finalize)
+    def split_file(self, level_key: str, part: str) -> Path:
+        """The image list of one split: ``splits/<level>_<part>.txt`` (level may be MIXED_SPLIT)."""
+        return self.root / "splits" / f"{level_key}_{part}.txt"
+
+    def coco(self, level_key: str) -> Path:
+        return self.root / "coco" / f"{level_key}.json"
+
+    def data_yaml(self, level_key: str) -> Path:
+        """Ultralytics data file of one level (or of MIXED_SPLIT)."""
+        return self.root / "data" / f"{level_key}.yaml"
+
+    def manifest(self) -> Path:
+        return self.root / "dataset.json"
+
+    def contact_sheet(self) -> Path:
+        return self.root / "contact_sheet.png"
+
+    def relative(self, path: Path) -> str:
+        """``path`` relative to the root, with forward slashes (as COCO and the data files hold it)."""
+        return Path(path).relative_to(self.root).as_posix()
+
+    # --- state
+    def frame_done(self, frame: str) -> bool:
+        return self.meta(frame).is_file()
+
+    def done_frames(self) -> list[str]:
+        """Names of the committed frames (those with a meta file), sorted."""
+        return sorted(p.stem for p in self.meta_dir().glob("*.json"))

@@ -1,0 +1,169 @@
+"""Writing the rendered dataset: YOLO labels, COCO files, split lists, data files, manifest,
+contact sheet. Every path comes from :class:`fogsim.dataset.layout.DatasetLayout` (the layout
+is listed there); the images are written by the caller.
+
+Split rule: a frame is in train when crc32("<seed>/<frame>") % 1000 < 1000·train_fraction,
+so adding frames never moves existing ones (except that a split left empty takes the frame
+whose hash is nearest the cut, so both lists always hold an image; one frame goes in both). List entries are
+absolute because Ultralytics resolves them against the working directory; run
+:func:`finalize` again after moving the dataset.
+"""
+from __future__ import annotations
+
+import json
+from collections import Counter
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from fogsim.boxes import yolo_line
+from fogsim.colour import to_uint8
+from fogsim.dataset.layout import MIXED_SPLIT, PARTS, DatasetLayout
+from fogsim.dataset.reader import read_meta, read_metas
+from fogsim.fileio import atomic_write_bytes, read_image, write_image, write_json
+from fogsim.render.labels import coco_annotation, coco_categories
+from fogsim.fog.levels import FogLevel
+from fogsim.runs import split_key
+from fogsim.viz import strip
+from fogsim.scene.classes import LABELLED
+
+__all__ = ["MIXED", "PALETTE", "DatasetLayout", "coco_dataset", "contact_sheet", "data_yaml", "finalize",
+           "frame_split", "split_frames", "write_frame_labels"]
+
+MIXED = MIXED_SPLIT  # the split lists and data file mixing every level (kept name; see layout.py)
+#: box colours (RGB) by class id
+PALETTE = ((230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48),
+           (145, 30, 180), (70, 240, 240), (240, 50, 230))
+
+
+def write_frame_labels(layout: DatasetLayout, frame: str, levels, records: list[dict],
+                       width: int, height: int) -> None:
+    """YOLO label files of one frame, one per level, from the kept records (may be empty)."""
+    text = "".join(yolo_line(r, width, height) + "\n" for r in records if r["kept"])
+    for lv in levels:
+        atomic_write_bytes(layout.label(lv.key, frame), text.encode())
+
+
+def frame_split(frame: str, train_fraction: float = 0.8, seed: int = 0) -> str:
+    """"train" or "val" for one frame by the split rule alone (no empty-split adjustment)."""
+    return "train" if split_key(frame, seed) < round(1000 * train_fraction) else "val"
+
+
+def split_frames(frames: list[str], train_fraction: float = 0.8, seed: int = 0) -> tuple[list, list]:
+    """Deterministic (train, val) frame lists by hash of name (see the module docstring)."""
+    if len(frames) == 1:
+        return list(frames), list(frames)
+    cut = round(1000 * train_fraction)
+    key = {f: split_key(f, seed) for f in frames}
+    train = sorted(f for f in frames if key[f] < cut)
+    val = sorted(f for f in frames if key[f] >= cut)
+    if frames and not val:  # never leave a split empty: the frame nearest the cut changes sides
+        moved = max(train, key=lambda f: (key[f], f))
+        train, val = [f for f in train if f != moved], [moved]
+    elif frames and not train:
+        moved = min(val, key=lambda f: (key[f], f))
+        train, val = [moved], [f for f in val if f != moved]
+    return train, val
+
+
+def coco_dataset(metas: list[dict], level: FogLevel, layout: DatasetLayout) -> dict:
+    """COCO detection JSON of one level; image ids follow the sorted frame order from 1."""
+    images, annotations = [], []
+    for image_id, meta in enumerate(metas, start=1):
+        path = layout.relative(layout.image(level.key, meta["frame"]))
+        images.append({"id": image_id, "file_name": path, "width": meta["width"],
+                       "height": meta["height"], "frame": meta["frame"]})
+        for rec in meta["objects"]:
+            annotations.append(coco_annotation(rec, len(annotations) + 1, image_id))
+    return {"info": {"description": f"fogsim, fog level {level.key}", "fog_level": level.to_dict(),
+                     "area": "visible (instance mask) pixel count",
+                     "category_id": "YOLO class id + 1"},
+            "licenses": [], "images": images, "annotations": annotations,
+            "categories": coco_categories()}
+
+
+def data_yaml(root: Path, train: str, val: str, description: str) -> str:
+    """An Ultralytics data file: image lists ``train`` and ``val`` relative to ``root``."""
+    lines = [f"# {description}", f"path: {json.dumps(str(root.resolve()))}",
+             f"train: {json.dumps(train)}", f"val: {json.dumps(val)}", "names:"]
+    lines += [f"  {i}: {json.dumps(n)}" for i, n in enumerate(LABELLED)]
+    return "\n".join(lines) + "\n"
+
+
+def _write_lists(layout: DatasetLayout, name: str, split: dict[str, list[Path]], description: str) -> None:
+    """The split lists of ``name`` (a level key or MIXED_SPLIT) and its data file."""
+    for part, paths in split.items():
+        text = "".join(f"{p.resolve()}\n" for p in paths)
+        atomic_write_bytes(layout.split_file(name, part), text.encode())
+    lists = [layout.relative(layout.split_file(name, part)) for part in PARTS]
+    atomic_write_bytes(layout.data_yaml(name), data_yaml(layout.root, *lists, description).encode())
+
+
+def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: float = 0.8,
+             seed: int = 0) -> dict:
+    """Write every dataset-level file from the committed frames; returns ``dataset.json``'s content."""
+    levels = list(levels)
+    if any(lv.key == MIXED_SPLIT for lv in levels):
+        raise ValueError(f"fog level key {MIXED_SPLIT!r} is reserved for the mixed-level split")
+    frames = layout.done_frames()
+    if not frames:
+        raise ValueError(f"{layout.root}: no finished frames (meta/*.json) to finalize")
+    metas = read_metas(layout, frames)
+    train, val = split_frames(frames, train_fraction, seed)
+    mixed = {part: [] for part in PARTS}
+    for lv in levels:
+        write_json(layout.coco(lv.key), coco_dataset(metas, lv, layout))
+        split = {"train": [layout.image(lv.key, f) for f in train],
+                 "val": [layout.image(lv.key, f) for f in val]}
+        _write_lists(layout, lv.key, split, f"fogsim dataset, fog level {lv.key}: beta = {lv.beta:g} 1/m")
+        for part in mixed:
+            mixed[part] += split[part]
+    _write_lists(layout, MIXED_SPLIT, mixed, "fogsim dataset, every fog level mixed")
+    summary = dict(manifest) | _summary(metas, levels, train, val, train_fraction, seed)
+    write_json(layout.manifest(), summary)
+    write_image(layout.contact_sheet(), contact_sheet(layout, levels, frames))
+    return summary
+
+
+def _summary(metas: list[dict], levels, train: list, val: list, train_fraction: float, seed: int) -> dict:
+    records = [r for m in metas for r in m["objects"]]
+    kept = Counter(r["class"] for r in records if r["kept"])
+    return {"frames": len(metas), "classes": list(LABELLED), "levels": [lv.to_dict() for lv in levels],
+            "counts": {c: kept.get(c, 0) for c in LABELLED},
+            "filtered": dict(Counter(r["reason"] for r in records if not r["kept"])),
+            "split": {"train": len(train), "val": len(val), "train_fraction": train_fraction,
+                      "rule": f"crc32('{seed}/<frame>') % 1000 < {round(1000 * train_fraction)} → train"}}
+
+
+def contact_sheet(layout: DatasetLayout, levels, frames: list[str], max_frames: int = 4,
+                  tile_width: int = 384) -> np.ndarray:
+    """RGB uint8 overview: one row per frame, one column per level, kept boxes drawn."""
+    rows = []
+    for frame in frames[:max_frames]:
+        records = [r for r in read_meta(layout, frame)["objects"] if r["kept"]]
+        tiles = [_tile(read_image(layout.image(lv.key, frame)), records, tile_width) for lv in levels]
+        captions = [(f"frame {frame}: " if i == 0 else "") + _caption(lv) for i, lv in enumerate(levels)]
+        rows.append(strip(tiles, captions))
+    width = max(r.shape[1] for r in rows)
+    gap = np.full((4, width, 3), 255, np.uint8)
+    padded = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=255) for r in rows]
+    return np.vstack([x for r in padded for x in (r, gap)][:-1])
+
+
+def _tile(image: np.ndarray, records: list[dict], width: int) -> np.ndarray:
+    """The image resized to ``width`` with class-coloured boxes and class names."""
+    s = width / image.shape[1]
+    tile = cv2.resize(to_uint8(image), (width, round(image.shape[0] * s)), interpolation=cv2.INTER_AREA)
+    for r in records:
+        x0, y0, x1, y1 = (round(v * s) for v in r["bbox"])
+        colour = PALETTE[r["class_id"] % len(PALETTE)]
+        cv2.rectangle(tile, (x0, y0), (max(x0, x1 - 1), max(y0, y1 - 1)), colour, 1)
+        cv2.putText(tile, r["class"], (x0, max(8, y0 - 2)), cv2.FONT_HERSHEY_SIMPLEX, 0.3, colour, 1, cv2.LINE_AA)
+    return tile
+
+
+def _caption(level) -> str:
+    """Short tile caption: "clear" or "beta 0.06, V 50 m" (OpenCV fonts cannot draw β)."""
+    vis = level.to_dict()["visibility_m"]
+    return "clear" if vis is None else f"beta {level.beta:g}/m, V {vis:.0f} m"

@@ -1,0 +1,197 @@
+"""The per-density detection study: train, predict, evaluate, report (driver of
+``scripts/train_per_density.py``).
+
+Models: one detector per fog level of the dataset (named by level key) and ``mixed``, trained
+on every level at once. Each is run on the validation images of every level. Report rows: the
+models, ``oracle`` (each level's own model on it: routing by the true level) and
+``routed (<estimator>)`` (each validation image sent to the model of its *estimated* level,
+:mod:`fogsim.detection.level_estimation`). Columns: validation levels.
+
+Layout under OUT::
+
+    study.json                   dataset, levels, training configuration (a rerun with other
+                                 parameters is refused)
+    yolo/                        training view of the dataset (symlinks, split lists, data YAMLs)
+    runs/<model>/                Ultralytics run; fogsim_done.json marks it trained
+    predictions/<model>/<level>.json   COCO results on the level's validation images
+    report/                      cross_density.{json,csv,md}, recall/map50 heatmaps,
+                                 fog_level.json, fog_level_<estimator>.png, report.md
+
+Every unit (a model's training, one prediction file) is skipped when done, so an interrupted
+study resumes; ``shard=(i, N)`` takes models i, i+N, … for a scheduler's array job.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from fogsim.detection.table import cross_density, heatmap, markdown, write_report
+from fogsim.dataset.layout import MIXED_MODEL, DatasetLayout
+from fogsim.dataset.reader import dataset_levels, read_split, val_ground_truth
+from fogsim.detection.yolo import TrainConfig, check_model, predict, train, training_view
+from fogsim.runs import claim_output
+from fogsim.errors import InputError
+from fogsim.detection.coco_eval import BINS
+from fogsim.detection.level_estimation import LevelEstimator, confusion, image_features, route
+from fogsim.fileio import atomic_write_bytes, read_image, read_json, write_image, write_json
+
+ESTIMATORS = ("features", "dark-channel")
+ESTIMATOR_TRAIN_IMAGES = 200  # per level: enough for centroids, bounded time on large datasets
+
+
+class Study:
+    """Paths and parameters of one study under ``out`` on ``dataset``. ``cfg`` is needed to
+    train; the report reads the training parameters the study was run with from ``study.json``."""
+
+    def __init__(self, dataset: str | Path, out: str | Path, cfg: TrainConfig | None = None):
+        self.dataset, self.out, self.cfg = Path(dataset).resolve(), Path(out).resolve(), cfg
+        self.layout = DatasetLayout(self.dataset)
+        self.levels = dataset_levels(self.layout)
+        clash = [lv for lv in self.levels if lv in (MIXED_MODEL, "oracle") or lv.startswith("routed")]
+        if clash:
+            raise InputError(self.layout.manifest(), f"fog level keys {clash} clash with the study's "
+                                                     "row names (mixed, oracle, routed …)")
+        self.models = [*self.levels, MIXED_MODEL]
+        self.config_dir = self.out / "ultralytics_config"
+
+    def prediction(self, model: str, level: str) -> Path:
+        return self.out / "predictions" / model / f"{level}.json"
+
+    def _dataset_parameters(self, gts: dict) -> dict:
+        """What ties predictions to the dataset: its path, levels and validation images (ids and
+        files — they change when frames are added or the split is redrawn)."""
+        images = {lv: [[im["id"], im["file_name"]] for im in gts[lv]["images"]] for lv in self.levels}
+        digest = hashlib.sha256(json.dumps(images, sort_keys=True).encode()).hexdigest()
+        return {"dataset": str(self.dataset), "levels": self.levels, "validation_images_sha256": digest}
+
+    def check_parameters(self, gts: dict) -> None:
+        """Write ``study.json``, or refuse when OUT holds a study with other parameters."""
+        params = self._dataset_parameters(gts) | {"train": asdict(self.cfg)}
+        claim_output(self.out / "study.json", params, what="study")
+
+    def stored_config(self, gts: dict) -> TrainConfig:
+        """The training parameters in ``study.json``, after checking it is this dataset's study."""
+        path = self.out / "study.json"
+        if not path.is_file():
+            raise InputError(path, "no study here: train the models first")
+        stored = read_json(path).get("parameters", {})
+        keys = ("dataset", "levels", "validation_images_sha256")
+        if {k: stored.get(k) for k in keys} != self._dataset_parameters(gts):
+            raise InputError(path, f"this study was run on another dataset or validation split than {self.dataset}")
+        return TrainConfig(**stored["train"])
+
+    def ground_truth(self) -> dict:
+        return {lv: val_ground_truth(self.layout, lv) for lv in self.levels}
+
+    def run_models(self, shard: tuple[int, int] = (0, 1), progress: bool = True) -> None:
+        """Train every model of this shard and predict with it on every level (resumable)."""
+        gts = self.ground_truth()
+        mine = self.models[shard[0]::shard[1]]
+        if any(not (self.out / "runs" / m / "fogsim_done.json").is_file() for m in mine):
+            check_model(self.cfg.model, self.config_dir)  # before study.json: a typo must not lock OUT
+        self.check_parameters(gts)
+        data = training_view(self.dataset, self.out / "yolo", self.levels)
+        for name in tqdm(mine, desc="models", unit="model", disable=not progress):
+            if not (self.out / "runs" / name / "fogsim_done.json").is_file():
+                shutil.rmtree(self.out / "predictions" / name, ignore_errors=True)  # from older weights
+            best = train(name, data[name], self.out / "runs", self.cfg, self.config_dir)
+            for lv in self.levels:
+                path = self.prediction(name, lv)
+                if not path.is_file():
+                    write_json(path, predict(best, gts[lv], self.dataset, self.cfg, self.config_dir))
+
+    def missing_predictions(self) -> list[Path]:
+        return [self.prediction(m, lv) for m in self.models for lv in self.levels
+                if not self.prediction(m, lv).is_file()]
+
+    def report(self, max_distance_m: float = 100.0) -> dict:
+        """Evaluate every row on every level and write ``OUT/report``; returns the table."""
+        missing = self.missing_predictions()
+        if missing:
+            raise InputError(missing[0], f"{len(missing)} prediction files are missing: "
+                                         "run the remaining models (shards) first")
+        gts = self.ground_truth()
+        cfg = self.stored_config(gts)
+        preds = {m: {lv: read_json(self.prediction(m, lv)) for lv in self.levels} for m in self.models}
+        rows = dict(preds)
+        rows["oracle"] = {lv: preds[lv][lv] for lv in self.levels}
+        levels_out = {}
+        for method, (est_true, est_pred, estimates) in self.estimate_levels(gts).items():
+            rows[f"routed ({method})"] = route(preds, estimates)
+            levels_out[method] = confusion(est_true, est_pred, self.levels)
+        table = cross_density(gts, rows, max_distance_m=max_distance_m)
+        out = self.out / "report"
+        write_report(table, out)
+        write_json(out / "fog_level.json", levels_out)
+        for method, conf in levels_out.items():
+            m = np.array(conf["matrix"], float)
+            share = m / np.maximum(m.sum(axis=1, keepdims=True), 1)
+            grid = {t: {p: {"share": share[i, j]} for j, p in enumerate(self.levels)}
+                    for i, t in enumerate(self.levels)}
+            write_image(out / f"fog_level_{method}.png",
+                        heatmap(grid, "share", title=f"fog level, {method}: share (row: true, column: estimated)"))
+        atomic_write_bytes(out / "report.md", self.report_markdown(table, levels_out, max_distance_m, cfg).encode())
+        return table
+
+    def estimate_levels(self, gts: dict) -> dict:
+        """Per estimator: (true levels, estimated levels, ``{level: {image_id: estimated level}}``)
+        of every validation image; fitted on training images of every level."""
+        X, y = [], []
+        for lv in self.levels:
+            frames = read_split(self.layout, lv, "train")
+            step = max(1, len(frames) // ESTIMATOR_TRAIN_IMAGES)
+            for f in frames[::step]:
+                X.append(image_features(read_image(self.layout.image(lv, f))))
+                y.append(lv)
+        val = [(lv, im["id"], image_features(read_image(self.dataset / im["file_name"])))
+               for lv in self.levels for im in gts[lv]["images"]]
+        V = np.stack([v[2] for v in val])
+        out = {}
+        for method in ESTIMATORS:
+            predicted = LevelEstimator.fit(np.stack(X), y, method).predict(V)
+            estimates: dict = {lv: {} for lv in self.levels}
+            for (lv, image_id, _), p in zip(val, predicted):
+                estimates[lv][image_id] = p
+            out[method] = ([v[0] for v in val], predicted, estimates)
+        return out
+
+    def report_markdown(self, table: dict, levels_out: dict, max_distance_m: float, cfg: TrainConfig) -> str:
+        n_train = len(read_split(self.layout, self.levels[0], "train"))
+        n_val = len(read_split(self.layout, self.levels[0], "val"))
+        lines = ["# Cross-density detection study", "",
+                 f"Dataset `{self.dataset}`: {n_train} training / {n_val} validation frames per level; "
+                 f"model `{cfg.model}`{' from scratch' if cfg.model.endswith(('.yaml', '.yml')) else ''}, "
+                 f"{cfg.epochs} epochs "
+                 f"(mixed: {cfg.epochs_for(MIXED_MODEL)} over every level), {cfg.imgsz} px, batch {cfg.batch}. "
+                 f"Objects within {max_distance_m:g} m count; farther ones are ignored.",
+                 "", "Recall = Ultralytics' R (recall at the max-F1 confidence); map50 = COCO AP@0.5 "
+                 "(pycocotools). Rows: trained on (oracle = each level's own model; routed = the model "
+                 "of the estimated level); columns: validated on.", "", markdown(table),
+                 "**recall by distance** (every detection; model on its own level, mixed, routed)", "",
+                 "| row | level | " + " | ".join(f"{lo:g}–{hi:g} m" for lo, hi in BINS) + " |",
+                 "|---" * (len(BINS) + 2) + "|"]
+        for row in ("oracle", MIXED_MODEL, *(r for r in table if r.startswith("routed"))):
+            for lv, cell in table[row].items():
+                vals = ["—" if v is None else f"{v:.3f}" for v in cell["recall_by_distance"].values()]
+                lines.append(f"| {row} | {lv} | " + " | ".join(vals) + " |")
+        lines += ["", "**training** (seconds of the run that finished each model)", "",
+                  "| model | epochs | seconds | state |", "|---|---|---|---|"]
+        for m in self.models:
+            done = self.out / "runs" / m / "fogsim_done.json"
+            info = read_json(done) if done.is_file() else {}
+            seconds, state = info.get("seconds_this_run", "—"), info.get("state", "—")
+            lines.append(f"| {m} | {cfg.epochs_for(m)} | {seconds} | {state} |")
+        lines += ["", "**fog-level estimators** on the validation images (rows: true, columns: estimated)", ""]
+        for method, conf in levels_out.items():
+            lines += [f"{method}: accuracy {conf['accuracy']:.3f}", "",
+                      "| true \\ estimated | " + " | ".join(self.levels) + " |", "|---" * (len(self.levels) + 1) + "|"]
+            lines += [f"| {lv} | " + " | ".join(str(v) for v in row) + " |"
+                      for lv, row in zip(self.levels, conf["matrix"])]
+            lines.append("")
+        return "\n".join(lines)

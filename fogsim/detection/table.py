@@ -1,0 +1,89 @@
+"""The cross-density table: every model × every fog level → Recall and mAP@50.
+
+Rows are models (one per training level, plus e.g. ``mixed`` and ``routed``), columns the
+validation levels, as in the paper's Table 2. Written as JSON (every metric of every cell),
+CSV, a markdown table in the paper's layout (the best value of each column in bold) and a
+heatmap PNG per metric.
+"""
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from fogsim.detection.coco_eval import evaluate
+from fogsim.fileio import atomic_write_bytes, write_image, write_json
+
+METRICS = {"recall": "ultralytics_R", "map50": "ap50"}
+
+
+def cross_density(gt_by_level: dict[str, dict], predictions: dict[str, dict[str, list]], **kw) -> dict:
+    """``{model: {level: evaluate(...)}}`` for every model and every level it has predictions for."""
+    return {model: {lv: evaluate(gt_by_level[lv], dets, **kw) for lv, dets in by_level.items()}
+            for model, by_level in predictions.items()}
+
+
+def _grid(table: dict, metric: str) -> tuple[list[str], list[str], np.ndarray]:
+    models = list(table)
+    levels = list(dict.fromkeys(lv for m in models for lv in table[m]))
+    key = METRICS.get(metric, metric)
+    grid = np.array([[table[m].get(lv, {}).get(key, np.nan) for lv in levels] for m in models], float)
+    return models, levels, grid
+
+
+def markdown(table: dict) -> str:
+    """The paper's layout: one block per metric, rows = trained model, columns = validation level."""
+    lines = []
+    for metric in METRICS:
+        models, levels, g = _grid(table, metric)
+        best = np.nanmax(g, axis=0) if g.size else []
+        lines += [f"**{metric}** (rows: trained on; columns: validated on)", "",
+                  "| model | " + " | ".join(levels) + " |", "|---" * (len(levels) + 1) + "|"]
+        for i, m in enumerate(models):
+            cells = [("**%.3f**" if np.isfinite(v) and v == best[j] else "%.3f") % v if np.isfinite(v) else "—"
+                     for j, v in enumerate(g[i])]
+            lines.append(f"| {m} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def heatmap(table: dict, metric: str, cell: int = 90, title: str | None = None) -> np.ndarray:
+    """RGB image of one metric: a cell per (row, column), value written in it, darker = higher."""
+    models, levels, g = _grid(table, metric)
+    left = 16 + max([110] + [cv2.getTextSize(m, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)[0][0] for m in models])
+    top = 40
+    img = np.full((top + cell * len(models) + 10, max(360, left + cell * len(levels) + 10), 3), 255, np.uint8)
+    cv2.putText(img, title or f"{metric} (row: trained on, column: validated on)", (8, 20), cv2.FONT_HERSHEY_SIMPLEX,
+                0.42, (0, 0, 0), 1, cv2.LINE_AA)
+    for j, lv in enumerate(levels):
+        cv2.putText(img, lv, (left + j * cell + 6, top - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
+    for i, m in enumerate(models):
+        cv2.putText(img, m, (6, top + i * cell + cell // 2), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+        for j in range(len(levels)):
+            v = g[i, j]
+            shade = 255 if not np.isfinite(v) else int(255 - 200 * np.clip(v, 0, 1))
+            x0, y0 = left + j * cell, top + i * cell
+            cv2.rectangle(img, (x0, y0), (x0 + cell - 2, y0 + cell - 2), (shade, shade, 255), -1)
+            text = "-" if not np.isfinite(v) else f"{v:.3f}"
+            colour = (255, 255, 255) if np.isfinite(v) and v > 0.6 else (0, 0, 0)
+            cv2.putText(img, text, (x0 + 14, y0 + cell // 2 + 5), cv2.FONT_HERSHEY_SIMPLEX, 0.5, colour, 1, cv2.LINE_AA)
+    return img
+
+
+def write_report(table: dict, out: str | Path) -> None:
+    """``cross_density.json``, ``.csv``, ``.md`` and ``<metric>_heatmap.png`` under ``out``."""
+    out = Path(out)
+    write_json(out / "cross_density.json", table)
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(["model", "level", *METRICS])
+    for m, row in table.items():
+        for lv, cell in row.items():
+            w.writerow([m, lv, *(f"{cell[k]:.6f}" for k in METRICS.values())])
+    atomic_write_bytes(out / "cross_density.csv", buf.getvalue().encode())
+    atomic_write_bytes(out / "cross_density.md", markdown(table).encode())
+    for metric in METRICS:
+        write_image(out / f"{metric}_heatmap.png", heatmap(table, metric))

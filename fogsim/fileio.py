@@ -1,0 +1,231 @@
+"""File I/O: images, depth maps and JSON, with atomic writes and clear errors.
+
+Conventions: RGB arrays are H×W×3 in RGB order (OpenCV's BGR never leaves this module);
+depth arrays are H×W float32 in metres. Every writer writes a temporary file beside the
+target and renames it, so a killed job never leaves a half-written output.
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from fogsim.errors import InputError
+
+os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")
+import cv2  # noqa: E402  (the variable above must be set before the import)
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
+DEPTH_SUFFIXES = (".exr", ".npy", ".png", ".tif", ".tiff")
+
+
+# ----------------------------------------------------------------------------- atomic writes
+#: Temporary files of unfinished writes: hidden, beside their target, ending in this suffix.
+PART_SUFFIX = ".part"
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike):
+    """Yield a temporary path beside ``path``; on success it is renamed onto ``path``.
+
+    The temporary file is hidden (``.NAME.xxxx.part``) and removed on any error, so a killed
+    or failed job never leaves a half-written output under the real name. The result gets
+    the usual permissions (0666 minus the umask), as any other tool's output would.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=PART_SUFFIX, dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def write_json(path: str | os.PathLike, obj) -> None:
+    """Write ``obj`` as indented JSON, atomically."""
+    atomic_write_bytes(path, (json.dumps(obj, indent=2, sort_keys=False) + "\n").encode())
+
+
+def read_json(path: str | os.PathLike) -> dict:
+    try:
+        with open(path, encoding="utf-8") as f:
+            return json.load(f)
+    except FileNotFoundError:
+        raise InputError(path, "file not found") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(path, f"not readable as JSON ({exc})") from None
+
+
+# ----------------------------------------------------------------------------- images
+def decode_image(data: bytes, source: str) -> np.ndarray:
+    """Decode encoded image bytes (PNG, JPEG, ...) to an RGB array of the file's bit depth."""
+    arr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    if arr is None:
+        raise InputError(source, "not a readable image (corrupt or unsupported format)")
+    return _to_rgb(arr, source)
+
+
+def _imread(path: Path) -> np.ndarray:
+    """The stored pixels of an image file, as OpenCV decodes them (BGR, any bit depth)."""
+    if not path.is_file():
+        raise InputError(path, "file not found")
+    arr = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if arr is None:
+        raise InputError(path, "not a readable image (corrupt or unsupported format)")
+    return arr
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    """Read an image file as RGB (uint8 or uint16, as stored; float32 for EXR)."""
+    return _to_rgb(_imread(Path(path)), str(path))
+
+
+def _to_rgb(arr: np.ndarray, source: str) -> np.ndarray:
+    if arr.ndim == 2:
+        return np.repeat(arr[:, :, None], 3, axis=2)
+    if arr.shape[2] == 4:
+        arr = arr[:, :, :3]
+    if arr.shape[2] != 3:
+        raise InputError(source, f"expected an RGB image, got {arr.shape[2]} channels")
+    return np.ascontiguousarray(arr[:, :, ::-1])
+
+
+def encode_image(rgb: np.ndarray, suffix: str = ".png") -> bytes:
+    """Encode an RGB uint8/uint16 array (PNG keeps 16 bit)."""
+    if rgb.ndim == 3:
+        rgb = np.ascontiguousarray(rgb[:, :, ::-1])
+    ok, buf = cv2.imencode(suffix, rgb)
+    if not ok:
+        raise ValueError(f"OpenCV could not encode a {rgb.dtype} {rgb.shape} array as {suffix}")
+    return buf.tobytes()
+
+
+def write_image(path: str | os.PathLike, rgb: np.ndarray) -> None:
+    """Write an RGB (or single-channel) array atomically; the format follows the suffix."""
+    atomic_write_bytes(path, encode_image(rgb, Path(path).suffix or ".png"))
+
+
+# ----------------------------------------------------------------------------- depth
+def read_exr_channels(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """All channels of an EXR file (single- or multi-layer), name → H×W array."""
+    import OpenEXR
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "file not found")
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            return {name: np.array(ch.pixels) for name, ch in f.channels().items()}
+    except Exception as exc:  # OpenEXR raises plain RuntimeError/ValueError on corrupt files
+        raise InputError(path, f"not a readable EXR file ({exc})") from None
+
+
+#: channel names tried, in order, when an EXR holds depth
+EXR_DEPTH_CHANNELS = ("Z", "depth", "Depth", "ViewLayer.Depth.Z", "Depth.Z", "Y", "R", "V")
+
+
+def write_depth(path: str | os.PathLike, depth: np.ndarray) -> None:
+    """Write H×W float32 metres as EXR (one float channel ``Y``, ZIP) or ``.npy``, by suffix.
+
+    EXR goes through OpenCV when its build has an EXR encoder (the 4.x wheels), because this
+    also runs inside Debian's Blender 3.4, where the OpenEXR package crashes the process;
+    OpenCV builds without one (the 5.x wheels) write through the OpenEXR package instead.
+    """
+    path = Path(path)
+    depth = np.ascontiguousarray(depth, dtype=np.float32)
+    if path.suffix == ".npy":
+        import io as _io
+
+        buf = _io.BytesIO()
+        np.save(buf, depth)
+        atomic_write_bytes(path, buf.getvalue())
+        return
+    if not cv2.haveImageWriter(".exr"):
+        _write_exr_openexr(path, depth)
+        return
+    ok, data = cv2.imencode(".exr", depth, [cv2.IMWRITE_EXR_TYPE, cv2.IMWRITE_EXR_TYPE_FLOAT,
+                                            cv2.IMWRITE_EXR_COMPRESSION, cv2.IMWRITE_EXR_COMPRESSION_ZIP])
+    if not ok:
+        raise ValueError(f"OpenCV could not encode a {depth.shape} depth map as EXR")
+    atomic_write_bytes(path, data.tobytes())
+
+
+def _write_exr_openexr(path: Path, depth: np.ndarray) -> None:
+    """The same file (one float channel ``Y``, ZIP) through the OpenEXR package."""
+    import OpenEXR
+
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with atomic_path(path) as tmp:
+        with OpenEXR.File(header, {"Y": depth}) as f:
+            f.write(str(tmp))
+
+
+def read_depth_file(path: str | os.PathLike, png_scale: float | None = None) -> np.ndarray:
+    """Read a depth map in metres as H×W float32.
+
+    ``.exr``: the first channel of ``EXR_DEPTH_CHANNELS`` present. ``.npy``: a 2-D array.
+    ``.png``/``.tif``: 16-bit integers times ``png_scale`` metres per unit (required; an
+    8-bit file is refused because it cannot hold metric depth). Values are returned as
+    stored: 0 means a hole, +inf no hit; the caller validates.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "depth file not found")
+    suffix = path.suffix.lower()
+    if suffix == ".exr":
+        channels = read_exr_channels(path)
+        name = next((c for c in EXR_DEPTH_CHANNELS if c in channels), None)
+        if name is None:
+            raise InputError(path, f"no depth channel (looked for {', '.join(EXR_DEPTH_CHANNELS)}; "
+                                   f"found {', '.join(channels) or 'none'})")
+        depth = channels[name]
+    elif suffix == ".npy":
+        try:
+            depth = np.load(path, allow_pickle=False)
+        except Exception as exc:
+            raise InputError(path, f"not a readable .npy array ({exc})") from None
+        if depth.ndim == 3 and depth.shape[2] == 1:
+            depth = depth[:, :, 0]
+    elif suffix in (".png", ".tif", ".tiff"):
+        raw = read_uint16_map(path)
+        if png_scale is None:
+            raise InputError(path, "a 16-bit depth image needs a scale in metres per unit "
+                                   "(--depth-scale)")
+        depth = raw.astype(np.float32) * np.float32(png_scale)
+    else:
+        raise InputError(path, f"unsupported depth format {suffix!r} (use .exr, .npy or 16-bit .png)")
+    if depth.ndim != 2:
+        raise InputError(path, f"depth must be a single-channel map, got shape {depth.shape}")
+    return depth.astype(np.float32, copy=False)
+
+
+def read_uint16_map(path: str | os.PathLike) -> np.ndarray:
+    """Read a single-channel 16-bit PNG/TIFF exactly (never through OpenCV's 8-bit default)."""
+    path = Path(path)
+    raw = _imread(path)
+    if raw.ndim == 3:
+        raise InputError(path, f"expected a single-channel 16-bit map, got {raw.shape[2]} channels")
+    if raw.dtype != np.uint16:
+        raise InputError(path, f"expected 16-bit integers, got {raw.dtype} (an 8-bit image cannot "
+                               "hold this map; was an RGB or preview image passed?)")
+    return raw

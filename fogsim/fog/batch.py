@@ -1,0 +1,168 @@
+"""Fog a dataset at several levels: shards, resume, worker processes, progress, summary.
+
+Output layout: ``OUT/<level key>/<sample key>.png`` and beside it ``<sample key>.json``,
+the sidecar with every parameter that made the image. The sidecar is written last, so it
+marks a finished output: a restarted run skips samples whose sidecars all exist.
+``OUT/fogsim_run.json`` holds the run parameters; a run into an OUT made with other
+parameters is refused rather than mixed.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from fogsim import __version__
+from fogsim.readers.base import Sample
+from fogsim.fog.depth_input import sample_distance
+from fogsim.errors import InputError
+from fogsim.runs import claim_output, sample_seed
+from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
+from fogsim.fileio import encode_image, atomic_write_bytes, write_json
+from fogsim.fog.levels import FogLevel
+
+RUN_FILE = "fogsim_run.json"
+
+
+@dataclass(frozen=True)
+class FogJob:
+    """What to do to every sample. ``airlight`` is RGB in 8-bit units or ``"estimate"``."""
+
+    levels: tuple[FogLevel, ...]
+    out: str
+    airlight: tuple[float, float, float] | str = (255.0, 255.0, 255.0)
+    space: str = "srgb"
+    kernel: Kernel | None = None
+    fill: str = "none"
+    heterogeneity: float = 0.0
+    heterogeneity_scale: float = 64.0
+    seed: int = 0
+    image_format: str = "png"
+    inputs: dict = field(default_factory=dict, hash=False)  # what is read and how (see cli._inputs)
+
+    def parameters(self) -> dict:
+        """The run parameters recorded in ``fogsim_run.json`` and compared on resume."""
+        return {
+            "levels": [lv.to_dict() for lv in self.levels],
+            "airlight": self.airlight if isinstance(self.airlight, str) else list(self.airlight),
+            "airlight_units": "8-bit (255 = white)",
+            "blend_space": self.space,
+            "model": "extended" if self.kernel else "standard",
+            "kernel": self.kernel.to_dict() if self.kernel else None,
+            "fill": self.fill,
+            "heterogeneity": {"amplitude": self.heterogeneity, "scale_px": self.heterogeneity_scale}
+            if self.heterogeneity else None,
+            "seed": self.seed,
+            "image_format": self.image_format,
+            "inputs": self.inputs,
+        }
+
+    def paths(self, sample: Sample, level: FogLevel) -> tuple[Path, Path]:
+        base = Path(self.out) / level.key / sample.key
+        return base.with_name(base.name + "." + self.image_format), base.with_name(base.name + ".json")
+
+    def done(self, sample: Sample) -> bool:
+        return all(self.paths(sample, lv)[1].is_file() for lv in self.levels)
+
+
+def fog_sample(job: FogJob, sample: Sample) -> None:
+    """Fog one sample at every level of the job and write images + sidecars."""
+    image = sample.read_image()
+    h, w = image.shape[:2]
+    dist = sample_distance(sample, w, h, job.fill, image)
+    seed = sample_seed(job.seed, sample.key)
+    density = None
+    if job.heterogeneity:
+        density = density_field((h, w), np.random.default_rng(seed), job.heterogeneity,
+                                job.heterogeneity_scale)
+    airlight = estimate_airlight(image) if job.airlight == "estimate" else np.asarray(job.airlight)
+    fogger = Fogger(image, dist.ray, airlight, job.space, job.kernel, density)
+    common = {"source": sample.source, "key": sample.key,
+              "airlight_rgb": [round(float(a), 3) for a in airlight],
+              "airlight_method": "dark-channel estimate" if job.airlight == "estimate" else "constant",
+              "blend_space": job.space, "model": "extended" if job.kernel else "standard",
+              "kernel": job.kernel.to_dict() if job.kernel else None,
+              **dist.record, "sample_seed": seed if job.heterogeneity else None,
+              "heterogeneity": job.parameters()["heterogeneity"], "fogsim_version": __version__}
+    for level in job.levels:
+        img_path, meta_path = job.paths(sample, level)
+        atomic_write_bytes(img_path, encode_image(fogger(level.beta), "." + job.image_format))
+        write_json(meta_path, {"level": level.to_dict(), **common})
+
+
+@dataclass
+class Summary:
+    total: int = 0
+    done: int = 0
+    skipped: int = 0
+    failed: list[tuple[str, str]] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def line(self, job: FogJob) -> str:
+        return (f"fogged {self.done} of {self.total} images × {len(job.levels)} levels "
+                f"({self.skipped} already done, {len(self.failed)} failed) in {self.seconds:.1f} s "
+                f"→ {job.out}")
+
+
+def check_run_file(job: FogJob, environment: dict) -> None:
+    """Claim ``OUT/fogsim_run.json`` for this job, or refuse a folder holding another run."""
+    claim_output(Path(job.out) / RUN_FILE, job.parameters(), environment, what="run")
+
+
+def _worker(args):
+    job, sample = args
+    try:
+        fog_sample(job, sample)
+        return sample.source, None
+    except (InputError, ValueError, OSError) as exc:
+        return sample.source, str(exc)
+    except Exception as exc:  # keep going; report the unexpected with its type
+        return sample.source, f"{type(exc).__name__}: {exc}"
+
+
+def run(samples: list[Sample], job: FogJob, workers: int = 1, resume: bool = True,
+        progress: bool = True, environment: dict | None = None) -> Summary:
+    """Fog ``samples`` (already sharded) under ``job``; never raises for a single bad sample."""
+    from tqdm import tqdm
+
+    t0 = time.perf_counter()
+    Path(job.out).mkdir(parents=True, exist_ok=True)
+    check_run_file(job, environment or {})
+    summary = Summary(total=len(samples))
+    todo = [s for s in samples if not (resume and job.done(s))]
+    summary.skipped = len(samples) - len(todo)
+    bar = tqdm(total=len(todo), unit="img", disable=not progress, desc="fog")
+    results = map(_worker, ((job, s) for s in todo))
+    pool = None
+    if workers > 1 and len(todo) > 1:
+        # spawn, not fork: a forked child inherits library thread pools (OpenEXR, OpenCV)
+        # mid-state and can deadlock on its first EXR read
+        pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
+                                   mp_context=multiprocessing.get_context("spawn"))
+        results = pool.map(_worker, ((job, s) for s in todo), chunksize=1)
+    try:
+        for source, error in results:
+            if error is None:
+                summary.done += 1
+            else:
+                summary.failed.append((source, error))
+                bar.write(f"error: {error}" if error.startswith(source) else f"error: {source}: {error}")
+            bar.update(1)
+    finally:
+        bar.close()
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
+    summary.seconds = time.perf_counter() - t0
+    return summary
+
+
+def _init_worker():
+    import cv2
+
+    cv2.setNumThreads(1)
+    os.environ.setdefault("OMP_NUM_THREADS", "1")

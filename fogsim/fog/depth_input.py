@@ -1,0 +1,64 @@
+"""From a sample's depth file to the ray distance the fog model needs."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fogsim.camera import NO_HIT_DEPTH, Intrinsics, planar_to_ray
+from fogsim.readers.base import Sample
+from fogsim.errors import InputError
+from fogsim.depth.fill import HolesError, fill_holes, hole_mask
+
+
+@dataclass
+class Distance:
+    """Ray distance ℓ in metres (H×W float32, +inf = no hit) and how it was obtained."""
+
+    ray: np.ndarray
+    record: dict
+
+
+def sample_distance(sample: Sample, width: int, height: int, fill: str = "none",
+                    image: np.ndarray | None = None) -> Distance:
+    """Read, validate, hole-fill and convert a sample's depth to ray distance.
+
+    Raises :class:`InputError` naming the depth file for missing depth, size mismatch,
+    NaN or negative values, unfilled holes, or planar depth without intrinsics.
+    """
+    spec = sample.depth
+    if spec is None:
+        raise InputError(sample.source, "this dataset has no depth; give depth maps "
+                                        "(--depth / --depth-dir) for it")
+    depth, file_K = spec.read_for_image(image) if image is not None else spec.read(width, height)
+    src = spec.path
+    if depth.shape != (height, width):
+        raise InputError(src, f"depth is {depth.shape[1]}×{depth.shape[0]} but the image "
+                              f"{sample.source} is {width}×{height}")
+    if np.isnan(depth).any():
+        raise InputError(src, f"depth has {int(np.isnan(depth).sum())} NaN pixels")
+    if (depth < 0).any():
+        raise InputError(src, f"depth has {int((depth < 0).sum())} negative pixels")
+    depth = np.where(depth >= NO_HIT_DEPTH, np.float32(np.inf), depth)
+    holes = float(hole_mask(depth).mean())
+    try:
+        depth = fill_holes(depth, fill, image)
+    except HolesError as exc:
+        raise InputError(src, str(exc)) from None
+    record = {"depth_file": src, "encoding": spec.decoded_by, "fill": fill,
+              "hole_fraction": round(holes, 6)}
+    if spec.is_ray_distance:
+        record["distance"] = "ray (as stored)"
+        return Distance(depth, record)
+    K: Intrinsics | None = sample.intrinsics or file_K
+    if K is None:
+        raise InputError(src, "planar depth needs the camera intrinsics to become ray distance: "
+                              "give --intrinsics FILE.json or --hfov DEG, or --depth-kind ray")
+    if (K.width, K.height) != (width, height):
+        if abs(K.height * width / K.width - height) > 1.0:
+            raise InputError(src, f"the intrinsics are for {K.width}×{K.height}, another aspect ratio "
+                                  f"than the {width}×{height} image {sample.source}")
+        K = K.scaled(width, height)
+    record["distance"] = "planar→ray"
+    record["intrinsics"] = K.to_dict()
+    return Distance(planar_to_ray(depth, K), record)

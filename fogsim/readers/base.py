@@ -1,0 +1,102 @@
+"""The sample record every dataset adapter produces, and depth decoding by name.
+
+A :class:`Sample` is cheap and picklable (it holds paths and small numbers, never pixels),
+so shards and worker processes can pass samples around; pixels are read on demand.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from fogsim.camera import Intrinsics
+from fogsim.errors import InputError
+from fogsim.fileio import read_depth_file
+from fogsim.readers.cityscapes_files import read_cityscapes_depth
+from fogsim.readers.paper import read_paper_8bit
+
+#: How a depth file is turned into metres (see :class:`DepthSpec`).
+DEPTH_ENCODINGS = ("metric", "disparity", "paper-8bit")
+
+#: A depth source computed from the image (see :attr:`DepthSpec.reader`): RGB uint8 H×W×3 →
+#: (depth in metres, H×W, 0 = hole, inf = no hit; the intrinsics it implies or None).
+DepthReader = Callable[[np.ndarray], "tuple[np.ndarray, Intrinsics | None]"]
+
+
+@dataclass(frozen=True)
+class DepthSpec:
+    """Where a sample's depth comes from and how to decode it.
+
+    ``encoding``:
+      * ``metric`` — EXR/.npy in metres, or 16-bit PNG × ``png_scale`` metres per unit.
+      * ``disparity`` — Cityscapes 16-bit disparity (p = 256·d + 1, 0 = invalid) decoded with
+        the stereo camera JSON at ``camera_path`` into planar depth Z = baseline·fx/d
+        (:func:`fogsim.readers.cityscapes.read_cityscapes_depth`).
+      * ``paper-8bit`` — the paper's 8-bit ILA predictions decoded with its constant
+        (:func:`fogsim.readers.paper.paper_distance_from_8bit`); already a distance, no ray step.
+    ``kind``: ``planar`` (Z along the optical axis; needs intrinsics) or ``ray`` (distance).
+    ``reader``: a picklable callable that computes the depth from the image instead of
+    decoding a file (e.g. :class:`fogsim.depth.ila.ILADepth`, a model's prediction); when
+    given, ``encoding`` is not used, ``path`` names the source in messages, and the reader's
+    ``name`` attribute is what the fog sidecars record as the encoding (:attr:`decoded_by`).
+    """
+
+    path: str
+    encoding: str = "metric"
+    kind: str = "planar"
+    png_scale: float | None = None
+    camera_path: str | None = None
+    reader: DepthReader | None = None
+
+    @property
+    def is_ray_distance(self) -> bool:
+        """True when the decoded values are already ray distances (no planar→ray step)."""
+        return self.kind == "ray" or self.encoding == "paper-8bit"
+
+    @property
+    def decoded_by(self) -> str:
+        """How the depth is obtained, as recorded: the reader's ``name`` or the encoding."""
+        if self.reader is None:
+            return self.encoding
+        return getattr(self.reader, "name", type(self.reader).__name__)
+
+    def read_for_image(self, image: np.ndarray) -> tuple[np.ndarray, Intrinsics | None]:
+        """Like :meth:`read`, for the image ``image`` (which a :attr:`reader` computes from)."""
+        if self.reader is not None:
+            return self.reader(image)
+        return self.read(image.shape[1], image.shape[0])
+
+    def read(self, width: int, height: int) -> tuple[np.ndarray, Intrinsics | None]:
+        """Depth in metres (0 = hole, inf = no hit) and the intrinsics the file implies."""
+        if self.reader is not None:
+            raise ValueError(f"{self.path}: depth from {self.decoded_by} is computed from the image; "
+                             "read it with read_for_image")
+        if self.encoding == "metric":
+            return read_depth_file(self.path, self.png_scale), None
+        if self.encoding == "disparity":
+            depth, camera = read_cityscapes_depth(self.path, self.camera_path)
+            return depth, camera.intrinsics
+        if self.encoding == "paper-8bit":
+            return read_paper_8bit(self.path), None
+        raise InputError(self.path, f"unknown depth encoding {self.encoding!r} "
+                                    f"(use one of {', '.join(DEPTH_ENCODINGS)})")
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One image to fog.
+
+    ``key``: output path relative to the output level folder, POSIX, without suffix
+    (e.g. ``frankfurt/frankfurt_000000_000294_leftImg8bit``). ``source``: what to name in
+    messages. ``read_image``: a picklable callable returning H×W×3 RGB. ``depth``: where
+    the depth is (None when the dataset has none). ``intrinsics``: camera of the image,
+    when the dataset knows it (needed to turn planar depth into ray distance).
+    """
+
+    key: str
+    source: str
+    read_image: Callable[[], np.ndarray]
+    depth: DepthSpec | None = None
+    intrinsics: Intrinsics | None = None
+    meta: dict = field(default_factory=dict, compare=False)

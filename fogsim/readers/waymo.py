@@ -1,0 +1,283 @@
+"""Waymo Open Dataset camera images, without TensorFlow or the waymo package.
+
+* v1: TFRecord files of ``Frame`` protos (proto2, ``waymo_open_dataset/dataset.proto``),
+  parsed with :mod:`.tfrecord` and :mod:`.protobuf_wire` using the field numbers below.
+* v2: a split folder holding ``camera_image/*.parquet`` and optionally
+  ``camera_calibration/*.parquet`` (read with pyarrow).
+
+Sample keys are ``<context name>/<timestamp_micros>_<CAMERA>``. Intrinsics are Waymo's pinhole
+``f_u, f_v, c_u, c_v`` in pixels (OpenCV convention); the lens distortion ``k1, k2, p1, p2, k3``
+is not removed, only recorded in ``meta["distortion"]``. Waymo has no dense depth: depth maps
+come from ``depth_dir/<key><ext>`` (ext in :data:`fogsim.io.DEPTH_SUFFIXES`), else none.
+"""
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, replace
+from functools import lru_cache
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from fogsim.camera import Intrinsics
+from fogsim.errors import FogsimError, InputError
+from fogsim.fileio import DEPTH_SUFFIXES, decode_image
+from fogsim.readers import protobuf_wire as pw
+from fogsim.readers.base import DepthSpec, Sample
+from fogsim.readers.folder import find_depth
+from fogsim.readers.tfrecord import index_tfrecord, read_record
+
+#: CameraName.Name enum of dataset.proto (UNKNOWN = 0 is not selectable)
+CAMERA_NAMES = {"FRONT": 1, "FRONT_LEFT": 2, "FRONT_RIGHT": 3, "SIDE_LEFT": 4, "SIDE_RIGHT": 5,
+                "REAR_LEFT": 6, "REAR": 7, "REAR_RIGHT": 8}
+DISTORTION = ("k1", "k2", "p1", "p2", "k3")
+DEFAULT_DEPTH = DepthSpec(path="", encoding="metric", kind="planar")
+
+# v1 field numbers (dataset.proto): Frame, Context, CameraCalibration, CameraImage
+FRAME_CONTEXT, FRAME_TIMESTAMP, FRAME_IMAGES = 1, 2, 4
+CONTEXT_NAME, CONTEXT_CALIBRATIONS = 1, 2
+CALIB_NAME, CALIB_INTRINSIC, CALIB_WIDTH, CALIB_HEIGHT = 1, 2, 4, 5
+IMAGE_NAME, IMAGE_DATA = 1, 2
+
+# v2 columns (v2/perception/base.py, camera_image.py, context.py; v2/component.py names them)
+V2_KEYS = ("key.segment_context_name", "key.frame_timestamp_micros", "key.camera_name")
+V2_IMAGE = "[CameraImageComponent].image"
+_CAL = "[CameraCalibrationComponent]"
+V2_CAL_KEYS = ("key.segment_context_name", "key.camera_name")
+V2_CAL_PINHOLE = tuple(f"{_CAL}.intrinsic.{n}" for n in ("f_u", "f_v", "c_u", "c_v"))
+V2_CAL_SIZE = (f"{_CAL}.width", f"{_CAL}.height")
+V2_CAL_DISTORTION = tuple(f"{_CAL}.intrinsic.{n}" for n in DISTORTION)
+
+Calibration = tuple[Intrinsics | None, dict]
+
+
+def camera_ids(cameras: Iterable[str] | str) -> dict[int, str]:
+    """Camera names (case-insensitive) → ``{enum value: NAME}`` in the given order."""
+    names = [cameras] if isinstance(cameras, str) else list(cameras)
+    unknown = [n for n in names if str(n).upper() not in CAMERA_NAMES]
+    if unknown or not names:
+        given = ", ".join(map(repr, unknown)) or "(none given)"
+        raise ValueError(f"unknown Waymo camera(s) {given}; valid: {', '.join(CAMERA_NAMES)}")
+    return {CAMERA_NAMES[str(n).upper()]: str(n).upper() for n in names}
+
+
+def _calibration(pinhole: list, width: int | None, height: int | None,
+                 distortion: dict) -> Calibration:
+    """Intrinsics (None when incomplete) and the distortion coefficients of one camera."""
+    if len(pinhole) < 4 or None in pinhole[:4] or not width or not height:
+        return None, distortion
+    return Intrinsics(*(float(v) for v in pinhole[:4]), int(width), int(height)), distortion
+
+
+def _safe(name: str) -> str:
+    """A context name made safe as one path component."""
+    return re.sub(r"[^A-Za-z0-9._-]", "_", name).lstrip(".") or "_"
+
+
+def _sample(context: str, timestamp: int, camera: str, source: str, reader,
+            calibration: Calibration | None, depth_dir: Path | None, depth: DepthSpec) -> Sample:
+    key = f"{_safe(context)}/{timestamp}_{camera}"
+    spec = None
+    if depth_dir is not None:
+        found = find_depth(depth_dir, key)
+        if found is None:
+            raise InputError(depth_dir / f"{key}{DEPTH_SUFFIXES[0]}",
+                             f"depth map for {source} not found (nor with "
+                             f"{', '.join(DEPTH_SUFFIXES[1:])}); Waymo has no dense depth, so "
+                             "the depth folder must hold one map per image, named by its key")
+        spec = replace(depth, path=str(found))
+    intrinsics, distortion = calibration or (None, {})
+    meta = {"dataset": "waymo", "context": context, "timestamp_micros": timestamp,
+            "camera": camera, "distortion": distortion}
+    return Sample(key, source, reader, spec, intrinsics, meta)
+
+
+def _depth_dir(depth_dir: str | os.PathLike | None) -> Path | None:
+    if depth_dir is not None and not Path(depth_dir).is_dir():
+        raise InputError(depth_dir, "depth folder not found")
+    return None if depth_dir is None else Path(depth_dir)
+
+
+def _unique(samples: list[Sample]) -> list[Sample]:
+    """Refuse two samples with one key (their outputs would overwrite each other)."""
+    seen: dict[str, str] = {}
+    for s in samples:
+        if s.key in seen:
+            raise InputError(s.source, f"duplicate frame: key {s.key} is also {seen[s.key]}")
+        seen[s.key] = s.source
+    return samples
+
+
+# ----------------------------------------------------------------------------- v1 (TFRecord)
+@dataclass(frozen=True)
+class TFRecordImage:
+    """Picklable reader: one camera's image from the Frame record at ``offset``."""
+
+    path: str
+    offset: int
+    length: int
+    camera: int
+    source: str
+
+    def __call__(self) -> np.ndarray:
+        frame = pw.decode_fields(read_record(self.path, self.offset, self.length, self.source),
+                                 self.source)
+        for image in pw.submessages(frame, FRAME_IMAGES, self.source):
+            if pw.integer(image, IMAGE_NAME, 0, self.source) == self.camera:
+                return decode_image(pw.blob(image, IMAGE_DATA, self.source) or b"", self.source)
+        raise InputError(self.source, "camera image not in the frame (file changed since "
+                                      "indexing?)")
+
+
+def _tfrecord_files(path: Path) -> list[Path]:
+    if path.is_file():
+        return [path]
+    if not path.is_dir():
+        raise InputError(path, "not found")
+    files = sorted(p for p in path.iterdir() if p.suffix == ".tfrecord" and p.is_file())
+    if not files:
+        raise InputError(path, "no .tfrecord files in this folder")
+    return files
+
+
+def _parse_frame(data: bytes, source: str) -> tuple[str, int, dict[int, Calibration], set[int]]:
+    """Context name, timestamp (µs), calibrations by camera and the cameras with an image."""
+    frame = pw.decode_fields(data, source)
+    context = pw.submessage(frame, FRAME_CONTEXT, source)
+    name = pw.string(context, CONTEXT_NAME, source)
+    timestamp = pw.integer(frame, FRAME_TIMESTAMP, -1, source)
+    if not name or timestamp < 0:
+        raise InputError(source, "not a Waymo Frame (no context.name or timestamp_micros)")
+    calibrations = {}
+    for cal in pw.submessages(context, CONTEXT_CALIBRATIONS, source):
+        values = pw.doubles(cal, CALIB_INTRINSIC, source)
+        calibrations[pw.integer(cal, CALIB_NAME, 0, source)] = _calibration(
+            values[:4], pw.integer(cal, CALIB_WIDTH, 0, source),
+            pw.integer(cal, CALIB_HEIGHT, 0, source), dict(zip(DISTORTION, values[4:9])))
+    cameras = {pw.integer(im, IMAGE_NAME, 0, source)
+               for im in pw.submessages(frame, FRAME_IMAGES, source)}
+    return name, timestamp, calibrations, cameras
+
+
+def waymo_v1_samples(path: str | os.PathLike, cameras: Iterable[str] = ("FRONT",),
+                     depth_dir: str | os.PathLike | None = None,
+                     depth: DepthSpec = DEFAULT_DEPTH) -> list[Sample]:
+    """Samples for the selected cameras of every Frame in a .tfrecord file or folder of them.
+
+    Each record is read once here (image bytes are not kept); ``read_image`` re-reads it.
+    ``depth`` is the template of every sample's :class:`DepthSpec` (its path is replaced).
+    """
+    selected, depth_dir = camera_ids(cameras), _depth_dir(depth_dir)
+    samples = []
+    for file in _tfrecord_files(Path(path)):
+        for i, (offset, length) in enumerate(index_tfrecord(file)):
+            record = f"{file}#record {i}"
+            name, timestamp, calibrations, present = _parse_frame(
+                read_record(file, offset, length, record), record)
+            for camera, cam_name in selected.items():
+                if camera in present:
+                    source = f"{record} {cam_name}"
+                    reader = TFRecordImage(str(file), offset, length, camera, source)
+                    samples.append(_sample(name, timestamp, cam_name, source, reader,
+                                           calibrations.get(camera), depth_dir, depth))
+    return _unique(samples)
+
+
+# ----------------------------------------------------------------------------- v2 (parquet)
+def _parquet():
+    try:
+        import pyarrow.parquet as pq
+    except ImportError as exc:
+        raise FogsimError(f"Waymo v2 needs pyarrow: pip install -e '.[waymo]' ({exc})") from None
+    return pq
+
+
+def _open_parquet(file: Path, columns: Iterable[str]):
+    """A ``pyarrow.parquet.ParquetFile`` known to hold ``columns``."""
+    try:
+        pf = _parquet().ParquetFile(file)
+    except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid is a ValueError
+        raise InputError(file, f"not a readable parquet file ({exc})") from None
+    missing = [c for c in columns if c not in pf.schema_arrow.names]
+    if missing:
+        raise InputError(file, f"missing column(s) {', '.join(missing)} (not a Waymo v2 file?)")
+    return pf
+
+
+@lru_cache(maxsize=1)
+def _image_column(path: str, row_group: int, stamp: tuple[int, int]):
+    """One row group's image column, cached (keyed by ``stamp`` = mtime, size too) so reading
+    the images of one row group in turn decodes the column once."""
+    pf = _open_parquet(Path(path), [V2_IMAGE])
+    return pf.read_row_group(row_group, columns=[V2_IMAGE]).column(0)
+
+
+@dataclass(frozen=True)
+class ParquetImage:
+    """Picklable reader: the image in row ``row`` of row group ``row_group`` of a v2 file."""
+
+    path: str
+    row_group: int
+    row: int
+    source: str
+
+    def __call__(self) -> np.ndarray:
+        try:
+            stat = os.stat(self.path)
+            column = _image_column(self.path, self.row_group, (stat.st_mtime_ns, stat.st_size))
+            data = column[self.row].as_py()
+        except (OSError, ValueError, IndexError) as exc:
+            raise InputError(self.source, f"cannot read the image ({exc})") from None
+        return decode_image(data or b"", self.source)
+
+
+def _v2_calibrations(folder: Path) -> dict[tuple[str, int], Calibration]:
+    """(context, camera) → calibration from ``camera_calibration/*.parquet`` ({} if absent)."""
+    calibrations = {}
+    for file in sorted(folder.glob("*.parquet")):
+        pf = _open_parquet(file, V2_CAL_KEYS + V2_CAL_PINHOLE + V2_CAL_SIZE)
+        distortion = [c for c in V2_CAL_DISTORTION if c in pf.schema_arrow.names]
+        cols = pf.read(columns=list(V2_CAL_KEYS + V2_CAL_PINHOLE + V2_CAL_SIZE) + distortion)
+        for row in cols.to_pylist():
+            calibrations[(row[V2_CAL_KEYS[0]], row[V2_CAL_KEYS[1]])] = _calibration(
+                [row[c] for c in V2_CAL_PINHOLE], *(row[c] for c in V2_CAL_SIZE),
+                {c.rsplit(".", 1)[1]: row[c] for c in distortion})
+    return calibrations
+
+
+def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",),
+                     depth_dir: str | os.PathLike | None = None,
+                     depth: DepthSpec = DEFAULT_DEPTH) -> list[Sample]:
+    """Samples for the selected cameras of a Waymo v2 split folder (e.g. ``.../training``).
+
+    Only the key columns are read here; ``read_image`` reads the image column of one row
+    group when called. Without ``camera_calibration/`` the samples have no intrinsics.
+    """
+    selected, depth_dir, root = camera_ids(cameras), _depth_dir(depth_dir), Path(root)
+    files = sorted((root / "camera_image").glob("*.parquet"))
+    if not files:
+        raise InputError(root, "no camera_image/*.parquet here (expected a Waymo v2 split folder)")
+    calibrations = _v2_calibrations(root / "camera_calibration")
+    samples = []
+    for file in files:
+        pf, start = _open_parquet(file, V2_KEYS + (V2_IMAGE,)), 0
+        for group in range(pf.num_row_groups):
+            keys = pf.read_row_group(group, columns=list(V2_KEYS)).to_pydict()
+            for row, (name, timestamp, camera) in enumerate(zip(*(keys[k] for k in V2_KEYS))):
+                if camera in selected:
+                    source = f"{file}#row {start + row} {selected[camera]}"
+                    reader = ParquetImage(str(file), group, row, source)
+                    samples.append(_sample(name, timestamp, selected[camera], source, reader,
+                                           calibrations.get((name, camera)), depth_dir, depth))
+            start += len(keys[V2_KEYS[0]])
+    return _unique(samples)
+
+
+def waymo_samples(path: str | os.PathLike, cameras: Iterable[str] = ("FRONT",),
+                  depth_dir: str | os.PathLike | None = None,
+                  depth: DepthSpec = DEFAULT_DEPTH) -> list[Sample]:
+    """v2 when ``path`` is a folder with ``camera_image/``, else v1 TFRecord file(s)."""
+    reader = waymo_v2_samples if (Path(path) / "camera_image").is_dir() else waymo_v1_samples
+    return reader(path, cameras, depth_dir, depth)

@@ -1,0 +1,87 @@
+"""Render one frame with Cycles: RGB (scene-linear), planar depth and object index, one pass each."""
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+
+from fogsim.camera import NO_HIT_DEPTH
+from fogsim.render.exr_reader import read_exr
+
+from fogsim.render.blender.compat import (PASS_CHANNELS, cycles_device, has_denoiser, set_denoiser_speed,
+                                          set_multilayer_exr)
+
+
+@dataclass
+class RenderPasses:
+    rgb_linear: np.ndarray  # H×W×3 float32, scene-linear
+    depth: np.ndarray       # H×W float32, planar Z in metres, +inf where nothing was hit
+    index: np.ndarray       # H×W uint16, object pass index (0 = nothing)
+
+
+def configure(scene, quality: dict, seed: int, gpu: bool = False) -> dict:
+    """Cycles settings from a quality preset; returns what was actually used."""
+    scene.render.engine = "CYCLES"
+    device = cycles_device(scene, gpu)
+    cy = scene.cycles
+    cy.samples = int(quality.get("samples", 16))
+    cy.use_adaptive_sampling = bool(quality.get("adaptive_threshold", 0.0))
+    if cy.use_adaptive_sampling:
+        cy.adaptive_threshold = float(quality["adaptive_threshold"])
+    denoise = bool(quality.get("denoise", True)) and has_denoiser()
+    cy.use_denoising = denoise
+    if denoise:
+        set_denoiser_speed(cy, quality.get("denoise_quality", "HIGH"), quality.get("denoise_prefilter", "ACCURATE"))
+    bounces = quality.get("bounces", {})
+    cy.max_bounces = bounces.get("total", 4)
+    cy.diffuse_bounces = bounces.get("diffuse", 2)
+    cy.glossy_bounces = bounces.get("glossy", 2)
+    cy.transmission_bounces = bounces.get("transmission", 2)
+    cy.transparent_max_bounces = bounces.get("transparent", 4)
+    cy.volume_bounces = 0
+    cy.caustics_reflective = cy.caustics_refractive = False
+    cy.sample_clamp_indirect = 10.0
+    cy.seed = int(seed) % 2**31
+    cy.use_animated_seed = False
+    scene.render.use_compositing = False
+    scene.render.use_sequencer = False
+    scene.render.use_persistent_data = False
+    scene.view_settings.view_transform = "Standard"
+    layer = scene.view_layers[0]
+    layer.use_pass_combined = True
+    layer.use_pass_z = True
+    layer.use_pass_object_index = True
+    set_multilayer_exr(scene.render.image_settings)
+    return {"device": device, "samples": cy.samples, "denoise": denoise,
+            "adaptive_threshold": cy.adaptive_threshold if cy.use_adaptive_sampling else None,
+            "max_bounces": cy.max_bounces, "seed": cy.seed}
+
+
+def _pick(channels: dict, names: list):
+    for name in names:
+        if isinstance(name, tuple):
+            if all(n in channels for n in name):
+                return np.stack([channels[n] for n in name], axis=-1)
+        elif name in channels:
+            return channels[name]
+    raise KeyError(f"render output lacks {names}; it has {sorted(channels)}")
+
+
+def render(scene) -> RenderPasses:
+    """Render ``scene`` to a temporary multilayer EXR and return its passes."""
+    fd, path = tempfile.mkstemp(prefix="fogsim_render_", suffix=".exr")
+    os.close(fd)
+    try:
+        scene.render.filepath = path
+        scene.render.use_file_extension = False
+        bpy.ops.render.render(write_still=True, scene=scene.name)
+        ch = read_exr(path)
+    finally:
+        os.unlink(path)
+    depth = _pick(ch, PASS_CHANNELS["depth"]).astype(np.float32)
+    depth[depth >= NO_HIT_DEPTH] = np.inf
+    index = np.rint(_pick(ch, PASS_CHANNELS["index"])).astype(np.uint16)
+    return RenderPasses(_pick(ch, PASS_CHANNELS["rgb"]).astype(np.float32), depth, index)

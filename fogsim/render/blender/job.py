@@ -1,0 +1,101 @@
+"""Render a dataset frame by frame: describe → build → render → clear → commit.
+
+:class:`RenderJob` renders one frame per :meth:`RenderJob.step`, so the batch script can
+loop and the add-on's modal operator can step from a timer (progress bar, cancel).
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import bpy
+
+from fogsim.dataset.writer import DatasetLayout, finalize
+from fogsim.render.frame import commit_frame, describe_frame, frame_name, scene_meshes
+from fogsim.deps import package_versions
+from fogsim.render.preset import RenderConfig
+from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
+from fogsim.depth.stereo import right_world_to_camera
+
+from fogsim.render.blender import build as scene_build
+from fogsim.render.blender.cycles import configure, render
+
+RUN_FILE = "render_run.json"
+SCENE_NAME = "fogsim"
+
+
+#: Preset keys that may change between runs into one dataset (more frames, another split).
+GROWABLE = ("frames", "source", "train_fraction")
+
+
+def dataset_parameters(config: RenderConfig) -> dict:
+    """What must match for a run to add frames to an existing dataset."""
+    return {k: v for k, v in config.to_dict().items() if k not in GROWABLE}
+
+
+def _legacy_parameters(old: dict) -> dict | None:
+    """The parameters of a render_run.json written by fogsim 0.1 (which stored the whole config)."""
+    if "config" not in old:
+        return None
+    params = {k: v for k, v in old["config"].items() if k not in GROWABLE}
+    params.setdefault("stereo_baseline_m", None)  # datasets from before stereo existed
+    return params
+
+
+class RenderJob:
+    """The frames of one shard still to render, and the means to render them."""
+
+    def __init__(self, config: RenderConfig, out: str | Path, shard: tuple[int, int] = (0, 1),
+                 resume: bool = True, gpu: bool = False):
+        self.config, self.layout, self.gpu = config, DatasetLayout(out), gpu
+        Path(out).mkdir(parents=True, exist_ok=True)
+        claim_output(Path(out) / RUN_FILE, dataset_parameters(config),
+                     {"blender": bpy.app.version_string, "config": config.to_dict()},
+                     what="dataset", legacy=_legacy_parameters)
+        i, n = shard
+        mine = [k for k in range(config.frames) if k % n == i]
+        self.todo = [k for k in mine if not (resume and self.layout.frame_done(frame_name(k)))]
+        self.skipped = len(mine) - len(self.todo)
+        self.done: list[dict] = []
+        self.scene = bpy.data.scenes.get(SCENE_NAME) or bpy.data.scenes.new(SCENE_NAME)
+
+    def step(self) -> dict:
+        """Render and commit the next frame; returns its meta record."""
+        index = self.todo.pop(0)
+        t0 = time.perf_counter()
+        desc = describe_frame(self.config, index)
+        meshes = scene_meshes(desc)
+        t1 = time.perf_counter()
+        info = configure(self.scene, self.config.quality, frame_seed(self.config.seed, index), self.gpu)
+        built = scene_build.build(desc, self.scene, meshes)
+        t2 = time.perf_counter()
+        right = None
+        try:
+            passes = render(self.scene)
+            if self.config.stereo_baseline:  # the right camera of a rectified pair, same scene
+                w2c = right_world_to_camera(desc["camera"]["world_to_camera"], self.config.stereo_baseline)
+                scene_build.set_camera_pose(self.scene, w2c)
+                right = render(self.scene).rgb_linear
+        finally:
+            scene_build.clear(built)
+        t3 = time.perf_counter()
+        info["blender"] = bpy.app.version_string
+        timings = {"scene": t1 - t0, "bpy_build": t2 - t1, "render": t3 - t2}
+        meta = commit_frame(self.layout, self.config, index, desc, meshes, passes.rgb_linear,
+                            passes.depth, passes.index, timings, info, right_linear=right)
+        self.done.append(meta)
+        return meta
+
+    def finish(self) -> None:
+        """Write the dataset-level files (COCO, YAMLs, manifest, contact sheet) over all done frames."""
+        frames = self.layout.done_frames()
+        manifest = {"preset": self.config.to_dict(), "seed": self.config.seed,
+                    "frame_seeds": {f: frame_seed(self.config.seed, int(f)) for f in frames},
+                    "frame_seed_rule": FRAME_SEED_RULE,
+                    "blender": bpy.app.version_string, "versions": package_versions()}
+        finalize(self.layout, self.config.levels, manifest, self.config.train_fraction, seed=self.config.seed)
+
+    def close(self) -> None:
+        if self.scene is not None and self.scene.name in bpy.data.scenes and len(bpy.data.scenes) > 1:
+            bpy.data.scenes.remove(self.scene)
+        self.scene = None

@@ -1,0 +1,112 @@
+"""One rendered frame → a committed dataset frame (pure Python; the renderer hands arrays in).
+
+Per frame: sRGB image from the scene-linear render, ray distance from the planar depth,
+instance mask, boxes and visibility from the mask and the unoccluded silhouettes, the fogged
+image at every level, then ``meta/<frame>.json`` last — its presence marks the frame done.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict
+
+import numpy as np
+
+from fogsim import __version__
+from fogsim.camera import Intrinsics, StereoCamera, encode_disparity_png, planar_to_ray
+from fogsim.colour import linear_to_srgb8
+from fogsim.dataset.layout import DatasetLayout
+from fogsim.dataset.writer import frame_split, write_frame_labels
+from fogsim.fog.model import Fogger
+from fogsim.fileio import write_depth, write_image, write_json
+from fogsim.render.labels import object_records
+from fogsim.render.preset import RenderConfig, fog_settings
+from fogsim.runs import frame_seed
+from fogsim.scene.classes import is_labelled
+from fogsim.scene.geometry import world_parts
+from fogsim.scene.layout import sample_scene
+from fogsim.render.silhouette import silhouette_areas
+from fogsim.depth.stereo import SGBMParams, hole_fraction, sgbm_disparity
+
+
+def frame_name(index: int) -> str:
+    return f"{index:06d}"
+
+
+def describe_frame(config: RenderConfig, index: int) -> dict:
+    """The scene description of frame ``index`` (same config and index → same scene)."""
+    s = frame_seed(config.seed, index)
+    return sample_scene(np.random.default_rng(s), config.style, config.camera, config.resolution, seed=s)
+
+
+def scene_meshes(desc: dict) -> dict[int, list]:
+    """World-space (vertices, faces, slot) parts of every object, built once per frame."""
+    return {obj["id"]: world_parts(obj) for obj in desc["objects"]}
+
+
+def to_srgb8(rgb_linear: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """Scene-linear render → 8-bit sRGB (exposure scale, clip at white, sRGB transfer)."""
+    return linear_to_srgb8(rgb_linear, exposure)
+
+
+def write_stereo(layout: DatasetLayout, config: RenderConfig, name: str, K: Intrinsics,
+                 left: np.ndarray, right: np.ndarray) -> dict:
+    """SGBM disparity of the clear pair, written with the pair and camera in Cityscapes' tree."""
+    cam = StereoCamera(config.stereo_baseline, K)
+    params = SGBMParams()
+    disparity = sgbm_disparity(left, right, cam, params)
+    split = frame_split(name, seed=config.seed)
+    write_image(layout.cityscapes("leftImg8bit", name, split), left)
+    write_image(layout.cityscapes("rightImg8bit", name, split), right)
+    write_image(layout.cityscapes("disparity", name, split), encode_disparity_png(disparity))
+    write_json(layout.cityscapes("camera", name, split), cam.to_cityscapes_json())
+    return {"baseline_m": cam.baseline, "split": split, "hole_fraction": round(hole_fraction(disparity), 6),
+            "matcher": {"method": "OpenCV StereoSGBM (3-way)", **asdict(params)}}
+
+
+def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: dict, meshes: dict,
+                 rgb_linear: np.ndarray, depth: np.ndarray, mask: np.ndarray, timings: dict,
+                 render_info: dict, right_linear: np.ndarray | None = None) -> dict:
+    """Ground truth, fog and every file of one frame; returns the frame record (meta).
+
+    ``right_linear``: the right view of a stereo pair, if the preset asks for one; it is
+    matched with SGBM and written with the left view in Cityscapes' layout.
+    """
+    t0 = time.perf_counter()
+    name = frame_name(index)
+    K = Intrinsics.from_dict(desc["camera"]["intrinsics"])
+    h, w = mask.shape
+    rgb = to_srgb8(rgb_linear, config.exposure)
+    ray = planar_to_ray(depth, K)
+    cls = {o["id"]: o["class"] for o in desc["objects"]}
+    labelled = {oid: [(v, f) for v, f, _ in parts] for oid, parts in meshes.items() if is_labelled(cls[oid])}
+    sil = silhouette_areas(labelled, K, np.asarray(desc["camera"]["world_to_camera"]))
+    lab = config.labels
+    records = object_records(mask, ray, desc["objects"], sil,
+                             min_pixels=int(lab.get("min_pixels", 25)),
+                             min_visible_fraction=float(lab.get("min_visible_fraction", 0.1)))
+    t1 = time.perf_counter()
+    fs = fog_settings(config)
+    fogger = Fogger(rgb, ray, fs["airlight"], fs["space"], fs["kernel"])
+    foggy = {lv.key: fogger(lv.beta) for lv in config.levels}
+    t2 = time.perf_counter()
+    for lv in config.levels:
+        write_image(layout.image(lv.key, name), foggy[lv.key])
+    write_frame_labels(layout, name, config.levels, records, w, h)
+    write_depth(layout.depth(name), depth)
+    write_image(layout.mask(name), mask)
+    stereo = None if right_linear is None else write_stereo(layout, config, name, K, rgb,
+                                                             to_srgb8(right_linear, config.exposure))
+    t3 = time.perf_counter()
+    timings = dict(timings, ground_truth=t1 - t0, fog=t2 - t1, write=t3 - t2)
+    meta = {"frame": name, "index": index, "seed": desc["seed"], "width": w, "height": h,
+            "camera": desc["camera"], "objects": records,
+            "fog": {"levels": [lv.to_dict() for lv in config.levels], "distance": "planar→ray",
+                    "airlight": fs["airlight"], "blend_space": fs["space"],
+                    "kernel": fs["kernel"].to_dict() if fs["kernel"] else None},
+            "depth": {"file": str(layout.depth(name).relative_to(layout.root)), "kind": "planar Z, metres",
+                      "no_hit": "inf"},
+            "stereo": stereo,
+            "render": render_info, "timings_s": {k: round(v, 4) for k, v in timings.items()},
+            "scene": desc, "fogsim_version": __version__}
+    write_json(layout.meta(name), meta)
+    return meta

@@ -1,0 +1,82 @@
+"""Per-object ground truth from the instance mask: boxes, visibility, distance; COCO records.
+
+Conventions (the box formats and their conversions live in :mod:`fogsim.boxes`):
+
+* Instance masks are H×W uint16; 0 is background/sky, object ids are ≥ 1.
+* Boxes come from the *visible* mask pixels and are ``[x0, y0, x1, y1)`` in pixel-edge
+  coordinates: x1 = last column + 1, so a single pixel at column 5 has x0 = 5, x1 = 6.
+* YOLO lines: :func:`fogsim.boxes.yolo_line` (``class cx cy w h``, normalised, 6 decimals).
+* COCO: ``bbox = [x, y, w, h]`` floats in pixel-edge coordinates, ``area`` = the visible
+  (mask) pixel count, and ``category_id`` = YOLO class id + 1 (COCO ids start at 1; 0 is
+  the background for most COCO consumers).
+* Distance: the median ray distance (metres, camera centre to surface) over the object's
+  visible pixels; non-finite values (no hit) are ignored.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from fogsim.boxes import _boxes, _median_distance, _Runs, coco_category, xyxy_to_xywh
+from fogsim.scene.classes import CLASS_ID, LABELLED, is_labelled
+
+DISTANCE_STAT = "median ray distance over visible pixels"
+
+
+def object_records(mask: np.ndarray, ray_distance: np.ndarray, objects: list[dict],
+                   silhouettes: dict[int, dict], min_pixels: int = 25,
+                   min_visible_fraction: float = 0.1) -> list[dict]:
+    """One record per labelled object with at least one visible pixel, in ``objects`` order.
+
+    ``silhouettes[id]`` holds ``pixels_in_image`` and ``pixels_total`` (unoccluded silhouette
+    area inside the image and in all), from :func:`fogsim.render.silhouette.silhouette_areas`.
+    ``visible_fraction`` = visible pixels / pixels_in_image (≤ 1; 1 when the silhouette is
+    empty, e.g. a sub-pixel object); ``truncation`` = 1 − pixels_in_image / pixels_total.
+    Objects below ``min_pixels`` visible pixels or ``min_visible_fraction`` stay in the list
+    with ``kept = False`` and a ``reason``; only kept records go to YOLO labels, and to COCO
+    as objects (the others as ignore regions).
+    Objects with no visible pixel (hidden or outside the view) get no record.
+    """
+    h, w = mask.shape
+    runs = _Runs.of(mask)
+    boxes = _boxes(runs, w)
+    labelled = [o for o in objects if is_labelled(o["class"]) and int(o["id"]) in boxes]
+    dist = _median_distance(runs, ray_distance, [o["id"] for o in labelled])
+    records = []
+    for obj in labelled:
+        oid = int(obj["id"])
+        if oid not in silhouettes:
+            raise ValueError(f"object {oid} ({obj['class']}) is visible but has no silhouette")
+        box, sil = boxes[oid], silhouettes[oid]
+        in_image, total = int(sil["pixels_in_image"]), int(sil["pixels_total"])
+        visible = min(1.0, box["pixels"] / in_image) if in_image > 0 else 1.0
+        truncation = 1.0 - in_image / total if total > 0 else 0.0
+        x0, y0, x1, y1 = box["bbox"]
+        reason = ("too few pixels" if box["pixels"] < min_pixels
+                  else "too occluded" if visible < min_visible_fraction else None)
+        d = dist[oid]
+        records.append({
+            "id": oid, "class": obj["class"], "class_id": CLASS_ID[obj["class"]],
+            "bbox": box["bbox"], "pixels": box["pixels"],
+            "visible_fraction": round(visible, 4), "truncation": round(max(truncation, 0.0), 4),
+            "truncated": x0 == 0 or y0 == 0 or x1 == w or y1 == h,
+            "distance_m": None if np.isnan(d) else round(d, 3), "distance_stat": DISTANCE_STAT,
+            "kept": reason is None, "reason": reason})
+    return records
+
+
+# ----------------------------------------------------------------------------- COCO
+def coco_categories() -> list[dict]:
+    """COCO categories in YOLO order."""
+    return [{"id": coco_category(CLASS_ID[name]), "name": name, "supercategory": "street"} for name in LABELLED]
+
+
+def coco_annotation(record: dict, ann_id: int, image_id: int) -> dict:
+    """A COCO annotation; ``area`` is the visible pixel count, not the box area. A record the
+    filters dropped (too few pixels, too occluded) becomes an ignore region, ``iscrowd = 1``
+    with its ``ignore_reason``: a detection on it is neither a hit nor a false alarm, in
+    pycocotools as in :mod:`fogsim.detection.coco_eval` (COCO trainers skip crowd boxes)."""
+    return {"id": ann_id, "image_id": image_id, "category_id": coco_category(record["class_id"]),
+            "bbox": [float(v) for v in xyxy_to_xywh(record["bbox"])],
+            "area": float(record["pixels"]), "iscrowd": int(not record["kept"]),
+            "distance_m": record["distance_m"], "visible_fraction": record["visible_fraction"],
+            "truncation": record["truncation"]} | ({} if record["kept"] else {"ignore_reason": record["reason"]})

@@ -1,0 +1,114 @@
+"""Run bookkeeping shared by every long job (fog, render, study): claiming an output folder,
+shards for array jobs, and the seeds derived from a run seed.
+
+* **Claiming**: the first run writes ``OUT/<run file>`` with its parameters; a later run with
+  the same parameters resumes, one with other parameters is refused (two datasets are never
+  mixed in one folder). The claim is atomic: the file is created with a hard link that fails
+  when it exists, so of two concurrent runs with other settings only one can win.
+* **Shards**: ``--shard i/N`` (0 ≤ i < N, as ``$SLURM_ARRAY_TASK_ID`` or Kubernetes'
+  ``$JOB_COMPLETION_INDEX`` count) takes items i, i+N, …
+* **Seeds**: every derived seed depends only on the run seed and the item's name or index,
+  never on shard, worker count or order — so any split of the work gives the same outputs.
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import zlib
+from pathlib import Path
+from typing import Callable, Sequence, TypeVar
+
+import numpy as np
+
+from fogsim import __version__
+from fogsim.errors import InputError
+
+T = TypeVar("T")
+
+
+# ----------------------------------------------------------------------------- claiming
+def claim_output(path: str | os.PathLike, parameters: dict, record: dict | None = None, *, what: str = "run",
+                 legacy: Callable[[dict], dict | None] | None = None) -> bool:
+    """Claim the run file ``path`` for ``parameters``; True when this call created it.
+
+    The file holds ``{"fogsim_version", **record, "parameters"}``. An existing file with
+    equal parameters means "resume"; other parameters raise :class:`InputError` naming it.
+    ``legacy(old)`` may derive the parameters of a file written by an older fogsim.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = json.dumps({"fogsim_version": __version__, **(record or {}), "parameters": parameters},
+                         indent=2, sort_keys=True, default=str).encode()
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(payload)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.link(tmp, path)  # atomic, and fails if the file exists: no check-then-write race
+        return True
+    except FileExistsError:
+        pass
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+    try:
+        old = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(path, f"unreadable run file ({exc}); delete it or use another --out") from None
+    stored = old.get("parameters") if isinstance(old, dict) else None
+    if stored is None and legacy is not None and isinstance(old, dict):
+        stored = legacy(old)
+    if json.loads(json.dumps(parameters, default=str)) != stored:
+        raise InputError(path, f"this output folder holds a {what} with other parameters; use another "
+                               f"--out (or delete it) rather than mixing two {what}s")
+    return False
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+# ----------------------------------------------------------------------------- shards
+def parse_shard(text: str | None) -> tuple[int, int]:
+    """``"i/N"`` (0 ≤ i < N) → ``(i, N)``; ``None`` → ``(0, 1)``, the whole run."""
+    if not text:
+        return 0, 1
+    try:
+        i, n = (int(x) for x in text.split("/"))
+    except ValueError:
+        raise ValueError(f"--shard must look like i/N, got {text!r}") from None
+    if not (n >= 1 and 0 <= i < n):
+        raise ValueError(f"--shard {text}: need 0 ≤ i < N")
+    return i, n
+
+
+def select_shard(items: Sequence[T], shard: tuple[int, int]) -> list[T]:
+    """Items i, i+N, … of ``items`` for shard ``(i, N)``."""
+    i, n = shard
+    return list(items[i::n])
+
+
+def is_sharded(shard: tuple[int, int]) -> bool:
+    """True when the run is one of several shards (dataset-wide files wait for all of them)."""
+    return shard[1] > 1
+
+
+# ----------------------------------------------------------------------------- seeds
+def frame_seed(seed: int, index: int) -> int:
+    """Seed of rendered frame ``index``: ``SeedSequence([seed, index]).generate_state(1)[0]``."""
+    return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0])
+
+
+FRAME_SEED_RULE = "numpy SeedSequence([seed, frame index]).generate_state(1)[0]"
+
+
+def sample_seed(seed: int, key: str) -> int:
+    """Seed of fogged sample ``key`` (patchy fog): ``(seed·1 000 003 + crc32(key)) mod 2³²``."""
+    return (int(seed) * 1_000_003 + zlib.crc32(key.encode())) % 2**32
+
+
+def split_key(frame: str, seed: int = 0) -> int:
+    """A frame's position in [0, 1000) for the train/val split: ``crc32("seed/frame") mod 1000``."""
+    return zlib.crc32(f"{seed}/{frame}".encode()) % 1000

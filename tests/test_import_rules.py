@@ -1,0 +1,321 @@
+"""The dependency rules of the package layout, checked on the source (AST) and in a fresh Python.
+
+* Only ``fogsim.render.blender`` imports Blender's modules (bpy, mathutils, bpy_extras).
+* Only ``fogsim.depth.ila`` and ``fogsim.detection.yolo`` import torch, torchvision or Ultralytics.
+* The core — ``fogsim.fog``, ``fogsim.readers``, ``fogsim.scene``, ``fogsim.dataset``,
+  ``fogsim.presets`` and the top-level modules — never reaches ``fogsim.render.blender``,
+  ``fogsim.depth.ila``, ``fogsim.detection`` nor those heavy packages, not even through an
+  import inside a function (a lazy import runs as soon as that function is called).
+
+Every import statement counts, wherever it sits in a module (module level, functions,
+``try`` blocks), and so does ``importlib.import_module("name")`` / ``__import__("name")`` /
+``fogsim.deps.require("name", extra)`` with a literal name (probing with
+``importlib.util.find_spec`` imports nothing and is not counted). Importing ``fogsim.a.b`` also
+runs ``fogsim/__init__`` and ``fogsim/a/__init__``, so the closure includes parent packages.
+"""
+from __future__ import annotations
+
+import ast
+import json
+import subprocess
+import sys
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "fogsim"
+
+BLENDER_MODULES = {"bpy", "mathutils", "bpy_extras"}
+TORCH_MODULES = {"torch", "torchvision", "ultralytics"}
+HEAVY = BLENDER_MODULES | TORCH_MODULES
+TORCH_OWNERS = {"fogsim.depth.ila", "fogsim.detection.yolo"}
+CORE_PACKAGES = ("fogsim.fog", "fogsim.readers", "fogsim.scene", "fogsim.dataset", "fogsim.presets")
+FORBIDDEN_IN_CORE = ("fogsim.render.blender", "fogsim.depth.ila", "fogsim.detection")
+
+
+@dataclass(frozen=True)
+class Edge:
+    """One import statement of ``module`` that brings in ``target`` (a module name)."""
+
+    module: str
+    target: str
+    line: int
+    text: str
+    lazy: bool  # inside a function (runs when the function does)
+
+    def __str__(self) -> str:
+        if not self.line:
+            return f"{self.module} (its parent package)"
+        where = "in a function" if self.lazy else "at module level"
+        path = MODULES[self.module].relative_to(ROOT).as_posix()
+        return f"{self.module} ({path}:{self.line}, {where}): {self.text}"
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def discover() -> dict[str, Path]:
+    return {module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+MODULES = discover()
+
+
+def _within(name: str, prefix: str) -> bool:
+    return name == prefix or name.startswith(prefix + ".")
+
+
+def _is_package(module: str) -> bool:
+    return MODULES[module].name == "__init__.py"
+
+
+def resolve_from(module: str, node: ast.ImportFrom) -> str:
+    """The absolute module an ``ImportFrom`` reads from, relative levels resolved."""
+    if not node.level:
+        return node.module or ""
+    package = module if _is_package(module) else module.rpartition(".")[0]
+    parts = package.split(".")
+    if node.level - 1 > len(parts) - 1:
+        raise ValueError(f"{module} line {node.lineno}: relative import beyond the top-level package")
+    base = ".".join(parts[: len(parts) - (node.level - 1)])
+    return f"{base}.{node.module}" if node.module else base
+
+
+def _parents_and_self(name: str) -> list[str]:
+    parts = name.split(".")
+    return [".".join(parts[: i + 1]) for i in range(len(parts))]
+
+
+def _internal(name: str) -> str | None:
+    """The fogsim module that importing ``name`` runs last (the longest existing prefix)."""
+    for candidate in reversed(_parents_and_self(name)):
+        if candidate in MODULES:
+            return candidate
+    return None
+
+
+class _Visitor(ast.NodeVisitor):
+    def __init__(self, module: str, lines: list[str]):
+        self.module, self.lines, self.depth, self.edges = module, lines, 0, []
+
+    def _function(self, node):
+        self.depth += 1
+        self.generic_visit(node)
+        self.depth -= 1
+
+    visit_FunctionDef = visit_AsyncFunctionDef = visit_Lambda = _function
+
+    def _add(self, node, targets: list[str]):
+        text = self.lines[node.lineno - 1].strip()
+        for t in targets:
+            self.edges.append(Edge(self.module, t, node.lineno, text, self.depth > 0))
+
+    def visit_Import(self, node: ast.Import):
+        self._add(node, [a.name for a in node.names])
+
+    def visit_Call(self, node: ast.Call):
+        # importlib.import_module("x") / __import__("x") / fogsim.deps.require("x", extra): an import too
+        f = node.func
+        name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else None
+        if (name in ("import_module", "__import__", "require") and node.args and isinstance(node.args[0], ast.Constant)
+                and isinstance(node.args[0].value, str)):
+            self._add(node, [node.args[0].value])
+        self.generic_visit(node)
+
+    def visit_ImportFrom(self, node: ast.ImportFrom):
+        base = resolve_from(self.module, node)
+        # ``from pkg import name`` imports pkg, and pkg.name too when that is a module
+        targets = [base] + [f"{base}.{a.name}" for a in node.names
+                            if a.name != "*" and f"{base}.{a.name}" in MODULES]
+        self._add(node, targets)
+
+
+def imports_of(module: str) -> list[Edge]:
+    source = MODULES[module].read_text(encoding="utf-8")
+    visitor = _Visitor(module, source.splitlines())
+    visitor.visit(ast.parse(source, filename=str(MODULES[module])))
+    return visitor.edges
+
+
+EDGES = {m: imports_of(m) for m in MODULES}
+
+
+def graph_successors(module: str) -> list[tuple[str, Edge]]:
+    """(node, edge) pairs: the fogsim modules (with their parent packages) and the external
+    top-level packages that the imports of ``module`` run."""
+    out = [(parent, Edge(module, parent, 0, "(parent package)", False))
+           for parent in _parents_and_self(module)[:-1] if parent in MODULES]
+    for e in EDGES[module]:
+        if _within(e.target, "fogsim"):
+            target = _internal(e.target)
+            if target is not None:
+                out += [(p, e) for p in _parents_and_self(target) if p in MODULES and p != module]
+        else:
+            out.append((e.target.split(".")[0], e))
+    return out
+
+
+def core_roots() -> list[str]:
+    """The core modules: the core packages and the top-level modules (``fogsim/__main__`` is the
+    command line's entry, not core)."""
+    top_level = [m for m in MODULES if m == "fogsim" or (m.count(".") == 1 and not _is_package(m)
+                                                         and m != "fogsim.__main__")]
+    return sorted(set(top_level) | {m for m in MODULES if any(_within(m, p) for p in CORE_PACKAGES)})
+
+
+def _forbidden(node: str) -> bool:
+    return node in HEAVY or any(_within(node, p) for p in FORBIDDEN_IN_CORE)
+
+
+def closure_violations(roots: list[str] | None = None) -> dict[Edge, list[str]]:
+    """Every import edge by which ``roots`` (the core) reach a forbidden module, with one import
+    chain (breadth first from a root, so the shortest) that leads to it."""
+    found: dict[Edge, list[str]] = {}
+    seen: dict[str, list[str]] = {}
+    queue = deque()
+    for root in core_roots() if roots is None else roots:
+        seen[root] = [root]
+        queue.append(root)
+    while queue:
+        node = queue.popleft()
+        if node not in MODULES:
+            continue  # an external package: not followed
+        for succ, edge in graph_successors(node):
+            if _forbidden(succ):
+                found.setdefault(edge, seen[node] + [f"{succ}   ← {edge}"])
+                continue
+            if succ not in seen:
+                seen[succ] = seen[node] + [f"{succ}   ← {edge}"]
+                queue.append(succ)
+    return found
+
+
+def _report(title: str, items: list[str]) -> str:
+    return title + "\n  " + "\n  ".join(items)
+
+
+# ------------------------------------------------------------------------------- the scanner works
+def test_scanner_sees_the_layout_and_the_known_heavy_imports():
+    """Guards the rules below against passing vacuously (a scanner that finds nothing)."""
+    for name in ("fogsim", "fogsim.fog.model", "fogsim.readers.base", "fogsim.render.blender",
+                 "fogsim.depth.ila", "fogsim.detection.yolo", "fogsim.cli"):
+        assert name in MODULES, name
+    external = lambda m: {e.target.split(".")[0] for e in EDGES[m] if not _within(e.target, "fogsim")}  # noqa: E731
+    assert "torch" in external("fogsim.depth.ila")
+    assert {"torch", "ultralytics"} <= external("fogsim.detection.yolo")
+    assert any(BLENDER_MODULES & external(m) for m in MODULES if _within(m, "fogsim.render.blender"))
+    assert any(e.lazy for e in EDGES["fogsim.cli"]) and any(not e.lazy for e in EDGES["fogsim.cli"])
+    assert "fogsim.fog.model" in {s for s, _ in graph_successors("fogsim.fog")}
+    assert "fogsim" in core_roots() and "fogsim.fog.model" in core_roots() and "fogsim.errors" in core_roots()
+    assert "fogsim.render.frame" not in core_roots() and "fogsim.cli" not in core_roots()
+
+
+def test_closure_follows_lazy_and_transitive_imports():
+    """The command line (not core) does reach the heavy parts, through imports inside functions
+    and other modules: the closure walk finds those paths."""
+    reached = {e.target.split(".")[0] if not _within(e.target, "fogsim") else e.target
+               for e in closure_violations(["fogsim.cli"])}
+    assert any(_within(t, "fogsim.depth.ila") for t in reached), reached
+    assert any(_within(t, "fogsim.render.blender") for t in reached), reached
+    assert any(_within(t, "fogsim.detection") for t in reached), reached
+
+
+def test_dynamic_imports_by_literal_name_count():
+    src = ("import importlib\ndef f():\n    importlib.import_module('bpy')\n    __import__('torch.nn')\n"
+           "    importlib.util.find_spec('ultralytics')\n    deps.require('ultralytics', 'detect')\n")
+    v = _Visitor("fogsim.errors", src.splitlines())
+    v.visit(ast.parse(src))
+    assert [(e.target, e.line, e.lazy) for e in v.edges] == [("importlib", 1, False), ("bpy", 3, True),
+                                                             ("torch.nn", 4, True), ("ultralytics", 6, True)]
+
+
+def test_relative_imports_resolve():
+    tree = ast.parse("from . import model\nfrom .levels import FogLevel\nfrom .. import camera\n"
+                     "from ..depth.fill import fill_holes\n")
+    got = [resolve_from("fogsim.fog.model", n) for n in tree.body]
+    assert got == ["fogsim.fog", "fogsim.fog.levels", "fogsim", "fogsim.depth.fill"]
+    assert [resolve_from("fogsim.fog", n) for n in tree.body] == got  # a package's own __init__
+    with pytest.raises(ValueError, match="beyond"):
+        resolve_from("fogsim.errors", ast.parse("from ... import x").body[0])
+
+
+# ----------------------------------------------------------------------------------------- rules
+def test_only_render_blender_imports_blender_modules():
+    bad = [str(e) for m, edges in EDGES.items() if not _within(m, "fogsim.render.blender")
+           for e in edges if e.target.split(".")[0] in BLENDER_MODULES]
+    if bad:
+        pytest.fail(_report("bpy/mathutils/bpy_extras imported outside fogsim.render.blender:", bad), pytrace=False)
+
+
+def test_only_ila_and_yolo_import_torch_or_ultralytics():
+    bad = [str(e) for m, edges in EDGES.items() if m not in TORCH_OWNERS
+           for e in edges if e.target.split(".")[0] in TORCH_MODULES]
+    if bad:
+        pytest.fail(_report("torch/torchvision/ultralytics imported outside fogsim.depth.ila and "
+                            "fogsim.detection.yolo:", bad), pytrace=False)
+
+
+def test_core_never_reaches_blender_ila_detection_or_heavy_packages():
+    violations = closure_violations()
+    if violations:
+        pytest.fail(_report(
+            "the core (fog, readers, scene, dataset, presets, top-level modules) reaches a forbidden module; "
+            "each offending import, then the chain from a core module:",
+            [f"{edge}\n      via: " + "\n           ".join(chain) for edge, chain in violations.items()]),
+            pytrace=False)
+
+
+# ------------------------------------------------------------------------------- a fresh interpreter
+PROBE = """
+import json, sys
+{body}
+print("MODULES " + json.dumps(sorted(sys.modules)))
+"""
+
+
+def _probe(body: str) -> list[str]:
+    """The modules a fresh Python holds after running ``body``."""
+    code = PROBE.format(body=body)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert r.returncode == 0, r.stderr[-3000:]
+    line = next(ln for ln in r.stdout.splitlines() if ln.startswith("MODULES "))
+    return json.loads(line[len("MODULES "):])
+
+
+def _heavy(modules: list[str]) -> list[str]:
+    return [m for m in modules if m.split(".")[0] in HEAVY]
+
+
+def test_import_fogsim_leaves_heavy_modules_out():
+    loaded = _probe("import fogsim\nimport fogsim.fog, fogsim.camera, fogsim.readers, fogsim.dataset.writer")
+    assert "fogsim.fog.model" in loaded and "fogsim.dataset.writer" in loaded  # the probe works
+    assert _heavy(loaded) == [] and [m for m in loaded if _forbidden(m)] == []
+
+
+def test_cli_help_and_levels_leave_heavy_modules_out():
+    body = ("import fogsim.cli\n"
+            "from fogsim.cli import main\n"
+            "try:\n    main(['--help'])\nexcept SystemExit as e:\n    assert e.code == 0, e.code\n"
+            "assert main(['levels']) == 0\n")
+    loaded = _probe(body)
+    assert "fogsim.cli" in loaded and "fogsim.fog.levels" in loaded
+    assert _heavy(loaded) == []
+
+
+def test_python_m_fogsim_help_imports_no_heavy_module():
+    """The real entry (``python -m fogsim --help``), watched by ``-X importtime``."""
+    if not (PACKAGE / "__main__.py").is_file():
+        pytest.skip("fogsim has no __main__ (python -m fogsim)")
+    r = subprocess.run([sys.executable, "-X", "importtime", "-m", "fogsim", "--help"], capture_output=True,
+                       text=True, cwd=ROOT, timeout=120)
+    assert r.returncode == 0 and "usage" in r.stdout, r.stderr[-3000:]
+    imported = [ln.rsplit("|", 1)[-1].strip() for ln in r.stderr.splitlines() if ln.startswith("import time:")]
+    assert "fogsim.cli" in imported  # the probe works
+    assert _heavy(imported) == []
