@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 import tempfile
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -24,28 +26,36 @@ DEPTH_SUFFIXES = (".exr", ".npy", ".png", ".tif", ".tiff")
 
 
 # ----------------------------------------------------------------------------- atomic writes
-#: Temporary files of unfinished writes: hidden, beside their target, ending in this suffix.
+#: Temporary files of unfinished writes: hidden, beside their target, ending in this suffix,
+#: named ``.NAME.<host>-<pid>.<random>.part`` so a later run can tell a dead writer's leftovers.
 PART_SUFFIX = ".part"
+STALE_FOREIGN_PART_S = 24 * 3600  # another host's (or an unnamed) leftover is stale after a day
+
+
+def _temp_beside(path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_HOST}-{os.getpid()}.", suffix=PART_SUFFIX, dir=path.parent)
+    os.close(fd)
+    return Path(tmp)
 
 
 @contextmanager
 def atomic_path(path: str | os.PathLike):
     """Yield a temporary path beside ``path``; on success it is renamed onto ``path``.
 
-    The temporary file is hidden (``.NAME.xxxx.part``) and removed on any error, so a killed
-    or failed job never leaves a half-written output under the real name. The result gets
-    the usual permissions (0666 minus the umask), as any other tool's output would.
+    The temporary file is hidden and removed on any error, so a killed or failed job never
+    leaves a half-written output under the real name (a SIGKILL can leave the temporary
+    file: :func:`remove_stale_parts` clears it on resume). The result gets the usual
+    permissions (0666 minus the umask), as any other tool's output would.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=PART_SUFFIX, dir=path.parent)
-    os.close(fd)
+    tmp = _temp_beside(path)
     try:
-        yield Path(tmp)
+        yield tmp
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
 
 
@@ -53,6 +63,69 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
+
+
+def create_exclusive(path: str | os.PathLike, data: bytes) -> bool:
+    """Write ``data`` to ``path`` only if no file is there; True when this call created it.
+
+    Atomic with no check-then-write race: the complete temporary file is hard-linked to
+    ``path``, which fails when ``path`` exists (two concurrent callers: exactly one wins).
+    """
+    path = Path(path)
+    tmp = _temp_beside(path)
+    try:
+        tmp.write_bytes(data)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.link(tmp, path)
+        return True
+    except FileExistsError:
+        return False
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def remove_stale_parts(root: str | os.PathLike) -> int:
+    """Delete the temporary files of dead writers under ``root``; returns how many.
+
+    A ``.part`` file of this host whose writer process is gone is stale at once; one of
+    another host (or of an older fogsim, which did not name its writer) after a day, so
+    concurrent shards writing into one folder never lose a file they are still writing.
+    """
+    removed = 0
+    now = time.time()
+    for part in Path(root).rglob(f".*{PART_SUFFIX}"):
+        host, pid = _writer_of(part.name)
+        if host == _HOST:
+            stale = not _alive(pid)
+        else:
+            try:
+                stale = now - part.stat().st_mtime > STALE_FOREIGN_PART_S
+            except FileNotFoundError:
+                continue
+        if stale:
+            part.unlink(missing_ok=True)
+            removed += 1
+    return removed
+
+
+_HOST = socket.gethostname().replace(".", "_").replace("-", "_") or "host"
+
+
+def _writer_of(name: str) -> tuple[str | None, int]:
+    """``(host, pid)`` from ``.NAME.<host>-<pid>.<random>.part``; ``(None, 0)`` if unnamed."""
+    parts = name[: -len(PART_SUFFIX)].split(".")
+    host, _, pid = parts[-2].rpartition("-") if len(parts) >= 3 else ("", "", "")
+    return (host, int(pid)) if host and pid.isdigit() else (None, 0)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def _umask() -> int:

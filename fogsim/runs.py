@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import zlib
 from pathlib import Path
 from typing import Callable, Sequence, TypeVar
@@ -23,11 +22,39 @@ import numpy as np
 
 from fogsim import __version__
 from fogsim.errors import InputError
+from fogsim.fileio import create_exclusive
 
 T = TypeVar("T")
 
 
 # ----------------------------------------------------------------------------- claiming
+def check_output(out: str | os.PathLike, inputs: dict[str, str | os.PathLike | None],
+                 allow_inside_out: tuple[str, ...] = ()) -> Path:
+    """Refuse an output folder that would overwrite or mix with an input; returns it resolved.
+
+    ``inputs`` maps a flag (``--input``) to the path it names (None: not given). The output
+    may not equal an input, lie inside one, or contain one (symlinks resolved) — except the
+    flags in ``allow_inside_out``, inputs a command keeps in its own folder by design (the
+    study's dataset). ``--out ''`` and an existing file are refused too. Checked before
+    anything is written.
+    """
+    if not str(out).strip():
+        raise ValueError("--out must name a folder, got ''")
+    target = Path(out).resolve()
+    if target.exists() and not target.is_dir():
+        raise InputError(out, "--out exists and is not a folder")
+    for flag, given in inputs.items():
+        if given is None or str(given) == "":
+            continue
+        src = Path(given).resolve()
+        inside_out = src == target or target in src.parents
+        if src == target or src in target.parents or (inside_out and flag not in allow_inside_out):
+            where = ("is" if src == target else "lies inside" if src in target.parents else "contains")
+            raise InputError(out, f"--out {where} {flag} {given}: the outputs would overwrite or mix with "
+                                  "the input; choose an output folder outside it")
+    return target
+
+
 def claim_output(path: str | os.PathLike, parameters: dict, record: dict | None = None, *, what: str = "run",
                  legacy: Callable[[dict], dict | None] | None = None) -> bool:
     """Claim the run file ``path`` for ``parameters``; True when this call created it.
@@ -37,20 +64,10 @@ def claim_output(path: str | os.PathLike, parameters: dict, record: dict | None 
     ``legacy(old)`` may derive the parameters of a file written by an older fogsim.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     payload = json.dumps({"fogsim_version": __version__, **(record or {}), "parameters": parameters},
                          indent=2, sort_keys=True, default=str).encode()
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(payload)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.link(tmp, path)  # atomic, and fails if the file exists: no check-then-write race
+    if create_exclusive(path, payload):  # atomic: of two concurrent first claims, one wins
         return True
-    except FileExistsError:
-        pass
-    finally:
-        Path(tmp).unlink(missing_ok=True)
     try:
         old = json.loads(path.read_text())
     except (OSError, ValueError) as exc:
@@ -62,12 +79,6 @@ def claim_output(path: str | os.PathLike, parameters: dict, record: dict | None 
         raise InputError(path, f"this output folder holds a {what} with other parameters; use another "
                                f"--out (or delete it) rather than mixing two {what}s")
     return False
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 # ----------------------------------------------------------------------------- shards

@@ -116,14 +116,16 @@ def test_usage_errors_exit_2(folder_dataset, tmp_path, capsys, args, message):
 
 
 def test_missing_dataset_and_missing_intrinsics(tmp_path, folder_dataset, capsys):
-    assert main(["fog", "--input", str(tmp_path / "nope"), "--depth", str(tmp_path), "--out",
+    assert main(["fog", "--input", str(tmp_path / "nope"), "--depth", str(tmp_path / "depth"), "--out",
                  str(tmp_path / "o"), "--quiet"]) == 2
     assert "nope: image folder not found" in capsys.readouterr().err
+    # a run-wide setup error: exit 2 before the folder is claimed, so the corrected rerun works
     assert main(["fog", "--input", str(folder_dataset / "images"), "--depth", str(folder_dataset / "depth"),
-                 "--out", str(tmp_path / "o2"), "--quiet", "--levels", "0.1"]) == 1
+                 "--out", str(tmp_path / "o2"), "--quiet", "--levels", "0.1"]) == 2
     assert "needs the camera intrinsics" in capsys.readouterr().err
+    assert not (tmp_path / "o2").exists()
     assert main(["fog", "--input", str(folder_dataset / "images"), "--depth", str(folder_dataset / "depth"),
-                 "--out", str(tmp_path / "o3"), "--quiet", "--levels", "0.1", "--hfov", "60"]) == 0
+                 "--out", str(tmp_path / "o2"), "--quiet", "--levels", "0.1", "--hfov", "60"]) == 0
 
 
 def test_cityscapes_tree(cityscapes_root, tmp_path, capsys):

@@ -296,5 +296,7 @@ def test_cli_fogs_waymo_with_depth_dir(v1_file, tmp_path, capsys):
     got = read_image(out / "beta0.06" / f"{_key(1, 'FRONT')}.png")
     assert np.abs(got - (_front(1) * t + 255 * (1 - t))).max() <= 0.5 + 1e-2
     capsys.readouterr()
-    assert main(["fog", "--waymo", str(v1_file), "--levels", "0.06", "--out", str(tmp_path / "o2"), "--quiet"]) == 1
+    # no --depth-dir: a setup error of the whole run (exit 2), found before OUT is claimed
+    assert main(["fog", "--waymo", str(v1_file), "--levels", "0.06", "--out", str(tmp_path / "o2"), "--quiet"]) == 2
     assert "has no depth" in capsys.readouterr().err
+    assert not (tmp_path / "o2").exists()

@@ -189,10 +189,13 @@ def environment() -> dict:
 
 def cmd_fog(args) -> int:
     from fogsim.fog.batch import run
-    from fogsim.runs import parse_shard, select_shard
+    from fogsim.runs import check_output, parse_shard, select_shard
 
     if args.workers < 1:
         raise ValueError("--workers must be ≥ 1")
+    check_output(args.out, {f"--{k.replace('_', '-')}": getattr(args, k)
+                            for k in ("input", "depth", "cityscapes", "waymo", "depth_dir", "intrinsics")}
+                 | {"--depth-from": (args.depth_from or "").partition(":")[2] or None})
     job = _job(args, args.out)
     shard = parse_shard(args.shard)
     samples = select_shard(_with_depth_from(_samples(args), args.depth_from), shard)
@@ -212,8 +215,10 @@ def cmd_demo(args) -> int:
     from fogsim.fog.synthetic import demo_scene
     from fogsim.fileio import read_image, write_depth, write_image
     from fogsim.fog.levels import parse_levels
+    from fogsim.runs import check_output
     from fogsim.viz import colorize_depth, strip
 
+    check_output(args.out, {})
     out = Path(args.out)
     if args.frames < 1:
         raise ValueError(f"--frames must be ≥ 1, got {args.frames}")

@@ -19,11 +19,11 @@ import numpy as np
 
 from fogsim import __version__
 from fogsim.readers.base import Sample
-from fogsim.fog.depth_input import sample_distance
+from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
 from fogsim.errors import InputError
 from fogsim.runs import claim_output, sample_seed
 from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
-from fogsim.fileio import encode_image, atomic_write_bytes, write_json
+from fogsim.fileio import atomic_write_bytes, encode_image, remove_stale_parts, write_json
 from fogsim.fog.levels import FogLevel
 
 RUN_FILE = "fogsim_run.json"
@@ -131,8 +131,10 @@ def run(samples: list[Sample], job: FogJob, workers: int = 1, resume: bool = Tru
     from tqdm import tqdm
 
     t0 = time.perf_counter()
+    check_run_wide(samples)  # before the folder is claimed: the corrected rerun must be accepted
     Path(job.out).mkdir(parents=True, exist_ok=True)
     check_run_file(job, environment or {})
+    remove_stale_parts(job.out)  # a killed run's temporary files
     summary = Summary(total=len(samples))
     todo = [s for s in samples if not (resume and job.done(s))]
     summary.skipped = len(samples) - len(todo)
@@ -142,7 +144,7 @@ def run(samples: list[Sample], job: FogJob, workers: int = 1, resume: bool = Tru
     if workers > 1 and len(todo) > 1:
         # spawn, not fork: a forked child inherits library thread pools (OpenEXR, OpenCV)
         # mid-state and can deadlock on its first EXR read
-        pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
+        pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(os.getpid(),),
                                    mp_context=multiprocessing.get_context("spawn"))
         results = pool.map(_worker, ((job, s) for s in todo), chunksize=1)
     try:
@@ -161,8 +163,58 @@ def run(samples: list[Sample], job: FogJob, workers: int = 1, resume: bool = Tru
     return summary
 
 
-def _init_worker():
+def check_run_wide(samples: list[Sample]) -> None:
+    """Problems of the whole run, raised as :class:`SetupError` (exit 2) before anything is
+    written: a sample without depth, planar depth without a camera, and — on the first sample
+    that has intrinsics — intrinsics of another aspect ratio than its image. A bad file is
+    not a run-wide problem: it is reported for its sample during the run."""
+    for sample in samples:
+        check_sample(sample)
+    first = next((s for s in samples if s.intrinsics is not None), None)
+    if first is None:
+        return
+    try:
+        h, w = first.read_image().shape[:2]
+    except InputError:
+        return  # the sample's own problem: reported with it
+    K = first.intrinsics
+    if (K.width, K.height) != (w, h):
+        check_aspect(K, w, h, first.source)
+
+
+def _init_worker(parent_pid: int):
+    """A worker dies with its parent (SIGKILL/SIGTERM of the parent included) and leaves
+    Ctrl-C to it: the parent stops the pool and exits 130."""
+    import signal
+
     import cv2
 
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent(parent_pid)
     cv2.setNumThreads(1)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """Linux: the kernel sends SIGKILL when the parent dies (prctl PR_SET_PDEATHSIG); elsewhere
+    a daemon thread polls the parent's pid."""
+    import ctypes
+    import signal
+    import threading
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        armed = libc.prctl(1, int(signal.SIGKILL), 0, 0, 0) == 0  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):
+        armed = False
+    if os.getppid() != parent_pid:  # the parent died before the signal was armed
+        os._exit(1)
+    if armed:
+        return
+
+    def watch():
+        while os.getppid() == parent_pid:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()

@@ -11,6 +11,33 @@ from fogsim.errors import InputError
 from fogsim.depth.fill import HolesError, fill_holes, hole_mask
 
 
+NO_INTRINSICS = ("planar depth needs the camera intrinsics to become ray distance: "
+                 "give --intrinsics FILE.json or --hfov DEG, or --depth-kind ray")
+
+
+class SetupError(InputError):
+    """A problem of the whole run (missing depth or intrinsics, intrinsics for another image
+    shape), not of one sample: found before the output folder is claimed, exit 2."""
+
+
+def check_sample(sample: Sample) -> None:
+    """What can be checked without reading a file: the sample has depth, and planar depth has
+    a camera (its own intrinsics, or a depth format that brings them, like Cityscapes')."""
+    spec = sample.depth
+    if spec is None:
+        raise SetupError(sample.source, "this dataset has no depth; give depth maps (--depth / --depth-dir) "
+                                        "or --depth-from ila:CHECKPOINT for it")
+    if not spec.is_ray_distance and sample.intrinsics is None and spec.encoding != "disparity":
+        raise SetupError(spec.path or sample.source, NO_INTRINSICS)
+
+
+def check_aspect(K: Intrinsics, width: int, height: int, source: str) -> None:
+    """Intrinsics may be scaled to the image, but not to another aspect ratio."""
+    if abs(K.height * width / K.width - height) > 1.0:
+        raise SetupError(source, f"the intrinsics are for {K.width}×{K.height}, another aspect ratio "
+                                 f"than the {width}×{height} image")
+
+
 @dataclass
 class Distance:
     """Ray distance ℓ in metres (H×W float32, +inf = no hit) and how it was obtained."""
@@ -26,10 +53,8 @@ def sample_distance(sample: Sample, width: int, height: int, fill: str = "none",
     Raises :class:`InputError` naming the depth file for missing depth, size mismatch,
     NaN or negative values, unfilled holes, or planar depth without intrinsics.
     """
+    check_sample(sample)
     spec = sample.depth
-    if spec is None:
-        raise InputError(sample.source, "this dataset has no depth; give depth maps "
-                                        "(--depth / --depth-dir) for it")
     depth, file_K = spec.read_for_image(image) if image is not None else spec.read(width, height)
     src = spec.path
     if depth.shape != (height, width):
@@ -52,12 +77,9 @@ def sample_distance(sample: Sample, width: int, height: int, fill: str = "none",
         return Distance(depth, record)
     K: Intrinsics | None = sample.intrinsics or file_K
     if K is None:
-        raise InputError(src, "planar depth needs the camera intrinsics to become ray distance: "
-                              "give --intrinsics FILE.json or --hfov DEG, or --depth-kind ray")
+        raise SetupError(src, NO_INTRINSICS)
     if (K.width, K.height) != (width, height):
-        if abs(K.height * width / K.width - height) > 1.0:
-            raise InputError(src, f"the intrinsics are for {K.width}×{K.height}, another aspect ratio "
-                                  f"than the {width}×{height} image {sample.source}")
+        check_aspect(K, width, height, sample.source)
         K = K.scaled(width, height)
     record["distance"] = "planar→ray"
     record["intrinsics"] = K.to_dict()

@@ -1,0 +1,236 @@
+"""Output folders, run claims, workers, signals, permissions and leftovers of ``fogsim fog``
+(the reliability trial's defects #1, #5, #8, #9, #10, #11, #18, #24, #26)."""
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import tree_digest
+from fogsim.camera import Intrinsics
+from fogsim.cli import main
+from fogsim.errors import InputError
+from fogsim.fileio import PART_SUFFIX, write_depth, write_image
+from fogsim.fog.batch import FogJob, check_run_file
+from fogsim.fog.levels import parse_levels
+
+
+def fog_cli(images, depth, out, *extra):
+    return ["fog", "--input", str(images), "--depth", str(depth), "--hfov", "50", "--levels", "0.06",
+            "--out", str(out), "--quiet", *extra]
+
+
+# ----------------------------------------------------------------------------- #1, #24: output vs input
+@pytest.mark.parametrize("where", ["parent", "same", "inside", "depth_inside", "symlink"])
+def test_output_overlapping_an_input_is_refused_and_nothing_changes(folder_dataset, tmp_path, capsys, where):
+    x = tmp_path / "X"
+    shutil.copytree(folder_dataset / "images", x / "beta0.06")
+    shutil.copytree(folder_dataset / "depth", x / "depth")
+    images, depth = x / "beta0.06", x / "depth"
+    out = {"parent": x, "same": images, "inside": images / "fogged", "depth_inside": depth / "o",
+           "symlink": tmp_path / "link"}[where]
+    if where == "symlink":
+        os.symlink(images, out)  # the same folder under another name
+    before = tree_digest(x)
+    assert main(fog_cli(images, depth, out)) == 2
+    err = capsys.readouterr().err
+    assert "--out" in err and ("--input" in err or "--depth" in err) and "Traceback" not in err
+    assert tree_digest(x) == before
+    assert not (x / "fogsim_run.json").exists() and not (images / "fogsim_run.json").exists()
+
+
+def test_empty_out_is_refused(folder_dataset, tmp_path, capsys, monkeypatch):
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    monkeypatch.chdir(cwd)
+    assert main(fog_cli(folder_dataset / "images", folder_dataset / "depth", "")) == 2
+    assert "--out must name a folder" in capsys.readouterr().err
+    assert list(cwd.iterdir()) == []
+
+
+# ----------------------------------------------------------------------------- #5: unwritable output
+@pytest.mark.parametrize("kind", ["under_a_file", "is_a_file", "read_only"])
+def test_unwritable_output_is_one_line_exit_2(folder_dataset, tmp_path, kind):
+    blocker = tmp_path / "f"
+    blocker.write_text("x")
+    out = {"under_a_file": blocker / "sub", "is_a_file": blocker, "read_only": tmp_path / "ro" / "o"}[kind]
+    if kind == "read_only":
+        (tmp_path / "ro").mkdir()
+        os.chmod(tmp_path / "ro", 0o555)
+        if os.access(tmp_path / "ro", os.W_OK):
+            pytest.skip("running as a user who can write into a read-only folder (root)")
+    res = subprocess.run([sys.executable, "-m", "fogsim", *fog_cli(folder_dataset / "images",
+                                                                     folder_dataset / "depth", out)],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2, res.stderr
+    assert "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    assert str(blocker if kind != "read_only" else tmp_path / "ro") in res.stderr
+    assert blocker.read_text() == "x"
+
+
+# ----------------------------------------------------------------------------- #8: atomic claims
+def test_claim_has_no_check_then_write_race(folder_dataset, tmp_path, monkeypatch):
+    """Run B claims the folder while run A is writing its claim (a slow file system): exactly one
+    of them may be accepted, and the run file must hold the winner's parameters."""
+    levels = tuple(parse_levels("0.06"))
+    a = FogJob(levels, str(tmp_path / "out"), airlight=(255.0,) * 3)
+    b = FogJob(levels, str(tmp_path / "out"), airlight=(200.0,) * 3)
+    real_mkstemp = tempfile.mkstemp
+    results = {}
+
+    def mkstemp_then_let_b_claim(*args, **kw):
+        out = real_mkstemp(*args, **kw)
+        if "b" not in results:
+            results["b"] = "running"
+            try:
+                check_run_file(b, {})
+                results["b"] = "accepted"
+            except InputError:
+                results["b"] = "refused"
+        return out
+
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp_then_let_b_claim)
+    try:
+        check_run_file(a, {})
+        results["a"] = "accepted"
+    except InputError:
+        results["a"] = "refused"
+    assert sorted(results.values()) == ["accepted", "refused"], results
+    stored = json.loads((tmp_path / "out" / "fogsim_run.json").read_text())["parameters"]
+    winner = a if results["a"] == "accepted" else b
+    assert stored["airlight"] == list(winner.parameters()["airlight"])
+
+
+# ----------------------------------------------------------------------------- #10: permissions
+def test_outputs_honour_the_umask(folder_dataset, tmp_path):
+    old = os.umask(0o022)
+    try:
+        assert main(fog_cli(folder_dataset / "images", folder_dataset / "depth", tmp_path / "o")) == 0
+    finally:
+        os.umask(old)
+    files = [p for p in (tmp_path / "o").rglob("*") if p.is_file()]
+    assert files and {oct(p.stat().st_mode & 0o777) for p in files} == {"0o644"}
+
+
+# ----------------------------------------------------------------------------- #11: setup errors first
+def test_run_wide_errors_exit_2_before_the_folder_is_claimed(folder_dataset, tmp_path, capsys):
+    images, depth = folder_dataset / "images", folder_dataset / "depth"
+    wrong = tmp_path / "K_wrong.json"
+    wrong.write_text(json.dumps(Intrinsics(30.0, 30.0, 15.5, 15.5, 32, 32).to_dict()))  # 1:1, images are 4:3
+    cases = [(["--intrinsics", str(wrong)], "another aspect ratio"),  # wrong-aspect K.json
+             (["--depth-kind", "planar"], "needs the camera intrinsics")]  # no --hfov
+    for extra, message in cases:
+        args = ["fog", "--input", str(images), "--depth", str(depth), "--levels", "0.06", "--out",
+                str(tmp_path / "o"), "--quiet", *extra]
+        assert main(args) == 2
+        assert message in capsys.readouterr().err
+        assert not (tmp_path / "o").exists()
+    # forgotten --depth: also a setup error
+    assert main(["fog", "--input", str(images), "--hfov", "50", "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert "has no depth" in capsys.readouterr().err and not (tmp_path / "o").exists()
+    # the corrected rerun into the same folder is accepted
+    assert main(fog_cli(images, depth, tmp_path / "o")) == 0
+
+
+# ----------------------------------------------------------------------------- #18: leftovers
+def test_stale_temporary_files_are_removed_on_resume(folder_dataset, tmp_path):
+    from fogsim.fileio import _HOST
+
+    out = tmp_path / "o"
+    args = fog_cli(folder_dataset / "images", folder_dataset / "depth", out)
+    assert main(args) == 0
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()  # a pid that is gone
+    stale = out / "beta0.06" / f".a.png.{_HOST}-{dead.pid}.x1y2.part"
+    old_style = out / "beta0.06" / f".b.png.abcd1234{PART_SUFFIX}"  # fogsim 0.1's naming, a day old
+    alive = out / "beta0.06" / f".c.png.{_HOST}-{os.getpid()}.x1y2.part"  # a writer still running
+    for p in (stale, old_style, alive):
+        p.write_bytes(b"half")
+    day_ago = time.time() - 2 * 24 * 3600
+    os.utime(old_style, (day_ago, day_ago))
+    assert main(args) == 0
+    assert not stale.exists() and not old_style.exists() and alive.exists()
+    assert not [p for p in out.rglob("*.png") if p.name.startswith(".")]
+
+
+# ----------------------------------------------------------------------------- #9, #26: workers, signals
+@pytest.fixture
+def medium_dataset(tmp_path):
+    """24 images of 640×480 with depth: a few seconds of fog with the extended form."""
+    rng = np.random.default_rng(2)
+    for i in range(24):
+        write_image(tmp_path / "images" / f"f{i:03d}.png", rng.integers(0, 256, (480, 640, 3), dtype=np.uint8))
+        write_depth(tmp_path / "depth" / f"f{i:03d}.exr", rng.uniform(2, 150, (480, 640)).astype(np.float32))
+    return tmp_path
+
+
+def _children(pid: int) -> set[int]:
+    out = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            out.add(int(stat.parent.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def _start(medium, out, workers):
+    args = fog_cli(medium / "images", medium / "depth", out, "--extended", "--levels", "paper",
+                   "--workers", str(workers))
+    proc = subprocess.Popen([sys.executable, "-m", "fogsim", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.time() + 60
+    while time.time() < deadline and not list(out.rglob("*.json"))[1:]:
+        time.sleep(0.1)
+    return proc
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc (Linux)")
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_workers_never_outlive_their_parent(medium_dataset, tmp_path, sig):
+    proc = _start(medium_dataset, tmp_path / "o", 2)
+    workers = _children(proc.pid)  # the pool's workers (and multiprocessing's resource tracker)
+    assert workers, "no worker processes seen"
+    proc.send_signal(sig)
+    proc.wait(timeout=30)
+    deadline = time.time() + 10
+    while time.time() < deadline and any(_alive(p) for p in workers):
+        time.sleep(0.1)
+    assert not [p for p in workers if _alive(p)], "workers outlived the parent"
+    time.sleep(1.0)
+    files = sorted(p.name for p in (tmp_path / "o").rglob("*"))
+    time.sleep(1.5)
+    assert sorted(p.name for p in (tmp_path / "o").rglob("*")) == files, "something still writes"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("workers", [1, 2])
+def test_ctrl_c_prints_one_line_and_exits_130(medium_dataset, tmp_path, workers):
+    proc = _start(medium_dataset, tmp_path / "o", workers)
+    os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C reaches the whole foreground process group
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "interrupted" in err and len(err.strip().splitlines()) == 1, err
+    assert not list((tmp_path / "o").rglob(f"*{PART_SUFFIX}"))
+    # and the resumed run finishes the job
+    args = fog_cli(medium_dataset / "images", medium_dataset / "depth", tmp_path / "o", "--extended",
+                   "--levels", "paper")
+    assert main(args) == 0
