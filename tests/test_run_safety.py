@@ -234,3 +234,14 @@ def test_ctrl_c_prints_one_line_and_exits_130(medium_dataset, tmp_path, workers)
     args = fog_cli(medium_dataset / "images", medium_dataset / "depth", tmp_path / "o", "--extended",
                    "--levels", "paper")
     assert main(args) == 0
+
+
+def test_render_and_study_refuse_an_output_over_their_input(tmp_path, capsys):
+    preset = tmp_path / "mine.json"
+    preset.write_text("{}")
+    assert main(["render", "--preset", str(preset), "--out", str(tmp_path)]) == 2
+    assert "--out contains --preset" in capsys.readouterr().err
+    (tmp_path / "ds").mkdir()
+    assert main(["study", "--dataset", str(tmp_path / "ds"), "--out", str(tmp_path / "ds" / "study")]) == 2
+    assert "--out lies inside --dataset" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds", "mine.json"] and not list((tmp_path / "ds").iterdir())

@@ -62,8 +62,10 @@ def require_bpy() -> None:
 def cmd_render(args) -> int:
     """Set up (every usage and setup error before anything is rendered), then loop over frames."""
     from fogsim.render.preset import load_render_preset
-    from fogsim.runs import parse_shard
+    from fogsim.runs import check_output, parse_shard
 
+    preset_file = args.preset if args.preset and Path(args.preset).is_file() else None
+    check_output(args.out, {"--preset": preset_file})
     config = load_render_preset(args.preset, frames=args.frames, seed=args.seed, train_fraction=args.train_fraction,
                                 resolution=args.resolution, samples=args.samples, levels=args.levels,
                                 stereo=True if args.stereo else None)

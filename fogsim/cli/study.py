@@ -100,8 +100,9 @@ def render(dataset: Path, args) -> None:
 def cmd_study(args) -> int:
     from fogsim.detection.study import Study
     from fogsim.detection.yolo import TrainConfig
-    from fogsim.runs import parse_shard
+    from fogsim.runs import check_output, parse_shard
 
+    check_output(args.out, {"--dataset": args.dataset}, allow_inside_out=("--dataset",))  # read through a view
     out = Path(args.out)
     dataset = Path(args.dataset) if args.dataset else out / "dataset"
     cfg = TrainConfig(model=args.model, epochs=args.epochs, mixed_epochs=args.mixed_epochs, imgsz=args.imgsz,
