@@ -52,8 +52,8 @@ def test_tiny_ila_round_end_to_end(cityscapes_root, tmp_path):
     assert depth.shape == (20, 40) and np.all(np.isfinite(depth)) and np.all(depth > 0)
     # same seed → same weights
     log2 = train_rounds(data, cfg, tmp_path / "ck2", progress=False)
-    a = torch.load(log[0]["checkpoint"], weights_only=False)["state_dict"]
-    b = torch.load(log2[0]["checkpoint"], weights_only=False)["state_dict"]
+    a = torch.load(log[0]["checkpoint"], weights_only=True)["state_dict"]
+    b = torch.load(log2[0]["checkpoint"], weights_only=True)["state_dict"]
     assert all(torch.equal(a[k], b[k]) for k in a)
 
 

@@ -119,20 +119,26 @@ def _samples(args):
 
 
 def _with_depth_from(samples, depth_from: str | None):
-    """``--depth-from ila:CKPT``: every sample's depth is predicted by that model."""
+    """``--depth-from ila:CKPT``: every sample's depth is predicted by that model.
+
+    The checkpoint is loaded and checked here, once, before the output folder is claimed: a
+    missing, unreadable or unsafe one is one line naming it (exit 2), not a failure per image.
+    """
     if not depth_from:
         return samples
     from dataclasses import replace
 
-    from fogsim.depth.ila import ILADepth
+    from fogsim.depth.ila import ILADepth, cached_model
     from fogsim.readers.base import DepthSpec
 
     kind, _, path = depth_from.partition(":")
     if kind != "ila" or not path:
         raise ValueError(f"--depth-from takes ila:CHECKPOINT, got {depth_from!r}")
-    if not Path(path).is_file():
-        raise InputError(path, "ILA checkpoint not found")
     checkpoint = str(Path(path).resolve())
+    try:
+        cached_model(checkpoint)  # this process's workers=1 run reuses it
+    except InputError as exc:
+        raise InputError(path, exc.problem) from None  # named as the user gave it
     spec = DepthSpec(checkpoint, kind="planar", reader=ILADepth(checkpoint))
     return [replace(s, depth=spec) for s in samples]
 

@@ -1,9 +1,10 @@
 """``fogsim ila train | fill | predict``: ILA depth completion (needs the ``ila`` extra: torch)."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
-from fogsim.errors import EXIT_OK
+from fogsim.errors import EXIT_FAILED, EXIT_OK, InputError
 
 
 def add_training_options(p, rounds: int = 2) -> None:
@@ -21,12 +22,29 @@ def add_training_options(p, rounds: int = 2) -> None:
     g.add_argument("--seed", type=int, default=0)
 
 
-def training_config(args):
-    """The ``ILAConfig`` of the training flags."""
-    from fogsim.depth.ila import ILAConfig
-    from fogsim.render.preset import parse_resolution
+def parse_size(text: str) -> tuple[int, int]:
+    """``--size WxH``: positive multiples of 16 (the U-Net pools four times)."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--size must look like 256x128 (width x height in pixels, multiples of 16), "
+                         f"got {text!r}") from None
+    if w < 16 or h < 16 or w % 16 or h % 16:
+        raise ValueError(f"--size {text}: width and height must be positive multiples of 16 "
+                         "(the U-Net halves them four times), e.g. 256x128")
+    return w, h
 
-    return ILAConfig(width=args.width, size=parse_resolution(args.size), use_sparse=args.sparse, loss_on=args.loss,
+
+def training_config(args):
+    """The ``ILAConfig`` of the training flags; a bad value is a ``ValueError`` naming its flag."""
+    from fogsim.depth.ila import ILAConfig
+
+    for flag, value in (("--rounds", args.rounds), ("--epochs", args.epochs), ("--width", args.width)):
+        if value < 1:
+            raise ValueError(f"{flag} must be ≥ 1, got {value}")
+    if args.seed < 0:
+        raise ValueError(f"--seed must be ≥ 0, got {args.seed}")
+    return ILAConfig(width=args.width, size=parse_size(args.size), use_sparse=args.sparse, loss_on=args.loss,
                      loss=args.loss_kind, rounds=args.rounds, epochs=args.epochs, seed=args.seed)
 
 
@@ -58,7 +76,7 @@ def cmd_ila(args) -> int:
     import json
 
     from fogsim.depth import ila
-    from fogsim.fileio import atomic_write_bytes, read_image, write_depth
+    from fogsim.fileio import atomic_write_bytes
 
     if args.ila_command == "train":
         config = training_config(args)
@@ -68,38 +86,71 @@ def cmd_ila(args) -> int:
             {"config": str(config), "frames": data.keys, "camera": data.camera, "rounds": log}, indent=2).encode())
         print(f"trained {len(log)} ILA rounds on {len(data.keys)} frames → {log[-1]['checkpoint']}")
         return EXIT_OK
-    from tqdm import tqdm
-
-    from fogsim.readers.folder import folder_samples
-
     if args.ila_command == "fill":
         return _ila_fill(args)
-    model, config, camera = ila.cached_model(args.checkpoint)
+    return _ila_predict(args)
+
+
+def _report(bar, source: str, exc: BaseException) -> str:
+    """The one line for an item that failed, printed now (stderr) and returned for the summary."""
+    text = str(exc) if isinstance(exc, (InputError, ValueError, OSError)) else f"{type(exc).__name__}: {exc}"
+    line = text if text.startswith(source) else f"{source}: {text}"
+    bar.write(f"error: {line}", file=sys.stderr)
+    return line
+
+
+def _ila_predict(args) -> int:
+    """Planar depth for every image; an unreadable image is named and skipped (exit 1 at the end)."""
+    from tqdm import tqdm
+
+    from fogsim.depth.ila import load_model, predict_depth
+    from fogsim.fileio import read_image, write_depth
+    from fogsim.readers.folder import folder_samples
+
+    model, config, camera = load_model(args.checkpoint)  # checked before anything is written
     samples = folder_samples(args.input, None)
-    for s in tqdm(samples, unit="img", disable=args.quiet, desc="ILA depth"):
-        write_depth(Path(args.out) / f"{s.key}.exr", ila.predict_depth(model, config, camera, read_image(s.source)))
-    print(f"predicted planar depth (metres, EXR) for {len(samples)} images → {args.out}")
-    return EXIT_OK
+    Path(args.out).mkdir(parents=True, exist_ok=True)  # an unwritable --out is a setup error
+    failed = []
+    with tqdm(samples, unit="img", disable=args.quiet, desc="ILA depth") as bar:
+        for s in bar:
+            try:
+                depth = predict_depth(model, config, camera, read_image(s.source))
+                write_depth(Path(args.out) / f"{s.key}.exr", depth)  # atomic: never half-written
+            except Exception as exc:  # keep going, as fogsim fog
+                failed.append(_report(bar, s.source, exc))
+    done = len(samples) - len(failed)
+    print(f"predicted planar depth (metres, EXR) for {done} of {len(samples)} images"
+          f"{f' ({len(failed)} failed)' if failed else ''} → {args.out}")
+    return EXIT_FAILED if failed else EXIT_OK
 
 
 def _ila_fill(args) -> int:
-    """Holes (p = 0) of each disparity map → the ILA prediction; valid pixels are kept."""
+    """Holes (p = 0) of each disparity map → the ILA prediction; valid pixels are kept.
+    A frame that cannot be read is named and skipped (exit 1 at the end)."""
     from tqdm import tqdm
 
     from fogsim.camera import depth_to_disparity, encode_disparity_png
     from fogsim.depth.fill import fill_holes, register_fill
-    from fogsim.depth.ila import cached_model, ila_fill
+    from fogsim.depth.ila import ila_fill
     from fogsim.fileio import read_image, write_image
     from fogsim.readers.cityscapes import cityscapes_samples, read_cityscapes_depth
 
-    cached_model(args.checkpoint)  # a clear error for a missing checkpoint
-    register_fill("ila", ila_fill(args.checkpoint))
+    fill = ila_fill(args.checkpoint)  # loads and checks the checkpoint before anything is written
     samples = cityscapes_samples(args.data, args.split)
-    for s in tqdm(samples, unit="img", disable=args.quiet, desc="ILA fill"):
-        depth, cam = read_cityscapes_depth(s.depth.path, s.depth.camera_path)
-        filled = fill_holes(depth, "ila", read_image(s.source))
-        rel = Path(s.depth.path).relative_to(Path(args.data))
-        disparity = depth_to_disparity(filled, cam.baseline, cam.intrinsics.fx)
-        write_image(Path(args.out) / rel, encode_disparity_png(disparity))
-    print(f"filled the disparity holes of {len(samples)} images → {args.out}")
-    return EXIT_OK
+    Path(args.out).mkdir(parents=True, exist_ok=True)
+    register_fill("ila", fill)
+    failed = []
+    with tqdm(samples, unit="img", disable=args.quiet, desc="ILA fill") as bar:
+        for s in bar:
+            try:
+                depth, cam = read_cityscapes_depth(s.depth.path, s.depth.camera_path)
+                filled = fill_holes(depth, "ila", read_image(s.source))
+                rel = Path(s.depth.path).relative_to(Path(args.data))
+                disparity = depth_to_disparity(filled, cam.baseline, cam.intrinsics.fx)
+                write_image(Path(args.out) / rel, encode_disparity_png(disparity))  # atomic
+            except Exception as exc:  # keep going, as fogsim fog
+                failed.append(_report(bar, s.source, exc))
+    done = len(samples) - len(failed)
+    print(f"filled the disparity holes of {done} of {len(samples)} images"
+          f"{f' ({len(failed)} failed)' if failed else ''} → {args.out}")
+    return EXIT_FAILED if failed else EXIT_OK

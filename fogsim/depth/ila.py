@@ -16,10 +16,17 @@ serves any resolution; depth in metres is ``baseline · (fx / W) / (d / W)`` wit
 baseline and fx/W of the stereo camera it was trained on (stored in the checkpoint). For
 another camera (e.g. Waymo's) that is right when its fx/W (field of view) matches.
 torch is an optional extra: ``pip install -e ".[ila]"``.
+
+Checkpoints hold tensors and plain data only (format :data:`CHECKPOINT_FORMAT`, see
+:func:`save_checkpoint`) and are read with ``torch.load(weights_only=True)``: a checkpoint
+from elsewhere can never run code, and every problem with one is a one-line
+:class:`~fogsim.errors.InputError` naming it.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+import math
+import zipfile
+from dataclasses import asdict, dataclass, field, fields
 from functools import lru_cache
 from pathlib import Path
 from typing import ClassVar
@@ -27,17 +34,16 @@ from typing import ClassVar
 import numpy as np
 
 from fogsim.camera import depth_to_disparity, disparity_to_depth
-from fogsim.errors import FogsimError, InputError
+from fogsim.colour import full_scale
+from fogsim.errors import InputError
 from fogsim.fileio import read_image
 from fogsim.readers.cityscapes import cityscapes_samples, read_cityscapes_disparity
 
 
 def _torch():
-    try:
-        import torch
-    except ImportError:
-        raise FogsimError("ILA needs PyTorch: pip install -e \".[ila]\" (CPU: pip install torch==2.13.0)") from None
-    return torch
+    from fogsim.deps import require
+
+    return require("torch", "ila")  # a MissingDependency (exit 2) naming the extra
 
 
 @dataclass(frozen=True)
@@ -55,8 +61,15 @@ class ILAConfig:
     seed: int = 0
 
     def __post_init__(self):
-        if self.size[0] % 16 or self.size[1] % 16:
-            raise ValueError(f"ILA size must be multiples of 16 (four 2× poolings), got {self.size}")
+        if len(self.size) != 2 or any(v < 16 or v % 16 for v in self.size):
+            raise ValueError(f"ILA size must be positive multiples of 16 (four 2× poolings), got {self.size}")
+        for name in ("width", "rounds", "epochs", "batch"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"ILA {name} must be ≥ 1, got {getattr(self, name)}")
+        if not 0 <= self.sparse_drop < 1:
+            raise ValueError(f"sparse_drop must be in [0, 1), got {self.sparse_drop}")
+        if not self.lr > 0:
+            raise ValueError(f"lr must be > 0, got {self.lr}")
         if self.loss_on not in ("valid", "all"):
             raise ValueError(f"loss_on must be 'valid' or 'all', got {self.loss_on!r}")
         if self.loss not in ("mse", "log_l1"):
@@ -74,6 +87,11 @@ class StereoSet:
     camera: dict = field(default_factory=dict)  # baseline_m, fx_over_w
 
 
+def _unit_rgb(rgb: np.ndarray) -> np.ndarray:
+    """An RGB image of any supported dtype (uint8, uint16, float) as float32 in [0, 1]."""
+    return rgb.astype(np.float32) / np.float32(full_scale(rgb.dtype))
+
+
 def load_stereo_set(root: str | Path, split: str, size: tuple[int, int]) -> StereoSet:
     """A Cityscapes-layout split (real Cityscapes or ``render_batch.py --stereo``) at ``size``."""
     import cv2
@@ -86,7 +104,7 @@ def load_stereo_set(root: str | Path, split: str, size: tuple[int, int]) -> Ster
         d = disparity / width  # d/W
         # nearest keeps holes holes; the value d/W is resolution-independent
         targets.append(cv2.resize(d, size, interpolation=cv2.INTER_NEAREST)[None])
-        rgbs.append(cv2.resize(img, size, interpolation=cv2.INTER_AREA).transpose(2, 0, 1) / np.float32(255))
+        rgbs.append(_unit_rgb(cv2.resize(img, size, interpolation=cv2.INTER_AREA)).transpose(2, 0, 1))
         keys.append(s.key)
         cams.append((cam.baseline, cam.intrinsics.fx / width))
     target = np.stack(targets).astype(np.float32)
@@ -222,31 +240,176 @@ def train_rounds(data: StereoSet, config: ILAConfig, out: str | Path, progress: 
         filled = fill_targets(target, pred)
         entry = {"round": r, "loss": float(np.mean(losses)), "holes_before": float(np.mean(target == 0)),
                  "holes_after": float(np.mean(filled == 0)), "checkpoint": str(out / f"round_{r}.pt")}
-        torch.save({"state_dict": {k: v.cpu() for k, v in model.state_dict().items()},
-                    "config": asdict(config), "camera": data.camera,
-                    "round": r, "output": "disparity / image width"},
-                   out / f"round_{r}.pt")
+        save_checkpoint(out / f"round_{r}.pt", model, config, data.camera, r)
         target = filled
         log.append(entry)
     return log
 
 
+#: The checkpoint format :func:`save_checkpoint` writes and :func:`load_model` reads. fogsim
+#: 0.1 wrote format 1 (the same keys without a format number, read with full unpickling).
+CHECKPOINT_FORMAT = 2
+FORMAT_KEY = "fogsim_ila_format"
+_OUTPUT = "disparity / image width"
+
+
+def save_checkpoint(path: str | Path, model, config: ILAConfig, camera: dict, round_: int) -> None:
+    """Write a round's checkpoint atomically: tensors and plain data only.
+
+    ``{FORMAT_KEY: 2, "fogsim": version, "config": ILAConfig as a dict (size a list),
+    "camera": {"baseline_m", "fx_over_w"}, "round": r, "output": "disparity / image width",
+    "state_dict": {name: tensor}}`` — all of it loadable with ``torch.load(weights_only=True)``.
+    """
+    from fogsim import __version__
+    from fogsim.fileio import atomic_path
+
+    torch = _torch()
+    ck = {FORMAT_KEY: CHECKPOINT_FORMAT, "fogsim": __version__,
+          "config": {**asdict(config), "size": list(config.size)},
+          "camera": {"baseline_m": float(camera["baseline_m"]), "fx_over_w": float(camera["fx_over_w"])},
+          "round": int(round_), "output": _OUTPUT,
+          "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()}}
+    with atomic_path(path) as tmp:
+        torch.save(ck, tmp)
+
+
+def _first_line(exc: BaseException, limit: int = 160) -> str:
+    """An exception's message on one line: its first line (with the next, when that one only
+    introduces a list), cut to ``limit`` characters."""
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    text = " ".join(lines[:2]) if len(lines) > 1 and lines[0].endswith(":") else (lines[0] if lines else "")
+    text = text or type(exc).__name__
+    return text if len(text) <= limit else text[:limit - 1] + "…"
+
+
+def read_checkpoint(checkpoint: str | Path) -> dict:
+    """The checked contents of an ILA checkpoint; any problem is an :class:`InputError` naming it.
+
+    Only a ``torch.save`` zip archive is opened, and only with ``weights_only=True``, so a
+    crafted file cannot run code; then the format number, the config, the camera and the
+    weights' names and types are checked.
+    """
+    path = Path(checkpoint)
+    if not path.exists():
+        raise InputError(path, "ILA checkpoint not found")
+    if not path.is_file():
+        raise InputError(path, "is not a file (expected an ILA checkpoint round_<r>.pt)")
+    torch = _torch()
+    try:
+        is_zip = zipfile.is_zipfile(path)
+    except OSError as exc:
+        raise InputError(path, f"cannot read the ILA checkpoint ({exc.strerror or exc})") from None
+    if not is_zip:
+        # fogsim writes torch.save's zip archive; anything else (a bare pickle, random bytes, a
+        # truncated copy) is refused unread
+        with open(path, "rb") as f:
+            if f.read(4) == b"PK\x03\x04":
+                raise InputError(path, "truncated or corrupt ILA checkpoint (a torch.save archive without its "
+                                       "zip directory); refused unread")
+        raise InputError(path, "not an ILA checkpoint: not a torch.save archive (corrupt or another format); "
+                               "refused unread")
+    try:
+        ck = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:
+        if "GLOBAL" in str(exc):
+            raise InputError(path, "not an ILA checkpoint: holds Python objects, not only tensors and plain data "
+                                   "(refused: loading them could run code)") from None
+        if str(exc).startswith("Weights only load failed"):
+            raise InputError(path, "not an ILA checkpoint: holds data torch's safe loader refuses (not only "
+                                   "tensors and plain data); refused") from None
+        raise InputError(path, f"not a readable ILA checkpoint (corrupt or truncated: {_first_line(exc)})") from None
+    if not isinstance(ck, dict):
+        raise InputError(path, f"not an ILA checkpoint: holds a {type(ck).__name__}, not fogsim's dict")
+    fmt = ck.get(FORMAT_KEY)
+    if fmt is None:
+        if {"state_dict", "config", "camera"} <= set(ck):
+            fmt = 1  # fogsim 0.1
+        else:
+            keys = ", ".join(sorted(map(str, ck))[:6]) or "none"
+            raise InputError(path, f"not an ILA checkpoint: no {FORMAT_KEY!r} key (keys: {keys})")
+    if not isinstance(fmt, int) or isinstance(fmt, bool):
+        raise InputError(path, f"not an ILA checkpoint: {FORMAT_KEY} is {fmt!r}, not a number")
+    if fmt < CHECKPOINT_FORMAT:
+        raise InputError(path, f"written by an older fogsim (format {fmt}); retrain with fogsim ila train")
+    if fmt > CHECKPOINT_FORMAT:
+        raise InputError(path, f"written by a newer fogsim (format {fmt}; this fogsim reads format "
+                               f"{CHECKPOINT_FORMAT}); update fogsim")
+    missing = [k for k in ("config", "camera", "round", "state_dict") if k not in ck]
+    if missing:
+        raise InputError(path, f"ILA checkpoint lacks {', '.join(map(repr, missing))}")
+    ck["config"] = _config_from_dict(ck["config"], path)
+    ck["camera"] = _camera_from_dict(ck["camera"], path)
+    r = ck["round"]
+    if not isinstance(r, int) or isinstance(r, bool) or r < 0:
+        raise InputError(path, f"ILA checkpoint: round is {r!r}, not a round number")
+    sd = ck["state_dict"]
+    if not isinstance(sd, dict) or not sd or not all(isinstance(k, str) and isinstance(v, torch.Tensor)
+                                                     for k, v in sd.items()):
+        raise InputError(path, "ILA checkpoint: state_dict is not a dict of named tensors")
+    return ck
+
+
+def _config_from_dict(c, path: Path) -> ILAConfig:
+    """An :class:`ILAConfig` from a checkpoint's config dict: exactly its fields, each of its type."""
+    if not isinstance(c, dict):
+        raise InputError(path, f"ILA checkpoint: config is a {type(c).__name__}, not a dict")
+    known = {f.name: f for f in fields(ILAConfig)}
+    extra, missing = sorted(set(map(str, c)) - set(known)), sorted(set(known) - set(c))
+    if extra or missing:
+        what = "; ".join(s for s in (f"unknown {', '.join(extra)}" if extra else "",
+                                     f"missing {', '.join(missing)}" if missing else "") if s)
+        raise InputError(path, f"ILA checkpoint: config fields do not match this fogsim's ({what})")
+    values = {}
+    for name, value in c.items():
+        default = getattr(ILAConfig, name, None)
+        ok = {bool: lambda v: isinstance(v, bool),
+              int: lambda v: isinstance(v, int) and not isinstance(v, bool),
+              float: lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v),
+              str: lambda v: isinstance(v, str),
+              tuple: lambda v: isinstance(v, (list, tuple)) and len(v) == 2
+              and all(isinstance(x, int) and not isinstance(x, bool) for x in v)}[type(default)](value)
+        if not ok:
+            raise InputError(path, f"ILA checkpoint: config {name} is {value!r}")
+        values[name] = tuple(value) if name == "size" else value
+    try:
+        return ILAConfig(**values)
+    except ValueError as exc:
+        raise InputError(path, f"ILA checkpoint: {exc}") from None
+
+
+def _camera_from_dict(cam, path: Path) -> dict:
+    if not isinstance(cam, dict):
+        raise InputError(path, f"ILA checkpoint: camera is a {type(cam).__name__}, not a dict")
+    out = {}
+    for key in ("baseline_m", "fx_over_w"):
+        v = cam.get(key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+            raise InputError(path, f"ILA checkpoint: camera {key} is {v!r}, not a positive number")
+        out[key] = float(v)
+    return out
+
+
 @lru_cache(maxsize=2)
 def cached_model(checkpoint: str):
     """:func:`load_model`, once per process (for fogging many images)."""
-    if not Path(checkpoint).is_file():
-        raise InputError(checkpoint, "ILA checkpoint not found")
     return load_model(checkpoint)
 
 
 def load_model(checkpoint: str | Path):
-    """(model, config, camera) from a checkpoint written by :func:`train_rounds`."""
-    torch = _torch()
-    ck = torch.load(checkpoint, map_location="cpu", weights_only=False)
-    c = ck["config"]
-    config = ILAConfig(**{**c, "size": tuple(c["size"])})
+    """(model, config, camera) from a checkpoint written by :func:`train_rounds`.
+
+    Every problem with the file — missing, corrupt, foreign, crafted, of another format, or
+    weights that do not fit its config — is an :class:`InputError` naming it.
+    """
+    ck = read_checkpoint(checkpoint)
+    config = ck["config"]
     model = build_unet(config)
-    model.load_state_dict(ck["state_dict"])
+    try:
+        model.load_state_dict(ck["state_dict"])
+    except (RuntimeError, ValueError, TypeError) as exc:
+        raise InputError(checkpoint, f"ILA checkpoint: its weights do not fit its config "
+                                     f"(width {config.width}, sparse {config.use_sparse}): {_first_line(exc, 240)}"
+                         ) from None
     model.to(device()).eval()
     return model, config, ck["camera"]
 
@@ -258,8 +421,8 @@ def predict_depth(model, config: ILAConfig, camera: dict, rgb: np.ndarray,
 
     torch = _torch()
     h, w = rgb.shape[:2]
-    x = cv2.resize(rgb, config.size, interpolation=cv2.INTER_AREA).transpose(2, 0, 1)[None] / np.float32(255)
-    x = torch.from_numpy(x.astype(np.float32))
+    x = _unit_rgb(cv2.resize(rgb, config.size, interpolation=cv2.INTER_AREA)).transpose(2, 0, 1)[None]
+    x = torch.from_numpy(np.ascontiguousarray(x))
     if config.use_sparse:
         sp = np.zeros((h, w), np.float32) if sparse_disparity is None else sparse_disparity / w
         t = torch.from_numpy(cv2.resize(sp, config.size, interpolation=cv2.INTER_NEAREST)[None, None])
