@@ -245,3 +245,19 @@ def test_render_and_study_refuse_an_output_over_their_input(tmp_path, capsys):
     assert main(["study", "--dataset", str(tmp_path / "ds"), "--out", str(tmp_path / "ds" / "study")]) == 2
     assert "--out lies inside --dataset" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ds", "mine.json"] and not list((tmp_path / "ds").iterdir())
+
+
+@pytest.mark.parametrize("command", ["train", "fill", "predict"])
+def test_ila_refuses_an_output_over_its_input(cityscapes_root, tmp_path, capsys, command):
+    ckpt = tmp_path / "ila" / "round_0.pt"
+    ckpt.parent.mkdir()
+    ckpt.write_bytes(b"x")
+    argv = {"train": ["ila", "train", "--data", str(cityscapes_root), "--out", str(cityscapes_root / "ila")],
+            "fill": ["ila", "fill", "--checkpoint", str(ckpt), "--data", str(cityscapes_root),
+                     "--out", str(cityscapes_root)],
+            "predict": ["ila", "predict", "--checkpoint", str(ckpt), "--input", str(tmp_path / "ila"),
+                        "--out", str(tmp_path)]}[command]
+    before = tree_digest(tmp_path)
+    assert main(argv) == 2
+    assert "--out" in capsys.readouterr().err
+    assert tree_digest(tmp_path) == before

@@ -77,7 +77,11 @@ def cmd_ila(args) -> int:
 
     from fogsim.depth import ila
     from fogsim.fileio import atomic_write_bytes
+    from fogsim.runs import check_output
 
+    inputs = {"--data": getattr(args, "data", None), "--input": getattr(args, "input", None),
+              "--checkpoint": getattr(args, "checkpoint", None)}
+    check_output(args.out, inputs)  # outputs never over the training data, images or checkpoint
     if args.ila_command == "train":
         config = training_config(args)
         data = ila.load_stereo_set(args.data, args.split, config.size)
