@@ -43,7 +43,8 @@ def add_parsers(sub) -> None:
     src.add_argument("--render-seed", type=int, help="dataset seed (with --render)")
     tr = p.add_argument_group("training (Ultralytics; --report-only reads them from OUT/study.json)")
     tr.add_argument("--model", default=d.model, help="model YAML, trained from scratch (e.g. yolo12m.yaml, "
-                    "the paper's), or an existing weights file")
+                    "the paper's), or an existing weights file (a pickle: Ultralytics loads it, so only "
+                    "weights you trust)")
     tr.add_argument("--epochs", type=int, default=d.epochs)
     tr.add_argument("--mixed-epochs", type=int, help="epochs of the mixed model (default: --epochs, i.e. "
                     "the compute of all level models together)")

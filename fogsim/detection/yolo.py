@@ -188,7 +188,12 @@ def train(name: str, data_file: Path, runs: Path, cfg: TrainConfig, config_dir: 
 
 def _resumable(checkpoint: Path) -> bool:
     """Whether an Ultralytics checkpoint is mid-training: it has its optimizer and epochs left.
-    (The final epoch's checkpoint keeps the optimizer until the final evaluation strips it.)"""
+    (The final epoch's checkpoint keeps the optimizer until the final evaluation strips it.)
+
+    The one unpickling load in fogsim, and deliberately so: ``last.pt`` is Ultralytics' own
+    pickle, written into this study's ``OUT/runs`` by the training that is being resumed, and
+    Ultralytics unpickles it again to resume. It is never a file a user hands in (``--model``
+    weights go to Ultralytics, which documents that they must be trusted)."""
     import torch
     try:
         ckpt = torch.load(checkpoint, map_location="cpu", weights_only=False)
