@@ -23,7 +23,7 @@ from fogsim.fog.depth_input import sample_distance
 from fogsim.errors import InputError
 from fogsim.runs import claim_output, sample_seed
 from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
-from fogsim.fileio import encode_image, atomic_write_bytes, write_json
+from fogsim.fileio import TO_8BIT, encode_image, atomic_write_bytes, to_8bit, write_json
 from fogsim.fog.levels import FogLevel
 
 RUN_FILE = "fogsim_run.json"
@@ -88,11 +88,22 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
               "blend_space": job.space, "model": "extended" if job.kernel else "standard",
               "kernel": job.kernel.to_dict() if job.kernel else None,
               **dist.record, "sample_seed": seed if job.heterogeneity else None,
-              "heterogeneity": job.parameters()["heterogeneity"], "fogsim_version": __version__}
+              "heterogeneity": job.parameters()["heterogeneity"], "fogsim_version": __version__,
+              "bit_depth": _bit_depth(image.dtype, job.image_format)}
     for level in job.levels:
         img_path, meta_path = job.paths(sample, level)
-        atomic_write_bytes(img_path, encode_image(fogger(level.beta), "." + job.image_format))
+        foggy = fogger(level.beta)
+        if job.image_format == "jpg":  # JPEG is 8-bit: 16-bit input is scaled, never saturated
+            foggy = to_8bit(foggy)
+        atomic_write_bytes(img_path, encode_image(foggy, "." + job.image_format))
         write_json(meta_path, {"level": level.to_dict(), **common})
+
+
+def _bit_depth(dtype, image_format: str) -> dict:
+    """Bits per channel of the input and of the written image, and the conversion between them."""
+    bits = np.dtype(dtype).itemsize * 8
+    out = 8 if image_format == "jpg" else bits
+    return {"input": bits, "output": out} | ({"conversion": TO_8BIT} if out != bits else {})
 
 
 @dataclass
