@@ -33,6 +33,9 @@ class Intrinsics:
     height: int
 
     def __post_init__(self):
+        if not all(math.isfinite(v) for v in (self.fx, self.fy, self.cx, self.cy)):
+            raise ValueError(f"intrinsics need finite fx, fy, cx, cy, got fx={self.fx}, fy={self.fy}, "
+                             f"cx={self.cx}, cy={self.cy}")
         if not (self.fx > 0 and self.fy > 0 and self.width > 0 and self.height > 0):
             raise ValueError(f"intrinsics need fx, fy, width, height > 0, got fx={self.fx}, fy={self.fy}, "
                              f"{self.width}×{self.height}")
@@ -63,14 +66,23 @@ class Intrinsics:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "intrinsics") -> "Intrinsics":
+        """Intrinsics from ``{fx, fy, cx, cy, width, height}`` or ``{K, width, height}``; any
+        problem (missing, not a number, non-finite, fx ≤ 0 …) is an InputError naming ``source``."""
         try:
             if "K" in d and "fx" not in d:
-                return cls.from_K(d["K"], d["width"], d["height"])
-            return cls(float(d["fx"]), float(d["fy"]), float(d["cx"]), float(d["cy"]),
-                       int(d["width"]), int(d["height"]))
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
+                K = np.asarray(d["K"], dtype=np.float64)
+                values = (K[0, 0], K[1, 1], K[0, 2], K[1, 2])
+            else:
+                values = (d["fx"], d["fy"], d["cx"], d["cy"])
+            values = tuple(float(v) for v in values)
+            width, height = int(d["width"]), int(d["height"])
+        except (KeyError, TypeError, ValueError, IndexError, OverflowError) as exc:
             raise InputError(source, f"malformed intrinsics ({exc}); need fx, fy, cx, cy, "
                                      "width, height or K, width, height") from None
+        try:
+            return cls(*values, width, height)
+        except ValueError as exc:
+            raise InputError(source, f"unusable intrinsics: {exc}") from None
 
 
 #: depths at or beyond this are "no hit" (Cycles writes 1e10 where a ray hits nothing) → +inf

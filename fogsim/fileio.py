@@ -6,12 +6,16 @@ target and renames it, so a killed job never leaves a half-written output.
 """
 from __future__ import annotations
 
+import io
 import json
 import os
+import re
 import socket
+import sys
 import tempfile
 import time
-from contextlib import contextmanager
+import zlib
+from contextlib import contextmanager, redirect_stderr, redirect_stdout
 from pathlib import Path
 
 import numpy as np
@@ -149,23 +153,190 @@ def read_json(path: str | os.PathLike) -> dict:
         raise InputError(path, f"not readable as JSON ({exc})") from None
 
 
+# ----------------------------------------------------------------------------- native messages
+@contextmanager
+def native_output():
+    """Capture what native libraries (libjpeg, libpng, OpenEXR) print to file descriptors 1
+    and 2 while the block runs, instead of letting it reach the user's terminal.
+
+    Yields a list that holds the captured text (one string) once the block has ended. The
+    callers turn what matters in it into an :class:`InputError`; the rest is dropped. Not
+    for use from several threads at once (the descriptors are process-wide); fogsim decodes
+    in one thread per process. Without a usable temporary file nothing is captured.
+    """
+    said: list[str] = []
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (AttributeError, OSError, ValueError):
+            pass
+    _flush_c_stdio()  # nothing written before the block may land in it
+    try:
+        tmp = tempfile.TemporaryFile()
+        saved = [os.dup(1), os.dup(2)]
+    except OSError:
+        yield said
+        return
+    python_level = io.StringIO()  # extensions may print through sys.stdout (pybind11's py::print)
+    try:
+        os.dup2(tmp.fileno(), 1)
+        os.dup2(tmp.fileno(), 2)
+        with redirect_stdout(python_level), redirect_stderr(python_level):
+            yield said
+    finally:
+        _flush_c_stdio()  # what C's stdio buffered (stdout to a pipe or file is) belongs here
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in saved:
+            os.close(fd)
+        tmp.seek(0)
+        said.append(tmp.read().decode("utf-8", "replace") + python_level.getvalue())
+        tmp.close()
+
+
+def _flush_c_stdio() -> None:
+    """fflush(NULL): write out every C stdio buffer (C++ iostreams write through it)."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError, TypeError):  # no C library to ask (unusual platforms)
+        pass
+
+
+def _first_line(text: str, strip: str = "") -> str:
+    """The first non-empty line of a native message, without a leading ``strip`` prefix."""
+    for line in text.splitlines():
+        line = line.strip()
+        if line.startswith(strip):
+            line = line[len(strip):].lstrip(": ")
+        if line:
+            return line
+    return ""
+
+
 # ----------------------------------------------------------------------------- images
+#: What libjpeg / libpng print when the data is damaged but they carry on (OpenCV then returns
+#: the image, grey-filled or garbled where the data was bad): each of these is an error here.
+_DECODER_DAMAGE = re.compile(r"Corrupt JPEG data[^\n]*|Premature end of JPEG file|Invalid SOS parameters"
+                             r"[^\n]*|Inconsistent progression sequence[^\n]*|Not enough image data|"
+                             r"CRC error[^\n]*", re.IGNORECASE)
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _jpeg_damage(data: bytes) -> str | None:
+    """Why a JPEG stream is truncated or malformed, or None: walks its markers from SOI to EOI
+    (segment lengths, then each scan's entropy-coded data up to the next marker)."""
+    n, pos = len(data), 2
+    truncated = "truncated JPEG (the data ends before its end-of-image marker)"
+    while True:
+        if pos + 2 > n:
+            return truncated
+        if data[pos] != 0xFF:
+            return f"corrupt JPEG (no marker at byte {pos})"
+        marker = data[pos + 1]
+        if marker == 0xFF:  # fill byte
+            pos += 1
+            continue
+        pos += 2
+        if marker == 0xD9:  # EOI: anything after it is not image data
+            return None
+        if marker == 0x01 or 0xD0 <= marker <= 0xD7:  # TEM, RSTn: no length field
+            continue
+        if pos + 2 > n:
+            return truncated
+        length = int.from_bytes(data[pos:pos + 2], "big")
+        if length < 2:
+            return f"corrupt JPEG (segment of length {length} at byte {pos})"
+        pos += length
+        if pos > n:
+            return truncated
+        if marker == 0xDA:  # SOS: entropy-coded data up to the next marker other than RSTn
+            while True:
+                pos = data.find(b"\xff", pos)
+                if pos < 0 or pos + 1 >= n:
+                    return truncated
+                follower = data[pos + 1]
+                if follower == 0x00 or 0xD0 <= follower <= 0xD7:  # stuffed 0xFF, restart marker
+                    pos += 2
+                elif follower == 0xFF:
+                    pos += 1
+                else:
+                    break
+
+
+def _png_damage(data: bytes) -> str | None:
+    """Why a PNG stream is truncated or damaged, or None: every chunk complete, its CRC right,
+    up to IEND."""
+    view, n, pos = memoryview(data), len(data), len(_PNG_SIGNATURE)
+    while True:
+        if pos + 8 > n:
+            return "truncated PNG (the data ends before its IEND chunk)"
+        length = int.from_bytes(view[pos:pos + 4], "big")
+        kind = bytes(view[pos + 4:pos + 8])
+        end = pos + 12 + length
+        if end > n:
+            return f"truncated PNG (its {kind.decode('latin-1')!r} chunk runs past the end of the data)"
+        if zlib.crc32(view[pos + 4:end - 4]) != int.from_bytes(view[end - 4:end], "big"):
+            return f"corrupt PNG (CRC mismatch in its {kind.decode('latin-1')!r} chunk at byte {pos})"
+        if kind == b"IEND":
+            return None
+        pos = end
+
+
+def encoded_image_damage(data: bytes) -> str | None:
+    """Why encoded image bytes are truncated or corrupt, or None when nothing is found.
+
+    JPEG and PNG are checked structurally (pure Python, independent of the OpenCV build):
+    a JPEG must reach its end-of-image marker, a PNG its IEND chunk with every chunk's CRC
+    right. Other formats are left to the decoder.
+    """
+    if not data:
+        return "empty (0 bytes)"
+    if data[:3] == b"\xff\xd8\xff":
+        return _jpeg_damage(data)
+    if data[:8] == _PNG_SIGNATURE:
+        return _png_damage(data)
+    return None
+
+
 def decode_image(data: bytes, source: str) -> np.ndarray:
-    """Decode encoded image bytes (PNG, JPEG, ...) to an RGB array of the file's bit depth."""
-    arr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    """Decode encoded image bytes (PNG, JPEG, ...) to an RGB array of the file's bit depth.
+
+    Truncated or corrupt data is an :class:`InputError` naming ``source``, never an image
+    with the decoder's grey fill: the structural check of :func:`encoded_image_damage`
+    first, then any damage the decoder reports (libjpeg only warns about corrupt data).
+    """
+    return _to_rgb(_decode(data, source), source)
+
+
+def _decode(data: bytes, source) -> np.ndarray:
+    """The stored pixels (BGR, any bit depth) of encoded image bytes, or InputError."""
+    damage = encoded_image_damage(data)
+    if damage:
+        raise InputError(source, damage)
+    with native_output() as said:
+        arr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    said = said[0] if said else ""
     if arr is None:
-        raise InputError(source, "not a readable image (corrupt or unsupported format)")
-    return _to_rgb(arr, source)
+        detail = _first_line(said)
+        raise InputError(source, "not a readable image (corrupt or unsupported format"
+                                 + (f"; the decoder says: {detail})" if detail else ")"))
+    damage = _DECODER_DAMAGE.search(said)
+    if damage:
+        raise InputError(source, f"corrupt image data (the decoder says: {damage.group(0).strip()})")
+    return arr
 
 
 def _imread(path: Path) -> np.ndarray:
     """The stored pixels of an image file, as OpenCV decodes them (BGR, any bit depth)."""
     if not path.is_file():
         raise InputError(path, "file not found")
-    arr = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if arr is None:
-        raise InputError(path, "not a readable image (corrupt or unsupported format)")
-    return arr
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(path, f"cannot read the file ({exc.strerror or exc})") from None
+    return _decode(data, path)
 
 
 def read_image(path: str | os.PathLike) -> np.ndarray:
@@ -183,8 +354,24 @@ def _to_rgb(arr: np.ndarray, source: str) -> np.ndarray:
     return np.ascontiguousarray(arr[:, :, ::-1])
 
 
+#: the one 16 → 8 bit conversion (JPEG holds 8 bits): v8 = round(v16 · 255 / 65535)
+TO_8BIT = "round(v * 255 / 65535)"
+
+
+def to_8bit(rgb: np.ndarray) -> np.ndarray:
+    """An 8-bit copy of a uint8/uint16 image, scaled by :data:`TO_8BIT` (uint8 is returned as is)."""
+    if rgb.dtype == np.uint8:
+        return rgb
+    if rgb.dtype != np.uint16:
+        raise ValueError(f"only uint8 and uint16 images convert to 8 bit, got {rgb.dtype}")
+    return np.rint(rgb.astype(np.float32) * np.float32(255.0 / 65535.0)).astype(np.uint8)
+
+
 def encode_image(rgb: np.ndarray, suffix: str = ".png") -> bytes:
-    """Encode an RGB uint8/uint16 array (PNG keeps 16 bit)."""
+    """Encode an RGB uint8/uint16 array (PNG keeps 16 bit). JPEG takes uint8 only: a 16-bit
+    array is refused rather than saturated (convert it with :func:`to_8bit` first)."""
+    if suffix.lower() in (".jpg", ".jpeg") and rgb.dtype != np.uint8:
+        raise ValueError(f"JPEG holds 8-bit values, got a {rgb.dtype} image: convert it first (fileio.to_8bit)")
     if rgb.ndim == 3:
         rgb = np.ascontiguousarray(rgb[:, :, ::-1])
     ok, buf = cv2.imencode(suffix, rgb)
@@ -206,11 +393,24 @@ def read_exr_channels(path: str | os.PathLike) -> dict[str, np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
-    try:
-        with OpenEXR.File(str(path), separate_channels=True) as f:
-            return {name: np.array(ch.pixels) for name, ch in f.channels().items()}
-    except Exception as exc:  # OpenEXR raises plain RuntimeError/ValueError on corrupt files
-        raise InputError(path, f"not a readable EXR file ({exc})") from None
+    error = None
+    with native_output() as said:  # OpenEXR prints its own lines on damaged files: keep them off the terminal
+        try:
+            with OpenEXR.File(str(path), separate_channels=True) as f:
+                channels = {name: np.array(ch.pixels) for name, ch in f.channels().items()}
+        except Exception as exc:  # OpenEXR raises plain RuntimeError/ValueError on corrupt files
+            error = exc
+    said = said[0] if said else ""
+    damage = _first_line(said, str(path))
+    if error is not None or _EXR_DAMAGE.search(said):
+        detail = damage or str(error)
+        raise InputError(path, f"not a readable EXR file (truncated or corrupt: {detail})" if damage
+                         else f"not a readable EXR file ({detail})")
+    return channels
+
+
+#: what OpenEXR prints when it skips damaged data
+_EXR_DAMAGE = re.compile(r"EXR_ERR_|Exception raised reading|corrupt", re.IGNORECASE)
 
 
 #: channel names tried, in order, when an EXR holds depth
@@ -277,6 +477,9 @@ def read_depth_file(path: str | os.PathLike, png_scale: float | None = None) -> 
             depth = np.load(path, allow_pickle=False)
         except Exception as exc:
             raise InputError(path, f"not a readable .npy array ({exc})") from None
+        if not isinstance(depth, np.ndarray) or depth.dtype.kind not in "fiu":
+            kind = depth.dtype if isinstance(depth, np.ndarray) else type(depth).__name__
+            raise InputError(path, f"depth must hold real numbers (a float or integer array), got {kind}")
         if depth.ndim == 3 and depth.shape[2] == 1:
             depth = depth[:, :, 0]
     elif suffix in (".png", ".tif", ".tiff"):

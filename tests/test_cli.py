@@ -218,3 +218,63 @@ def test_demo_refuses_another_run_before_touching_its_inputs(tmp_path, capsys):
     before = (out / "input" / "images" / "street_000.png").read_bytes()
     assert main(["demo", "--out", str(out), "--frames", "1", "--seed", "5", "--quiet"]) == 2
     assert (out / "input" / "images" / "street_000.png").read_bytes() == before
+
+
+# ----------------------------------------------------------------------------- reliability regressions
+@pytest.mark.parametrize("args, message", [
+    (["--levels", "0.1", "--airlight", "white"], "--airlight takes a value in [0, 255], R,G,B or 'estimate', "
+                                                 "got 'white'"),
+    (["--levels", "1e308"], "--levels: β 1e308 is out of range: at most 1000 1/m"),
+    (["--visibility", "1e-9"], "--visibility: 1e-9 m is out of range"),
+])
+def test_bad_values_name_their_flag(folder_dataset, tmp_path, capsys, args, message):
+    """#22: the message names the flag and the real problem (not float() or the level key)."""
+    assert main(fog_args(folder_dataset, tmp_path / "out", *args)) == 2
+    err = capsys.readouterr().err
+    assert message in err and "could not convert" not in err and "key" not in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_large_visibility_gets_a_valid_level_key(folder_dataset, tmp_path):
+    assert main(fog_args(folder_dataset, tmp_path / "out", "--visibility", "1e7")) == 0
+    assert (tmp_path / "out" / "vis1e07m" / "a.png").is_file()
+
+
+@pytest.mark.parametrize("source", ["input", "waymo"])
+def test_disparity_encoding_without_cityscapes_is_a_setup_error(folder_dataset, tmp_path, capsys, source):
+    """#12: --depth-encoding disparity cannot get its camera JSON outside --cityscapes."""
+    ds = folder_dataset
+    if source == "input":
+        args = ["--input", str(ds / "images"), "--depth", str(ds / "depth")]
+    else:
+        (tmp_path / "seg.tfrecord").write_bytes(b"")
+        args = ["--waymo", str(tmp_path / "seg.tfrecord"), "--depth-dir", str(ds / "depth")]
+    assert main(["fog", *args, "--depth-encoding", "disparity", "--levels", "0.1",
+                 "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "--depth-encoding disparity" in err and "--cityscapes" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_16_bit_input_to_jpg_is_scaled_not_saturated(tmp_path):
+    """#17: JPEG is 8-bit: a 16-bit image is scaled by 255/65535 (and recorded), never clipped."""
+    rng = np.random.default_rng(6)
+    img16 = (rng.integers(20, 236, (24, 32, 3)) * 257).astype(np.uint16)
+    write_image(tmp_path / "img" / "x.png", img16)
+    write_depth(tmp_path / "dep" / "x.exr", np.full((24, 32), 10.0, np.float32))
+    base = ["fog", "--input", str(tmp_path / "img"), "--depth", str(tmp_path / "dep"), "--depth-kind", "ray",
+            "--levels", "clear,0.05", "--quiet"]
+    assert main(base + ["--format", "jpg", "--out", str(tmp_path / "j")]) == 0
+    clear = read_image(tmp_path / "j" / "clear" / "x.jpg")
+    assert clear.dtype == np.uint8
+    assert abs(clear.mean() - img16.mean() / 257) < 2  # not near-white
+    meta = json.loads((tmp_path / "j" / "beta0.05" / "x.json").read_text())
+    assert meta["bit_depth"] == {"input": 16, "output": 8, "conversion": "round(v * 255 / 65535)"}
+    assert main(base + ["--out", str(tmp_path / "p")]) == 0  # PNG keeps the 16 bits
+    assert np.array_equal(read_image(tmp_path / "p" / "clear" / "x.png"), img16)
+    assert json.loads((tmp_path / "p" / "beta0.05" / "x.json").read_text())["bit_depth"] == \
+        {"input": 16, "output": 16}
+    from fogsim.fileio import encode_image
+
+    with pytest.raises(ValueError, match="JPEG holds 8-bit"):
+        encode_image(img16, ".jpg")

@@ -112,16 +112,55 @@ def test_truncated_file_names_file_and_record(v1_file, where):
     assert err.value.source == f"{v1_file}#record 1"
 
 
-@pytest.mark.skipif(tfrecord._FAST_CRC32C is None, reason="data CRCs are checked only with a "
-                                                            "compiled crc32c module")
-def test_corrupt_data_crc(tmp_path):
+def _crc_implementations():
+    """The numpy fallback always; the compiled module too when one is installed."""
+    return ["fallback"] + (["compiled"] if tfrecord._FAST_CRC32C is not None else [])
+
+
+@pytest.fixture(params=_crc_implementations())
+def crc_impl(request, monkeypatch):
+    if request.param == "fallback":  # as if neither google_crc32c nor crc32c were installed
+        monkeypatch.setattr(tfrecord, "_FAST_CRC32C", None)
+    return request.param
+
+
+def test_corrupt_data_crc(tmp_path, crc_impl):
     path = tmp_path / "bad.tfrecord"
-    write_tfrecord(path, [b"abc"])
+    write_tfrecord(path, [b"abc", bytes(range(256)) * 400])
     raw = bytearray(path.read_bytes())
     raw[13] ^= 0xFF
+    raw[-100] ^= 0x01  # one bit in the big record's data
     path.write_bytes(bytes(raw))
-    with pytest.raises(InputError, match="data CRC"):
-        read_record(path, 12, 3, f"{path}#record 0")
+    (o0, n0), (o1, n1) = index_tfrecord(path)  # the headers are intact
+    for offset, length, record in ((o0, n0, 0), (o1, n1, 1)):
+        with pytest.raises(InputError, match="data CRC mismatch") as err:
+            read_record(path, offset, length, f"{path}#record {record}")
+        assert err.value.source == f"{path}#record {record}"
+    assert read_record(path, o1, n1, verify=False)[-96] == (bytes(range(256)) * 400)[-96] ^ 0x01
+
+
+@pytest.mark.parametrize("n", [0, 1, 9, 4095, 32767, 32768, 32769, 65536 + 7, 1 << 20, 3 * (1 << 20) + 5])
+def test_crc32c_numpy_matches_the_byte_loop(n):
+    data = np.random.default_rng(n).integers(0, 256, n, dtype=np.uint8).tobytes()
+    if n <= 65536 + 7:
+        assert tfrecord.crc32c_numpy(data) == crc32c_python(data)
+    else:  # the byte loop is slow: split, since crc(A‖B) continues from crc(A)
+        reg = tfrecord._register(data[:n // 2], 0xFFFFFFFF)
+        assert tfrecord.crc32c_numpy(data) == tfrecord._register(data[n // 2:], reg) ^ 0xFFFFFFFF
+    if tfrecord._FAST_CRC32C is not None:
+        assert tfrecord.crc32c_numpy(data) == tfrecord._FAST_CRC32C(data)
+    assert tfrecord.crc32c_numpy(b"123456789") == 0xE3069283
+
+
+def test_crc32c_fallback_is_fast_enough():
+    """A Waymo frame is a few MB and is read twice per camera: the fallback must not take
+    seconds for it (the byte loop would). Generous bound: shared CI machines are slow."""
+    import time
+
+    data = np.random.default_rng(0).integers(0, 256, 4 << 20, dtype=np.uint8).tobytes()
+    t0 = time.perf_counter()
+    tfrecord.crc32c_numpy(data)
+    assert time.perf_counter() - t0 < 1.0
 
 
 # ----------------------------------------------------------------------------- protobuf wire
@@ -169,7 +208,8 @@ def test_v1_samples_keys_intrinsics_and_images(v1_file):
 def test_v1_camera_selection(v1_file, tmp_path):
     assert [s.key for s in waymo_v1_samples(v1_file, cameras=("front_left",))] == \
         [_key(0, "FRONT_LEFT"), _key(1, "FRONT_LEFT")]
-    assert waymo_v1_samples(v1_file, cameras=("SIDE_LEFT",)) == []  # not in these frames
+    with pytest.raises(InputError, match="none of its 2 frames"):  # not in these frames
+        waymo_v1_samples(v1_file, cameras=("SIDE_LEFT",))
     with pytest.raises(ValueError, match="FRONT_RIGHT"):
         waymo_v1_samples(v1_file, cameras=("BACK",))
 
@@ -300,3 +340,136 @@ def test_cli_fogs_waymo_with_depth_dir(v1_file, tmp_path, capsys):
     assert main(["fog", "--waymo", str(v1_file), "--levels", "0.06", "--out", str(tmp_path / "o2"), "--quiet"]) == 2
     assert "has no depth" in capsys.readouterr().err
     assert not (tmp_path / "o2").exists()
+
+
+# ----------------------------------------------------------------------------- damaged / empty inputs
+def _depth_for(tmp_path, keys):
+    from fogsim.fileio import write_depth
+
+    for key in keys:
+        write_depth(tmp_path / "depth" / f"{key}.exr", np.full((H, W), 20.0, np.float32))
+    return tmp_path / "depth"
+
+
+def _fog(*args):
+    from fogsim.cli import main
+
+    return main(["fog", "--levels", "0.06", "--quiet", *map(str, args)])
+
+
+def test_flipped_byte_in_a_record_is_refused_unless_no_verify(v1_file, tmp_path, capsys, crc_impl):
+    """#4: a damaged record is found by its data CRC in the plain install (numpy fallback)."""
+    raw = bytearray(v1_file.read_bytes())
+    offset, length = index_tfrecord(v1_file)[1]
+    raw[offset + length - 30] ^= 0xFF  # inside the laser blob: the images decode fine
+    v1_file.write_bytes(bytes(raw))
+    depth = _depth_for(tmp_path, [_key(t, "FRONT") for t in (0, 1)])
+    assert _fog("--waymo", v1_file, "--depth-dir", depth, "--out", tmp_path / "o") == 2
+    err = capsys.readouterr().err
+    assert f"{v1_file}#record 1: corrupt TFRecord (data CRC mismatch" in err
+    assert not (tmp_path / "o").exists()
+    assert _fog("--waymo", v1_file, "--depth-dir", depth, "--out", tmp_path / "o2", "--no-verify") == 0
+    assert "fogged 2 of 2" in capsys.readouterr().out
+
+
+def _frame_with_front(context: str, t: int, front: bytes) -> bytes:
+    ctx = pw.bytes_field(1, context) + pw.bytes_field(2, _calibration(1, packed=False))
+    return (pw.bytes_field(1, ctx) + pw.varint_field(2, TIMESTAMPS[t])
+            + pw.bytes_field(4, _camera_image(1, front)))
+
+
+def _big_jpeg() -> bytes:
+    y, x = np.mgrid[0:240, 0:320]  # the aspect ratio of the calibration (W×H)
+    img = np.stack([x % 256, y % 256, (x + y) % 256], axis=2).astype(np.uint8)
+    return encode_image(img, ".jpg")
+
+
+@pytest.mark.parametrize("damage, message", [("truncated", "truncated JPEG"),
+                                             ("zeroed", "corrupt image data")])
+def test_damaged_jpeg_in_a_frame_fails_that_image(tmp_path, capfd, damage, message):
+    """#3: JPEG bytes that are damaged inside an intact record (its CRC is right)."""
+    good = _big_jpeg()
+    bad = bytearray(good)
+    if damage == "truncated":
+        bad = bad[:len(bad) // 2]
+    else:
+        bad[len(bad) // 3:len(bad) // 3 + 2000] = bytes(2000)
+    path = tmp_path / "seg.tfrecord"
+    write_tfrecord(path, [_frame_with_front(CONTEXT, 0, good), _frame_with_front(CONTEXT, 1, bytes(bad))])
+    samples = waymo_v1_samples(path)
+    assert samples[0].read_image().shape == (240, 320, 3)
+    with pytest.raises(InputError, match=message) as err:
+        samples[1].read_image()
+    assert err.value.source == f"{path}#record 1 FRONT"
+    capfd.readouterr()
+    depth = tmp_path / "depth"
+    from fogsim.fileio import write_depth
+
+    for t in (0, 1):
+        write_depth(depth / f"{_key(t, 'FRONT')}.exr", np.full((240, 320), 20.0, np.float32))
+    assert _fog("--waymo", path, "--depth-dir", depth, "--out", tmp_path / "o") == 1
+    err = capfd.readouterr().err
+    assert f"{path}#record 1 FRONT: {message}" in err and "Premature end" not in err
+    assert (tmp_path / "o" / "beta0.06" / f"{_key(0, 'FRONT')}.png").is_file()
+    assert not (tmp_path / "o" / "beta0.06" / f"{_key(1, 'FRONT')}.png").exists()
+
+
+def test_nothing_to_do_is_an_error(v1_file, tmp_path, capsys):
+    """#16: an empty .tfrecord, or cameras in no frame, exit 2 like an empty image folder."""
+    empty = tmp_path / "empty.tfrecord"
+    empty.write_bytes(b"")
+    with pytest.raises(InputError, match="no frames") as err:
+        waymo_v1_samples(empty)
+    assert err.value.source == str(empty)
+    depth = tmp_path / "depth"
+    depth.mkdir()
+    assert _fog("--waymo", empty, "--depth-dir", depth, "--out", tmp_path / "o") == 2
+    assert f"{empty}: no frames in it" in capsys.readouterr().err
+    assert _fog("--waymo", v1_file, "--cameras", "REAR", "--depth-dir", depth, "--out", tmp_path / "o2") == 2
+    err = capsys.readouterr().err
+    assert "none of its 2 frames has an image from camera(s) REAR" in err and "FRONT, FRONT_LEFT" in err
+    assert not (tmp_path / "o").exists() and not (tmp_path / "o2").exists()
+
+
+def test_v2_null_or_mistyped_key_is_named(tmp_path, capsys):
+    """#15: a null segment name (or timestamp) is a clear error naming file and row."""
+    pa = pytest.importorskip("pyarrow", exc_type=ImportError)
+    pq = pytest.importorskip("pyarrow.parquet", exc_type=ImportError)
+    root = tmp_path / "v2"
+    (root / "camera_image").mkdir(parents=True)
+    path = root / "camera_image" / "x.parquet"
+    image = encode_image(_front(0), ".png")
+    pq.write_table(pa.table({
+        "key.segment_context_name": pa.array([CONTEXT, None], pa.string()),
+        "key.frame_timestamp_micros": pa.array([TIMESTAMPS[0], TIMESTAMPS[1]], pa.int64()),
+        "key.camera_name": pa.array([1, 1], pa.int8()),
+        "[CameraImageComponent].image": pa.array([image, image], pa.binary()),
+    }), path)
+    with pytest.raises(InputError, match="key.segment_context_name is None") as err:
+        waymo_v2_samples(root)
+    assert err.value.source == f"{path}#row 1 FRONT"
+    assert _fog("--waymo", root, "--out", tmp_path / "o") == 2
+    assert f"{path}#row 1 FRONT: malformed Waymo v2 key" in capsys.readouterr().err
+    pq.write_table(pa.table({
+        "key.segment_context_name": pa.array([CONTEXT], pa.string()),
+        "key.frame_timestamp_micros": pa.array([None], pa.int64()),
+        "key.camera_name": pa.array([1], pa.int8()),
+        "[CameraImageComponent].image": pa.array([image], pa.binary()),
+    }), path)
+    with pytest.raises(InputError, match="key.frame_timestamp_micros is None"):
+        waymo_v2_samples(root)
+    with pytest.raises(InputError, match="none of its 1 camera_image rows"):
+        waymo_v2_samples(root, cameras=("REAR",))
+
+
+def test_non_finite_waymo_calibration_is_named(tmp_path):
+    path = tmp_path / "seg.tfrecord"
+    cal = (pw.varint_field(1, 1) + pw.packed_doubles(2, (float("nan"), 21.0, 7.5, 5.5, 0, 0, 0, 0, 0))
+           + pw.varint_field(4, W) + pw.varint_field(5, H))
+    ctx = pw.bytes_field(1, CONTEXT) + pw.bytes_field(2, cal)
+    frame = (pw.bytes_field(1, ctx) + pw.varint_field(2, TIMESTAMPS[0])
+             + pw.bytes_field(4, _camera_image(1, encode_image(_front(0), ".png"))))
+    write_tfrecord(path, [frame])
+    with pytest.raises(InputError, match="unusable camera calibration .*finite") as err:
+        waymo_v1_samples(path)
+    assert err.value.source.startswith(f"{path}#record 0")

@@ -36,7 +36,9 @@ def _add_fog_options(p: argparse.ArgumentParser) -> None:
 def _add_batch_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("batch")
     g.add_argument("--out", required=True, help="output folder (OUT/<level>/<input tree>)")
-    g.add_argument("--format", dest="image_format", choices=("png", "jpg"), default="png")
+    g.add_argument("--format", dest="image_format", choices=("png", "jpg"), default="png",
+                   help="png keeps the input's bit depth (8 or 16); jpg is 8-bit only: 16-bit input is "
+                        "scaled to 8 bit, v8 = round(v16·255/65535), and the sidecar records it")
     g.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
     g.add_argument("--shard", help="i/N: process every N-th sample starting at i (0-based), "
                                    "e.g. $SLURM_ARRAY_TASK_ID/N")
@@ -57,7 +59,8 @@ def add_parsers(sub) -> None:
     d.add_argument("--depth-suffix", default="", help="depth name = image stem + this + extension")
     d.add_argument("--depth-encoding", choices=DEPTH_ENCODINGS, default="metric",
                    help="metric: metres (EXR/.npy/16-bit PNG × --depth-scale); paper-8bit: the paper's "
-                        "8-bit ILA maps decoded with its constant")
+                        "8-bit ILA maps decoded with its constant; disparity: Cityscapes 16-bit disparity, "
+                        "which needs each image's camera JSON: only with --cityscapes (its default)")
     d.add_argument("--depth-scale", type=float, help="metres per unit of 16-bit PNG depth (e.g. 0.001)")
     d.add_argument("--depth-kind", choices=("planar", "ray"), default="planar",
                    help="planar Z (converted to ray distance with the intrinsics) or ray distance")
@@ -67,6 +70,9 @@ def add_parsers(sub) -> None:
                                         "(for datasets without depth, e.g. Waymo)")
     fog.add_argument("--split", default="val", help="Cityscapes split(s), comma-separated")
     fog.add_argument("--cameras", default="FRONT", help="Waymo cameras, comma-separated (FRONT, FRONT_LEFT, …)")
+    fog.add_argument("--no-verify", action="store_true",
+                     help="Waymo v1: do not check the TFRecord data CRCs (a damaged record then goes unnoticed; "
+                          "the check runs at ≈ 100-200 MB/s without a compiled CRC32C module, GB/s with google-crc32c)")
     _add_fog_options(fog)
     _add_batch_options(fog)
 
@@ -91,6 +97,10 @@ def _samples(args):
     from fogsim.readers.base import DepthSpec
     from fogsim.fileio import read_json
 
+    if args.depth_encoding == "disparity" and not args.cityscapes:
+        raise ValueError("--depth-encoding disparity needs each image's Cityscapes camera JSON (baseline, fx), "
+                         "which --input and --waymo have no way to give: use --cityscapes ROOT (leftImg8bit/, "
+                         "disparity/, camera/), which decodes disparity on its own")
     spec = DepthSpec("", args.depth_encoding, args.depth_kind, args.depth_scale)
     K = None
     if args.intrinsics:
@@ -115,7 +125,8 @@ def _samples(args):
     from fogsim.readers.waymo import waymo_samples
 
     cameras = tuple(c.strip().upper() for c in args.cameras.split(",") if c.strip())
-    return waymo_samples(args.waymo, cameras, args.depth_dir, replace(spec, path=""))
+    return waymo_samples(args.waymo, cameras, args.depth_dir, replace(spec, path=""),
+                         verify=not getattr(args, "no_verify", False))
 
 
 def _with_depth_from(samples, depth_from: str | None):
@@ -152,7 +163,11 @@ def _job(args, out: str):
     if args.airlight.strip().lower() == "estimate":
         airlight = "estimate"
     else:
-        vals = [float(x) for x in args.airlight.split(",")]
+        try:
+            vals = [float(x) for x in args.airlight.split(",")]
+        except ValueError:
+            raise ValueError(f"--airlight takes a value in [0, 255], R,G,B or 'estimate', "
+                             f"got {args.airlight!r}") from None
         if len(vals) not in (1, 3):
             raise ValueError(f"--airlight takes one value or R,G,B, got {args.airlight!r}")
         airlight = tuple(vals * 3 if len(vals) == 1 else vals)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -23,7 +24,7 @@ from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
 from fogsim.errors import InputError
 from fogsim.runs import claim_output, sample_seed
 from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
-from fogsim.fileio import atomic_write_bytes, encode_image, remove_stale_parts, write_json
+from fogsim.fileio import TO_8BIT, atomic_write_bytes, encode_image, remove_stale_parts, to_8bit, write_json
 from fogsim.fog.levels import FogLevel
 
 RUN_FILE = "fogsim_run.json"
@@ -88,11 +89,22 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
               "blend_space": job.space, "model": "extended" if job.kernel else "standard",
               "kernel": job.kernel.to_dict() if job.kernel else None,
               **dist.record, "sample_seed": seed if job.heterogeneity else None,
-              "heterogeneity": job.parameters()["heterogeneity"], "fogsim_version": __version__}
+              "heterogeneity": job.parameters()["heterogeneity"], "fogsim_version": __version__,
+              "bit_depth": _bit_depth(image.dtype, job.image_format)}
     for level in job.levels:
         img_path, meta_path = job.paths(sample, level)
-        atomic_write_bytes(img_path, encode_image(fogger(level.beta), "." + job.image_format))
+        foggy = fogger(level.beta)
+        if job.image_format == "jpg":  # JPEG is 8-bit: 16-bit input is scaled, never saturated
+            foggy = to_8bit(foggy)
+        atomic_write_bytes(img_path, encode_image(foggy, "." + job.image_format))
         write_json(meta_path, {"level": level.to_dict(), **common})
+
+
+def _bit_depth(dtype, image_format: str) -> dict:
+    """Bits per channel of the input and of the written image, and the conversion between them."""
+    bits = np.dtype(dtype).itemsize * 8
+    out = 8 if image_format == "jpg" else bits
+    return {"input": bits, "output": out} | ({"conversion": TO_8BIT} if out != bits else {})
 
 
 @dataclass
@@ -144,9 +156,15 @@ def run(samples: list[Sample], job: FogJob, workers: int = 1, resume: bool = Tru
     if workers > 1 and len(todo) > 1:
         # spawn, not fork: a forked child inherits library thread pools (OpenEXR, OpenCV)
         # mid-state and can deadlock on its first EXR read
-        pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(os.getpid(),),
-                                   mp_context=multiprocessing.get_context("spawn"))
-        results = pool.map(_worker, ((job, s) for s in todo), chunksize=1)
+        # workers start with SIGINT ignored (inherited through exec, kept by Python), so a Ctrl-C
+        # even during their start-up reaches the parent alone
+        default_sigint = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(os.getpid(),),
+                                       mp_context=multiprocessing.get_context("spawn"))
+            results = pool.map(_worker, ((job, s) for s in todo), chunksize=1)
+        finally:
+            signal.signal(signal.SIGINT, default_sigint)
     try:
         for source, error in results:
             if error is None:
@@ -185,8 +203,6 @@ def check_run_wide(samples: list[Sample]) -> None:
 def _init_worker(parent_pid: int):
     """A worker dies with its parent (SIGKILL/SIGTERM of the parent included) and leaves
     Ctrl-C to it: the parent stops the pool and exits 130."""
-    import signal
-
     import cv2
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -199,7 +215,6 @@ def _die_with_parent(parent_pid: int) -> None:
     """Linux: the kernel sends SIGKILL when the parent dies (prctl PR_SET_PDEATHSIG); elsewhere
     a daemon thread polls the parent's pid."""
     import ctypes
-    import signal
     import threading
 
     try:

@@ -14,6 +14,10 @@ from fogsim import presets
 from fogsim.errors import InputError
 
 LN20 = math.log(20.0)
+#: The densest fog accepted, in 1/m: a visibility of ln 20 / 1000 ≈ 3 mm. Beyond it a level
+#: means nothing physically (every pixel is the airlight), and is most likely a typo.
+MAX_BETA = 1000.0
+MIN_VISIBILITY = LN20 / MAX_BETA
 
 
 def visibility_from_beta(beta: float) -> float:
@@ -39,6 +43,9 @@ class FogLevel:
     def __post_init__(self):
         if not (self.beta >= 0 and math.isfinite(self.beta)):
             raise ValueError(f"fog level {self.key!r}: β must be a finite number ≥ 0, got {self.beta}")
+        if self.beta > MAX_BETA:
+            raise ValueError(f"fog level {self.key!r}: β = {self.beta:g} 1/m is out of range (at most "
+                             f"{MAX_BETA:g} 1/m, a visibility of {MIN_VISIBILITY * 1000:.0f} mm)")
         if not re.fullmatch(r"[A-Za-z0-9_.\-]+", self.key):
             raise ValueError(f"fog level key {self.key!r} may hold only letters, digits, '_', '.', '-'")
 
@@ -52,15 +59,22 @@ class FogLevel:
                 "visibility_m": None if math.isinf(vis) else round(vis, 3)}
 
 
+def _number_key(value: float) -> str:
+    """``value`` as it appears in a level key: ``%g`` without the exponent's ``+`` (1e+06 → 1e06)."""
+    return f"{value:g}".replace("+", "")
+
+
 def level_from_beta(beta: float) -> FogLevel:
-    return FogLevel("clear", "clear", 0.0) if beta == 0 else FogLevel(f"beta{beta:g}", f"β={beta:g}/m", beta)
+    if beta == 0:
+        return FogLevel("clear", "clear", 0.0)
+    return FogLevel(f"beta{_number_key(beta)}", f"β={beta:g}/m", beta)
 
 
 def level_from_visibility(visibility_m: float) -> FogLevel:
     beta = beta_from_visibility(visibility_m)
     if beta == 0:
         return FogLevel("clear", "clear", 0.0)
-    return FogLevel(f"vis{visibility_m:g}m", f"visibility {visibility_m:g} m", beta)
+    return FogLevel(f"vis{_number_key(visibility_m)}m", f"visibility {visibility_m:g} m", beta)
 
 
 def preset_names() -> list[str]:
@@ -105,6 +119,12 @@ def parse_levels(levels: str | None = None, visibility: str | None = None) -> li
             raise ValueError(f"{what} {tok!r} is not a number") from None
         if not math.isfinite(value) or value < 0 or (what == "visibility" and value == 0):
             raise ValueError(f"{what} must be {'> 0' if what == 'visibility' else '≥ 0'} and finite, got {tok}")
+        if what == "β" and value > MAX_BETA:
+            raise ValueError(f"--levels: β {tok} is out of range: at most {MAX_BETA:g} 1/m "
+                             f"(a visibility of {MIN_VISIBILITY * 1000:.0f} mm)")
+        if what == "visibility" and value < MIN_VISIBILITY:
+            raise ValueError(f"--visibility: {tok} m is out of range: at least {MIN_VISIBILITY:.4f} m "
+                             f"(β = {MAX_BETA:g} 1/m)")
         out.append(make(value))
     keys = [lv.key for lv in out]
     if len(set(keys)) != len(keys):

@@ -64,11 +64,16 @@ def camera_ids(cameras: Iterable[str] | str) -> dict[int, str]:
 
 
 def _calibration(pinhole: list, width: int | None, height: int | None,
-                 distortion: dict) -> Calibration:
-    """Intrinsics (None when incomplete) and the distortion coefficients of one camera."""
+                 distortion: dict, source: str) -> Calibration:
+    """Intrinsics (None when incomplete) and the distortion coefficients of one camera.
+
+    Values that are there but unusable (non-finite, f ≤ 0) are refused naming ``source``."""
     if len(pinhole) < 4 or None in pinhole[:4] or not width or not height:
         return None, distortion
-    return Intrinsics(*(float(v) for v in pinhole[:4]), int(width), int(height)), distortion
+    try:
+        return Intrinsics(*(float(v) for v in pinhole[:4]), int(width), int(height)), distortion
+    except (TypeError, ValueError) as exc:
+        raise InputError(source, f"unusable camera calibration ({exc})") from None
 
 
 def _safe(name: str) -> str:
@@ -77,11 +82,12 @@ def _safe(name: str) -> str:
 
 
 def _sample(context: str, timestamp: int, camera: str, source: str, reader,
-            calibration: Calibration | None, depth_dir: Path | None, depth: DepthSpec) -> Sample:
+            calibration: Calibration | None, depth_dir: Path | None, depth: DepthSpec,
+            listings: dict | None = None) -> Sample:
     key = f"{_safe(context)}/{timestamp}_{camera}"
     spec = None
     if depth_dir is not None:
-        found = find_depth(depth_dir, key)
+        found = find_depth(depth_dir, key, listings=listings)
         if found is None:
             raise InputError(depth_dir / f"{key}{DEPTH_SUFFIXES[0]}",
                              f"depth map for {source} not found (nor with "
@@ -113,17 +119,19 @@ def _unique(samples: list[Sample]) -> list[Sample]:
 # ----------------------------------------------------------------------------- v1 (TFRecord)
 @dataclass(frozen=True)
 class TFRecordImage:
-    """Picklable reader: one camera's image from the Frame record at ``offset``."""
+    """Picklable reader: one camera's image from the Frame record at ``offset``
+    (its data CRC checked unless ``verify`` is false)."""
 
     path: str
     offset: int
     length: int
     camera: int
     source: str
+    verify: bool = True
 
     def __call__(self) -> np.ndarray:
-        frame = pw.decode_fields(read_record(self.path, self.offset, self.length, self.source),
-                                 self.source)
+        frame = pw.decode_fields(read_record(self.path, self.offset, self.length, self.source,
+                                             self.verify), self.source)
         for image in pw.submessages(frame, FRAME_IMAGES, self.source):
             if pw.integer(image, IMAGE_NAME, 0, self.source) == self.camera:
                 return decode_image(pw.blob(image, IMAGE_DATA, self.source) or b"", self.source)
@@ -155,33 +163,50 @@ def _parse_frame(data: bytes, source: str) -> tuple[str, int, dict[int, Calibrat
         values = pw.doubles(cal, CALIB_INTRINSIC, source)
         calibrations[pw.integer(cal, CALIB_NAME, 0, source)] = _calibration(
             values[:4], pw.integer(cal, CALIB_WIDTH, 0, source),
-            pw.integer(cal, CALIB_HEIGHT, 0, source), dict(zip(DISTORTION, values[4:9])))
+            pw.integer(cal, CALIB_HEIGHT, 0, source), dict(zip(DISTORTION, values[4:9])),
+            f"{source} calibration of camera {pw.integer(cal, CALIB_NAME, 0, source)}")
     cameras = {pw.integer(im, IMAGE_NAME, 0, source)
                for im in pw.submessages(frame, FRAME_IMAGES, source)}
     return name, timestamp, calibrations, cameras
 
 
+def _nothing_to_do(path, count: int, what: str, selected: dict[int, str], present: set) -> InputError:
+    """The error for a dataset without any image of the selected cameras (as an empty folder is)."""
+    if not count:
+        return InputError(path, f"no {what} in it (an empty dataset: nothing to fog)")
+    names = {v: k for k, v in CAMERA_NAMES.items()}
+    found = ", ".join(names.get(c, str(c)) for c in sorted(present, key=str)) or "none"
+    return InputError(path, f"none of its {count} {what} has an image from camera(s) "
+                            f"{', '.join(selected.values())} (cameras present: {found}); choose "
+                            "others with --cameras")
+
+
 def waymo_v1_samples(path: str | os.PathLike, cameras: Iterable[str] = ("FRONT",),
                      depth_dir: str | os.PathLike | None = None,
-                     depth: DepthSpec = DEFAULT_DEPTH) -> list[Sample]:
+                     depth: DepthSpec = DEFAULT_DEPTH, verify: bool = True) -> list[Sample]:
     """Samples for the selected cameras of every Frame in a .tfrecord file or folder of them.
 
     Each record is read once here (image bytes are not kept); ``read_image`` re-reads it.
     ``depth`` is the template of every sample's :class:`DepthSpec` (its path is replaced).
+    ``verify``: check every record's data CRC (on both reads). Raises :class:`InputError`
+    when there is nothing to do: no frames, or no image of the selected cameras in any.
     """
     selected, depth_dir = camera_ids(cameras), _depth_dir(depth_dir)
-    samples = []
+    samples, frames, seen, listings = [], 0, set(), {}
     for file in _tfrecord_files(Path(path)):
         for i, (offset, length) in enumerate(index_tfrecord(file)):
             record = f"{file}#record {i}"
             name, timestamp, calibrations, present = _parse_frame(
-                read_record(file, offset, length, record), record)
+                read_record(file, offset, length, record, verify), record)
+            frames, seen = frames + 1, seen | present
             for camera, cam_name in selected.items():
                 if camera in present:
                     source = f"{record} {cam_name}"
-                    reader = TFRecordImage(str(file), offset, length, camera, source)
+                    reader = TFRecordImage(str(file), offset, length, camera, source, verify)
                     samples.append(_sample(name, timestamp, cam_name, source, reader,
-                                           calibrations.get(camera), depth_dir, depth))
+                                           calibrations.get(camera), depth_dir, depth, listings))
+    if not samples:
+        raise _nothing_to_do(path, frames, "frames", selected, seen)
     return _unique(samples)
 
 
@@ -240,11 +265,22 @@ def _v2_calibrations(folder: Path) -> dict[tuple[str, int], Calibration]:
         pf = _open_parquet(file, V2_CAL_KEYS + V2_CAL_PINHOLE + V2_CAL_SIZE)
         distortion = [c for c in V2_CAL_DISTORTION if c in pf.schema_arrow.names]
         cols = pf.read(columns=list(V2_CAL_KEYS + V2_CAL_PINHOLE + V2_CAL_SIZE) + distortion)
-        for row in cols.to_pylist():
+        for n, row in enumerate(cols.to_pylist()):
             calibrations[(row[V2_CAL_KEYS[0]], row[V2_CAL_KEYS[1]])] = _calibration(
                 [row[c] for c in V2_CAL_PINHOLE], *(row[c] for c in V2_CAL_SIZE),
-                {c.rsplit(".", 1)[1]: row[c] for c in distortion})
+                {c.rsplit(".", 1)[1]: row[c] for c in distortion}, f"{file}#row {n}")
     return calibrations
+
+
+def _v2_key(source: str, name, timestamp) -> None:
+    """Refuse a camera_image row whose key columns are null or of the wrong type."""
+    problems = []
+    if not isinstance(name, str) or not name:
+        problems.append(f"{V2_KEYS[0]} is {name!r}, not a segment name")
+    if not isinstance(timestamp, int) or isinstance(timestamp, bool) or timestamp < 0:
+        problems.append(f"{V2_KEYS[1]} is {timestamp!r}, not a timestamp in µs")
+    if problems:
+        raise InputError(source, f"malformed Waymo v2 key: {'; '.join(problems)}")
 
 
 def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",),
@@ -254,30 +290,39 @@ def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
 
     Only the key columns are read here; ``read_image`` reads the image column of one row
     group when called. Without ``camera_calibration/`` the samples have no intrinsics.
+    A row of a selected camera with a null or mistyped key is refused naming file and row;
+    no image of the selected cameras at all is an :class:`InputError` too.
     """
     selected, depth_dir, root = camera_ids(cameras), _depth_dir(depth_dir), Path(root)
     files = sorted((root / "camera_image").glob("*.parquet"))
     if not files:
         raise InputError(root, "no camera_image/*.parquet here (expected a Waymo v2 split folder)")
     calibrations = _v2_calibrations(root / "camera_calibration")
-    samples = []
+    samples, rows, seen, listings = [], 0, set(), {}
     for file in files:
         pf, start = _open_parquet(file, V2_KEYS + (V2_IMAGE,)), 0
         for group in range(pf.num_row_groups):
             keys = pf.read_row_group(group, columns=list(V2_KEYS)).to_pydict()
             for row, (name, timestamp, camera) in enumerate(zip(*(keys[k] for k in V2_KEYS))):
+                seen.add(camera)
                 if camera in selected:
                     source = f"{file}#row {start + row} {selected[camera]}"
+                    _v2_key(source, name, timestamp)
                     reader = ParquetImage(str(file), group, row, source)
                     samples.append(_sample(name, timestamp, selected[camera], source, reader,
-                                           calibrations.get((name, camera)), depth_dir, depth))
+                                           calibrations.get((name, camera)), depth_dir, depth, listings))
             start += len(keys[V2_KEYS[0]])
+        rows += start
+    if not samples:
+        raise _nothing_to_do(root, rows, "camera_image rows", selected, {c for c in seen if c is not None})
     return _unique(samples)
 
 
 def waymo_samples(path: str | os.PathLike, cameras: Iterable[str] = ("FRONT",),
                   depth_dir: str | os.PathLike | None = None,
-                  depth: DepthSpec = DEFAULT_DEPTH) -> list[Sample]:
-    """v2 when ``path`` is a folder with ``camera_image/``, else v1 TFRecord file(s)."""
-    reader = waymo_v2_samples if (Path(path) / "camera_image").is_dir() else waymo_v1_samples
-    return reader(path, cameras, depth_dir, depth)
+                  depth: DepthSpec = DEFAULT_DEPTH, verify: bool = True) -> list[Sample]:
+    """v2 when ``path`` is a folder with ``camera_image/``, else v1 TFRecord file(s) (whose
+    record CRCs are checked unless ``verify`` is false)."""
+    if (Path(path) / "camera_image").is_dir():
+        return waymo_v2_samples(path, cameras, depth_dir, depth)
+    return waymo_v1_samples(path, cameras, depth_dir, depth, verify)
