@@ -100,6 +100,16 @@ def _npy(name: str, array: np.ndarray):
     return _with(change)
 
 
+def _jpeg_truncated(base: Path):
+    from fogsim.fileio import encode_image, read_image
+
+    for name in ("a", "b"):
+        img = read_image(base / "images" / f"{name}.png")
+        (base / "images" / f"{name}.png").unlink()
+        data = encode_image(img, ".jpg")
+        (base / "images" / f"{name}.jpg").write_bytes(data[: len(data) // 2] if name == "a" else data)
+
+
 def _k(values: dict):
     return _with(lambda base: (base / "K.json").write_text(json.dumps(values)))
 
@@ -194,13 +204,65 @@ CASES = [
     Case("depth-exr-truncated", _truncate("depth/a.exr", 0.6), 1, ("a.exr",)),
     Case("depth-npy-3d", _npy("a", np.ones((H, W, 3), np.float32)), 1, ("a.npy", "single-channel")),
     Case("depth-npy-object", _npy("a", np.array([{"x": 1}], dtype=object)), 1, ("a.npy",)),
+    Case("image-png-truncated", _truncate("images/a.png", 0.6), 1, ("a.png",)),
+    Case("image-jpeg-truncated", _with(_jpeg_truncated), 1, ("a.jpg", "JPEG")),
+    Case("depth-npy-complex", _npy("a", np.ones((H, W), np.complex64)), 1, ("a.npy",)),
+    Case("airlight-word", _flags("--airlight", "white"), 2, ("--airlight",)),
+    Case("levels-huge-beta", _flags("--levels", "1e308"), 2, ("--levels",)),
+    Case("intrinsics-infinite-fx", _k({"fx": "Infinity", "fy": 30.0, "cx": 15.5, "cy": 11.5, "width": 32,
+                                       "height": 24}), 2, ("K.json",)),
+    Case("intrinsics-nan-cx", _write("K.json", b'{"fx": 30, "fy": 30, "cx": NaN, "cy": 11.5, "width": 32, '
+                                                b'"height": 24}'), 2, ("K.json",)),
+    Case("disparity-encoding-without-cityscapes", _flags("--depth-encoding", "disparity"), 2, ("--cityscapes",)),
+    Case("waymo-empty-tfrecord", lambda t: (good_folder(t), (t / "in" / "e.tfrecord").write_bytes(b""),
+                                            ["fog", "--waymo", str(t / "in" / "e.tfrecord"), "--depth-dir",
+                                             str(t / "in" / "depth"), "--out", str(t / "out")])[-1], 2,
+         ("e.tfrecord", "no frames")),
+    Case("waymo-garbage-tfrecord", lambda t: (good_folder(t), (t / "in" / "g.tfrecord").write_bytes(b"\x07" * 999),
+                                              ["fog", "--waymo", str(t / "in" / "g.tfrecord"), "--depth-dir",
+                                               str(t / "in" / "depth"), "--out", str(t / "out")])[-1], 2,
+         ("g.tfrecord",)),
+    Case("render-preset-unknown", _cmd("render", "--preset", "nope", "--out", "{tmp}/out"), 2, ("nope.json",)),
+    Case("render-resolution-malformed", _cmd("render", "--resolution", "abc", "--out", "{tmp}/out"), 2,
+         ("--resolution",)),
+    Case("study-dataset-missing", _cmd("study", "--dataset", "{tmp}/nods", "--out", "{tmp}/out"), 2,
+         ("nods", "dataset.json")),
+    Case("study-epochs-zero", _cmd("study", "--dataset", "{tmp}/in", "--epochs", "0", "--out", "{tmp}/out"), 2,
+         ("--epochs",)),
+    Case("demo-frames-zero", _cmd("demo", "--frames", "0", "--out", "{tmp}/out"), 2, ("--frames",)),
     Case("cityscapes-camera-missing-key", _cs({"intrinsic": {"fx": 40.0, "fy": 40.0, "u0": 19.5, "v0": 9.5}}), 1,
          ("_camera.json", "extrinsic")),
 ]
 
 
-@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+def _ila_checkpoint(kind: str):
+    def build(tmp: Path) -> list[str]:
+        base = good_folder(tmp)
+        ckpt = tmp / "in" / "ila.pt"
+        if kind == "random":
+            ckpt.write_bytes(np.random.default_rng(0).bytes(5000))
+        else:  # a pickle whose loading would run a command
+            ckpt.write_bytes(b"cos\nsystem\n(S'touch " + str(tmp / "PWNED").encode() + b"'\ntR.")
+        return ["ila", "predict", "--checkpoint", str(ckpt), "--input", str(base / "images"),
+                "--out", str(tmp / "out")]
+    return build
+
+
+ILA_CASES = [
+    Case("ila-checkpoint-random", _ila_checkpoint("random"), 2, ("ila.pt",)),
+    Case("ila-checkpoint-pickle-payload", _ila_checkpoint("payload"), 2, ("ila.pt",)),
+    Case("ila-train-epochs-zero", _cmd("ila", "train", "--data", "{tmp}/in", "--epochs", "0", "--out", "{tmp}/out"),
+         2, ("--epochs",)),
+    Case("ila-train-size-malformed", _cmd("ila", "train", "--data", "{tmp}/in", "--size", "abc", "--out",
+                                          "{tmp}/out"), 2, ("--size",)),
+]
+CASES += [pytest.param(c, id=c.id, marks=pytest.mark.torch) for c in ILA_CASES]
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.id if isinstance(c, Case) else None for c in CASES])
 def test_hostile_case(case: Case, tmp_path, capsys, monkeypatch):
+    if case.id.startswith("ila-"):
+        pytest.importorskip("torch")
     monkeypatch.chdir(tmp_path)  # a relative or empty --out lands here, never in the checkout
     argv = [a.replace("{tmp}", str(tmp_path)) for a in case.build(tmp_path)]
     capsys.readouterr()
@@ -218,12 +280,14 @@ def test_hostile_case(case: Case, tmp_path, capsys, monkeypatch):
     outputs = [p for p in tmp_path.rglob("*") if p.is_file() and p.relative_to(tmp_path).parts[0] != "in"]
     left = [p for p in tmp_path.rglob(f"*{PART_SUFFIX}")] + [p for p in outputs if p.stat().st_size == 0]
     assert not left, f"partial files left: {left}"
+    assert not (tmp_path / "PWNED").exists(), "a checkpoint ran code"
     if case.code == 2 and case.id != "out-holds-another-run":
         assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir()), "a usage error wrote output"
 
 
 def test_at_least_forty_cases():
-    assert len(CASES) >= 40 and len({c.id for c in CASES}) == len(CASES)
+    ids = [c.id if isinstance(c, Case) else c.id for c in CASES]
+    assert len(ids) >= 40 and len(set(ids)) == len(ids)
 
 
 def test_a_good_run_passes_the_same_checks(tmp_path):
