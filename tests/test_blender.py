@@ -215,6 +215,67 @@ def test_bad_preset_file_and_unwritable_output(tmp_path):
     assert res.returncode == 2 and "file" in res.stderr
 
 
+def test_setup_error_claims_nothing_and_the_corrected_rerun_works(tmp_path):
+    """#11: a bad inline style is a setup error found before the dataset folder is claimed
+    (exit 2 naming the preset, no render_run.json), so the corrected preset renders into it."""
+    preset = tmp_path / "mine.json"
+    default = json.loads((ROOT / "fogsim" / "presets" / "default.json").read_text())
+    style = json.loads((ROOT / "fogsim" / "presets" / "styles" / "urban-canyon.json").read_text())
+    out = tmp_path / "ds"
+    for bad in ({"lanes_per_direction": "two"}, style | {"lanes_per_direction": "two"}, "../cameras/waymo-front"):
+        preset.write_text(json.dumps(default | {"style": bad}))
+        res = render_dataset("bpy", out, "--frames", "1", "--preset", str(preset))
+        assert res.returncode == 2, res.stdout[-2000:] + res.stderr[-2000:]
+        assert f"{preset}: " in res.stderr and "Traceback" not in res.stderr
+        assert not (out / "render_run.json").exists()
+    preset.write_text(json.dumps(default | {"style": style | {"lanes_per_direction": 3}}))
+    res = render_dataset("bpy", out, "--frames", "1", "--preset", str(preset))
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "rendered 1 frames" in res.stdout and (out / "meta" / "000000.json").is_file()
+    assert json.loads((out / "meta" / "000000.json").read_text())["scene"]["street"]["lanes"] == 3
+
+
+@slow
+def test_killed_render_leaves_no_temp_files(tmp_path):
+    """#18: Cycles' EXR is written inside OUT (never the system temp folder), and a resumed run
+    removes what a kill left there: the hidden .part files of unfinished writes (labels/, images/,
+    meta/ …) and the temporary EXR; none of them ever counts as an output."""
+    systmp = tmp_path / "systmp"
+    systmp.mkdir()
+    out = tmp_path / "ds"
+    env = dict(os.environ, TMPDIR=str(systmp))
+    cmd = runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(out), *TINY, "--frames", "3")
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 300
+    try:  # kill during frame 1: once Cycles' file for it exists, in the system temp folder or in OUT
+        while time.time() < deadline and proc.poll() is None:
+            if (out / "meta" / "000000.json").exists() and (list(systmp.glob("fogsim_render_*"))
+                                                            or (out / ".fogsim_tmp").is_dir()):
+                break
+            time.sleep(0.002)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.wait()
+    assert not (out / "meta" / "000002.json").exists(), "the kill came too late to interrupt the run"
+    assert not list(systmp.glob("fogsim_render_*")), "Cycles' EXR was written to the system temp folder"
+    # what a kill at an unlucky moment leaves: a part file of each kind of output, a temporary EXR
+    stale = [out / "labels" / "clear" / ".000001.txt.k1ll3d_a.part",
+             out / "images" / "beta0.06" / ".000001.png.k1ll3d_b.part",
+             out / "depth" / ".000001.exr.k1ll3d_c.part", out / "meta" / ".000001.json.k1ll3d_d.part",
+             out / "coco" / ".clear.json.k1ll3d_e.part", out / ".fogsim_tmp" / "000001.left.exr"]
+    for p in stale:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(b"half written")
+    res = run(cmd, env=env)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "rendered" in res.stdout and "(0 already done" not in res.stdout
+    assert sorted(p.stem for p in (out / "meta").glob("*.json")) == ["000000", "000001", "000002"]
+    assert not list(out.rglob("*.part")) and not (out / ".fogsim_tmp").exists()
+    assert not list(systmp.glob("fogsim_render_*"))
+    coco = json.loads((out / "coco" / "clear.json").read_text())
+    assert len(coco["images"]) == 3  # the dataset files list real frames only
+
+
 @pytest.mark.parametrize("kind", KINDS)
 def test_addon_registers_builds_and_renders_through_ops(kind, tmp_path):
     res = run(runner(kind)(SCRIPTS / "addon_ops.py", str(tmp_path / "ds")))

@@ -230,6 +230,82 @@ def test_driver_bad_input_names_the_problem(dataset, tmp_path):
     assert r.returncode == 2 and "prediction files are missing" in r.stderr
 
 
+@pytest.mark.parametrize("manifest", [{"levels": "oops"}, [1, 2], {"levels": [{"name": "clear"}]},
+                                      {"levels": [{"key": "../x"}]}])
+def test_driver_malformed_dataset_json_is_one_line(tmp_path, manifest):
+    """#19: a dataset.json of the wrong shape → one line naming it, exit 2 (not a TypeError traceback)."""
+    fake = tmp_path / "fake"
+    fake.mkdir()
+    (fake / "dataset.json").write_text(json.dumps(manifest))
+    r = driver("--out", tmp_path / "s", "--dataset", fake)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert f"{fake / 'dataset.json'}: malformed" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_driver_malformed_coco_file_is_one_line(dataset, tmp_path):
+    import shutil
+
+    ds = tmp_path / "ds"
+    shutil.copytree(dataset, ds)
+    (ds / "coco" / "beta0.06.json").write_text(json.dumps({"images": "oops", "annotations": []}))
+    r = driver("--out", tmp_path / "s", "--dataset", ds)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert f"{ds / 'coco' / 'beta0.06.json'}: malformed COCO file" in r.stderr
+
+
+def test_driver_names_a_missing_dataset_image_before_training(dataset, tmp_path):
+    """#19: a validation image deleted from the dataset is named as the dataset's file (not
+    Ultralytics' link under OUT/yolo), before any training and before study.json."""
+    import shutil
+
+    ds = tmp_path / "ds"
+    shutil.copytree(dataset, ds)
+    frame = (ds / "splits" / "beta0.06_val.txt").read_text().split()[1]
+    gone = ds / "images" / "beta0.06" / Path(frame).name
+    gone.unlink()
+    out = tmp_path / "s"
+    r = driver("--out", out, "--dataset", ds, *TINY, timeout=600)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert r.stderr.strip() == (f"fogsim: error: {gone}: missing from the dataset: its split lists or COCO files "
+                                "name it; restore it, or rebuild the lists with fogsim render --finalize-only")
+    assert not (out / "study.json").exists() and not (out / "runs").exists()
+
+
+def test_ultralytics_errors_become_one_line_naming_the_model(tmp_path, monkeypatch):
+    """#19: whatever Ultralytics raises while training or predicting → FogsimError (exit 1)
+    'training <model> failed: …' on one line; Ctrl-C passes unchanged."""
+    import fogsim.detection.yolo as detect
+    from fogsim.errors import FogsimError, exit_code
+
+    raised = [ValueError("\x1b[31mbatch size 2 is\ntoo large\x1b[0m for 1 image")]
+
+    class FakeYOLO:
+        def __init__(self, model):
+            pass
+
+        def train(self, **kw):
+            raise raised[0]
+
+        def predict(self, paths, **kw):
+            raise RuntimeError("CUDA out of memory.\nTried to allocate")
+
+    monkeypatch.setattr(detect, "load_ultralytics", lambda config_dir: type("U", (), {"YOLO": FakeYOLO}))
+    monkeypatch.setattr(detect, "resolve_device", lambda device: "cpu")
+    with pytest.raises(FogsimError) as err:
+        detect.train("beta0.06", tmp_path / "data.yaml", tmp_path / "runs", TrainConfig(), tmp_path)
+    assert str(err.value) == "training beta0.06 failed: ValueError: batch size 2 is too large for 1 image"
+    assert exit_code(err.value) == 1
+    raised[0] = KeyboardInterrupt()
+    with pytest.raises(KeyboardInterrupt):
+        detect.train("beta0.06", tmp_path / "data.yaml", tmp_path / "runs", TrainConfig(), tmp_path)
+    image = tmp_path / "images" / "a.png"
+    image.parent.mkdir()
+    image.write_bytes(b"")
+    gt = {"images": [{"id": 1, "file_name": "images/a.png"}], "annotations": []}
+    with pytest.raises(FogsimError, match="^prediction with w.pt failed: RuntimeError: CUDA out of memory. Tried"):
+        detect.predict(Path("w.pt"), gt, tmp_path, TrainConfig(), tmp_path)
+
+
 # --- a real training (needs the 'detect' extra) ---------------------------------------------------
 
 TINY = ("--epochs", "1", "--imgsz", "64", "--batch", "4", "--workers", "0", "--device", "cpu", "--no-plots",
@@ -240,6 +316,20 @@ def _need_detect_extra():
     # not imported here: Ultralytics writes settings on import
     if importlib.util.find_spec("ultralytics") is None or importlib.util.find_spec("pycocotools") is None:
         pytest.skip("the 'detect' extra (Ultralytics, pycocotools) is not installed")
+
+
+@pytest.mark.detect
+def test_real_ultralytics_failure_is_one_line_exit_1(tmp_path):
+    """#19: Ultralytics refusing the data (every training image of one level undecodable:
+    'No valid images found') ends the study with one line naming the model, exit 1."""
+    _need_detect_extra()
+    ds = make_dataset(tmp_path / "ds3", frames=3)
+    for frame in (ds / "splits" / "clear_train.txt").read_text().split():
+        (ds / "images" / "clear" / Path(frame).name).write_bytes(b"not a png")
+    r = driver("--out", tmp_path / "s", "--dataset", ds, "--imgsz", "32", "--batch", "2", *TINY[:2], *TINY[6:])
+    assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr[-3000:]
+    last = r.stderr.strip().splitlines()[-1]
+    assert last.startswith("fogsim: error: training clear failed: RuntimeError: No valid images found"), last
 
 
 @pytest.mark.detect

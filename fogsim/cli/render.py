@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from fogsim.errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE, InputError, MissingDependency
+from fogsim.render.preset import MAX_PIXELS
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -26,6 +27,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--frames", type=int, help="number of frames (overrides the preset)")
     p.add_argument("--seed", type=int, help="dataset seed (overrides the preset)")
     p.add_argument("--resolution", help="WxH, e.g. 640x426 (intrinsics scale with it)")
+    p.add_argument("--max-pixels", type=int, default=MAX_PIXELS,
+                   help=f"refuse a render of more pixels than this, width × height (default {MAX_PIXELS:,}, "
+                        "about 8192×4883; Blender's own limit is 65536 px a side)")
     p.add_argument("--samples", type=int, help="Cycles samples (overrides the quality preset)")
     p.add_argument("--levels", help="fog levels: preset name or comma-separated β (overrides the preset)")
     p.add_argument("--stereo", action="store_true",
@@ -68,7 +72,7 @@ def cmd_render(args) -> int:
     check_output(args.out, {"--preset": preset_file})
     config = load_render_preset(args.preset, frames=args.frames, seed=args.seed, train_fraction=args.train_fraction,
                                 resolution=args.resolution, samples=args.samples, levels=args.levels,
-                                stereo=True if args.stereo else None)
+                                stereo=True if args.stereo else None, max_pixels=args.max_pixels)
     shard = parse_shard(args.shard)
     require_bpy()
     from fogsim.render.blender.job import RUN_FILE, RenderJob

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.camera import StereoCamera
-from fogsim.dataset.layout import DatasetLayout
+from fogsim.dataset.layout import PARTS, DatasetLayout
 from fogsim.errors import InputError
 from fogsim.fileio import read_depth_file, read_image, read_json
 from fogsim.readers.cityscapes import read_cityscapes_depth
@@ -30,10 +30,23 @@ def dataset_levels(dataset: str | Path | DatasetLayout) -> list[str]:
     if not manifest.is_file():
         raise InputError(layout.root, "not a fogsim dataset (no dataset.json): render one with "
                                       "scripts/render_batch.py or pass --render")
-    levels = [lv["key"] for lv in read_json(manifest).get("levels", [])]
+    data = read_json(manifest)
+    records = data.get("levels") if isinstance(data, dict) else None
+    if not isinstance(records, list) or not all(isinstance(lv, dict) and isinstance(lv.get("key"), str)
+                                                 and lv["key"] for lv in records):
+        raise InputError(manifest, "malformed fogsim dataset manifest: 'levels' must be a list of "
+                                   "{\"key\": …} records (rewrite it with fogsim render --finalize-only)")
+    levels = [lv["key"] for lv in records]
     if not levels:
         raise InputError(manifest, "lists no fog levels")
+    if len(set(levels)) != len(levels) or any(not _safe_key(k) for k in levels):
+        raise InputError(manifest, f"malformed fog level keys {levels} (unique names without '/' or '..')")
     return levels
+
+
+def _safe_key(key: str) -> bool:
+    """A level key is a folder name under images/ and labels/: no path of its own."""
+    return "/" not in key and "\\" not in key and key not in (".", "..")
 
 
 def read_split(dataset: str | Path | DatasetLayout, level: str, part: str) -> list[str]:
@@ -42,7 +55,11 @@ def read_split(dataset: str | Path | DatasetLayout, level: str, part: str) -> li
     path = as_layout(dataset).split_file(level, part)
     if not path.is_file():
         raise InputError(path, "missing split list: run scripts/render_batch.py --finalize-only")
-    frames = [Path(line.strip()).stem for line in path.read_text().splitlines() if line.strip()]
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, f"unreadable split list ({exc})") from None
+    frames = [Path(line.strip()).stem for line in text.splitlines() if line.strip()]
     if not frames:
         raise InputError(path, "split list is empty")
     return frames
@@ -56,9 +73,26 @@ def val_ground_truth(dataset: str | Path | DatasetLayout, level: str) -> dict:
         raise InputError(path, "missing COCO ground truth: run scripts/render_batch.py --finalize-only")
     gt = read_json(path)
     val = set(read_split(layout, level, "val"))
-    images = [im for im in gt["images"] if Path(im["file_name"]).stem in val]
-    ids = {im["id"] for im in images}
-    return {**gt, "images": images, "annotations": [a for a in gt["annotations"] if a["image_id"] in ids]}
+    try:
+        images = [im for im in gt["images"] if Path(im["file_name"]).stem in val]
+        ids = {im["id"] for im in images}
+        annotations = [a for a in gt["annotations"] if a["image_id"] in ids]
+    except (KeyError, TypeError, AttributeError) as exc:
+        raise InputError(path, f"malformed COCO file ({type(exc).__name__}: {exc}): rewrite it with "
+                               "fogsim render --finalize-only") from None
+    return {**gt, "images": images, "annotations": annotations}
+
+
+def missing_files(dataset: str | Path | DatasetLayout, levels: list[str]) -> list[Path]:
+    """The images and labels every split list of ``levels`` names that are not in the dataset
+    (a training run needs all of them; Ultralytics would name its own links, not these)."""
+    layout = as_layout(dataset)
+    missing = []
+    for lv in levels:
+        for part in PARTS:
+            for frame in read_split(layout, lv, part):
+                missing += [p for p in (layout.image(lv, frame), layout.label(lv, frame)) if not p.is_file()]
+    return missing
 
 
 # --- frames ---------------------------------------------------------------------------------------

@@ -33,7 +33,7 @@ from tqdm import tqdm
 
 from fogsim.detection.table import cross_density, heatmap, markdown, write_report
 from fogsim.dataset.layout import MIXED_MODEL, DatasetLayout
-from fogsim.dataset.reader import dataset_levels, read_split, val_ground_truth
+from fogsim.dataset.reader import dataset_levels, missing_files, read_split, val_ground_truth
 from fogsim.detection.yolo import TrainConfig, check_model, predict, train, training_view
 from fogsim.runs import claim_output
 from fogsim.errors import InputError
@@ -92,6 +92,7 @@ class Study:
     def run_models(self, shard: tuple[int, int] = (0, 1), progress: bool = True) -> None:
         """Train every model of this shard and predict with it on every level (resumable)."""
         gts = self.ground_truth()
+        self.check_files(gts)  # a missing image named in the dataset, not as Ultralytics' link to it
         mine = self.models[shard[0]::shard[1]]
         if any(not (self.out / "runs" / m / "fogsim_done.json").is_file() for m in mine):
             check_model(self.cfg.model, self.config_dir)  # before study.json: a typo must not lock OUT
@@ -105,6 +106,18 @@ class Study:
                 path = self.prediction(name, lv)
                 if not path.is_file():
                     write_json(path, predict(best, gts[lv], self.dataset, self.cfg, self.config_dir))
+
+    def check_files(self, gts: dict) -> None:
+        """Every image and label the split lists and the COCO files name must be in the dataset,
+        before training starts (Ultralytics would fail mid-study naming its links under OUT/yolo)."""
+        missing = missing_files(self.layout, self.levels)
+        missing += [p for lv in self.levels for im in gts[lv]["images"]
+                    if not (p := self.dataset / im["file_name"]).is_file()]
+        missing = list(dict.fromkeys(missing))  # a validation image is in both
+        if missing:
+            more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+            raise InputError(missing[0], f"missing from the dataset{more}: its split lists or COCO files name "
+                                         "it; restore it, or rebuild the lists with fogsim render --finalize-only")
 
     def missing_predictions(self) -> list[Path]:
         return [self.prediction(m, lv) for m in self.models for lv in self.levels

@@ -19,6 +19,7 @@ import os
 import re
 import shutil
 import time
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -167,23 +168,42 @@ def train(name: str, data_file: Path, runs: Path, cfg: TrainConfig, config_dir: 
     device = resolve_device(cfg.device)
     if last.is_file() and _resumable(last):
         state = "resumed"
-        ultralytics.YOLO(str(last)).train(resume=True, data=str(data_file), save_dir=str(run), device=device,
-                                          workers=cfg.workers)
+        with _failure(f"training {name} failed"):
+            ultralytics.YOLO(str(last)).train(resume=True, data=str(data_file), save_dir=str(run), device=device,
+                                              workers=cfg.workers)
     elif last.is_file():
         state = "finished earlier"  # its last epoch was saved, the marker was not
     else:
         shutil.rmtree(run, ignore_errors=True)  # a start that saved no weights: begin again
-        ultralytics.YOLO(cfg.model).train(
-            data=str(data_file), epochs=cfg.epochs_for(name), imgsz=cfg.imgsz, batch=cfg.batch,
-            nbs=cfg.nbs or cfg.batch, device=device, workers=cfg.workers, seed=cfg.seed, deterministic=True,
-            patience=cfg.patience, cache="ram" if cfg.cache else False, plots=cfg.plots,
-            pretrained=False, amp=False, project=str(run.parent), name=name, exist_ok=True)
+        with _failure(f"training {name} failed"):
+            ultralytics.YOLO(cfg.model).train(
+                data=str(data_file), epochs=cfg.epochs_for(name), imgsz=cfg.imgsz, batch=cfg.batch,
+                nbs=cfg.nbs or cfg.batch, device=device, workers=cfg.workers, seed=cfg.seed, deterministic=True,
+                patience=cfg.patience, cache="ram" if cfg.cache else False, plots=cfg.plots,
+                pretrained=False, amp=False, project=str(run.parent), name=name, exist_ok=True)
     if not best.is_file():
         raise FogsimError(f"{run}: Ultralytics finished without writing weights/best.pt")
     write_json(done, {"model": name, "data": str(data_file), "config": asdict(cfg),
                       "ultralytics": ultralytics.__version__, "state": state,
                       "seconds_this_run": round(time.perf_counter() - started, 1)})
     return best
+
+
+ANSI = re.compile(r"\x1b\[[0-9;]*m")  # Ultralytics colours its messages
+
+
+@contextmanager
+def _failure(what: str):
+    """An error inside Ultralytics (ValueError, RuntimeError … from its data loader, trainer or
+    predictor) → one line ``what: Type: message`` (a FogsimError: exit 1), no traceback. Our own
+    errors and Ctrl-C pass unchanged."""
+    try:
+        yield
+    except FogsimError:
+        raise
+    except Exception as exc:
+        message = " ".join(ANSI.sub("", str(exc)).split())  # Ultralytics' messages span lines, in colour
+        raise FogsimError(f"{what}: {type(exc).__name__}: {message}") from None
 
 
 def _resumable(checkpoint: Path) -> bool:
@@ -213,7 +233,9 @@ def predict(weights: Path, gt: dict, image_root: Path, cfg: TrainConfig, config_
     ``conf``/``iou`` are Ultralytics' validation defaults (a low threshold for AP); ``max_det``
     is COCO's maxDets.
     """
-    model = load_ultralytics(config_dir).YOLO(str(weights))
+    ultralytics = load_ultralytics(config_dir)
+    with _failure(f"loading {weights} failed"):
+        model = ultralytics.YOLO(str(weights))
     device = resolve_device(cfg.device)
     images = gt["images"]
     out = []
@@ -223,11 +245,12 @@ def predict(weights: Path, gt: dict, image_root: Path, cfg: TrainConfig, config_
         for path in paths:
             if not path.is_file():
                 raise InputError(path, "validation image listed in the COCO file is missing")
-        results = model.predict([str(p) for p in paths], imgsz=cfg.imgsz, conf=conf, iou=iou, max_det=max_det,
-                                device=device, verbose=False, stream=True)
-        for im, res in zip(batch, results):
-            boxes = res.boxes
-            for xyxy, score, cls in zip(boxes.xyxy.tolist(), boxes.conf.tolist(), boxes.cls.tolist()):
-                out.append({"image_id": im["id"], "category_id": coco_category(int(cls)),
-                            "score": round(float(score), 5), "bbox": [round(v, 2) for v in xyxy_to_xywh(xyxy)]})
+        with _failure(f"prediction with {weights} failed"):
+            results = model.predict([str(p) for p in paths], imgsz=cfg.imgsz, conf=conf, iou=iou,
+                                    max_det=max_det, device=device, verbose=False, stream=True)
+            for im, res in zip(batch, results):
+                boxes = res.boxes
+                for xyxy, score, cls in zip(boxes.xyxy.tolist(), boxes.conf.tolist(), boxes.cls.tolist()):
+                    out.append({"image_id": im["id"], "category_id": coco_category(int(cls)), "score":
+                                round(float(score), 5), "bbox": [round(v, 2) for v in xyxy_to_xywh(xyxy)]})
     return out

@@ -7,12 +7,15 @@ user's own preset.
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from fogsim.errors import InputError
 
 ROOT = Path(__file__).resolve().parent
 COMPONENTS = ("styles", "cameras", "quality", "fog")
+#: What a component name may hold: a name, never a path (no '/', '..', '.json').
+NAME = re.compile(r"[A-Za-z0-9_-]+")
 
 
 def presets_dir() -> Path:
@@ -26,12 +29,27 @@ def names(kind: str | None = None) -> list[str]:
     return sorted(p.stem for p in folder.glob("*.json"))
 
 
+def _what(kind: str) -> str:
+    return {"styles": "style", "cameras": "camera", "fog": "fog preset"}.get(kind, kind)
+
+
+def check_component_name(name: str, kind: str) -> str:
+    """``name`` if it can name a bundled component (letters, digits, '-', '_'), else ValueError."""
+    if not isinstance(name, str) or not NAME.fullmatch(name):
+        raise ValueError(f"{_what(kind)} name {name!r} may hold only letters, digits, '-' and '_' "
+                         f"(bundled: {', '.join(names(kind))})")
+    return name
+
+
 def component_path(kind: str, name: str, source) -> Path:
-    """The bundled component ``kind/name.json``; an unknown name is an error naming ``source``."""
+    """The bundled component ``kind/name.json``; a bad or unknown name is an error naming ``source``."""
+    try:
+        check_component_name(name, kind)
+    except ValueError as exc:
+        raise InputError(source, str(exc)) from None
     path = ROOT / kind / f"{name}.json"
     if not path.is_file():
-        what = {"styles": "style", "cameras": "camera", "fog": "fog preset"}.get(kind, kind)
-        raise InputError(source, f"unknown {what} {name!r} (known: {', '.join(names(kind))})")
+        raise InputError(source, f"unknown {_what(kind)} {name!r} (known: {', '.join(names(kind))})")
     return path
 
 

@@ -16,6 +16,7 @@ from fogsim.camera import Intrinsics, StereoCamera, encode_disparity_png, planar
 from fogsim.colour import linear_to_srgb8
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import frame_split, write_frame_labels
+from fogsim.errors import InputError
 from fogsim.fog.model import Fogger
 from fogsim.fileio import write_depth, write_image, write_json
 from fogsim.render.labels import object_records
@@ -36,6 +37,18 @@ def describe_frame(config: RenderConfig, index: int) -> dict:
     """The scene description of frame ``index`` (same config and index → same scene)."""
     s = frame_seed(config.seed, index)
     return sample_scene(np.random.default_rng(s), config.style, config.camera, config.resolution, seed=s)
+
+
+def check_scene(config: RenderConfig, index: int = 0) -> None:
+    """Describe frame ``index`` before any output is written: a preset the scene layout cannot
+    use is a setup error naming the preset (exit 2), not a failure of every frame after the
+    dataset folder was claimed. (:func:`fogsim.render.preset.load_render_preset` checks every
+    key already; this is the net under it.)"""
+    try:
+        describe_frame(config, index)
+    except Exception as exc:  # whatever the layout trips over is the preset's problem
+        raise InputError(config.source, f"cannot build a scene from this preset "
+                                        f"({type(exc).__name__}: {exc})") from None
 
 
 def scene_meshes(desc: dict) -> dict[int, list]:

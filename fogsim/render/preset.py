@@ -2,11 +2,20 @@
 
 ``presets/<name>.json`` refers to components by name — ``presets/styles/<style>.json``,
 ``presets/cameras/<camera>.json``, ``presets/quality/<quality>.json``, ``presets/fog/<fog>.json``
-(or an inline list of β) — so a preset is short and its parts are shared. Command-line
-overrides (frames, seed, resolution, samples, levels) are applied on top.
+(or an inline list of β) — so a preset is short and its parts are shared. A component may
+also be given inline (a JSON object instead of the name). Command-line overrides (frames,
+seed, resolution, samples, levels) are applied on top.
+
+Everything is checked when the preset is loaded, before any output folder is touched: every
+key of the preset and of its components (type and range: an integer is an integer — 2.9
+frames is refused, not truncated), component names (letters, digits, ``-`` and ``_``: never a
+path), and the render size against :data:`MAX_PIXELS`. A problem in the preset is an
+:class:`~fogsim.errors.InputError` naming the preset file and the key; a bad override is a
+``ValueError`` naming the flag.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -14,10 +23,21 @@ from fogsim import presets
 from fogsim.errors import InputError
 from fogsim.fileio import read_json
 from fogsim.fog.levels import FogLevel, parse_levels
-from fogsim.presets import preset_path
+from fogsim.presets import check_component_name, preset_path
 
 KEYS = {"name", "description", "version", "style", "camera", "resolution", "quality", "fog",
         "fog_model", "labels", "exposure", "frames", "seed", "stereo", "train_fraction"}
+
+#: Default bound on the render size, width × height (about 8192 × 4883; the Waymo front camera
+#: is 2.5 MP). A frame's arrays, its fog levels and Cycles' buffers grow with it; raise it with
+#: ``--max-pixels`` (``max_pixels=``) when a larger render is meant.
+MAX_PIXELS = 40_000_000
+#: Blender's own limit on each side of a render (not raisable).
+MAX_SIDE = 65536
+MIN_SIDE = 8
+#: Cycles' limit on samples per pixel.
+MAX_SAMPLES = 1 << 24
+VEHICLES = ("car", "van", "truck", "bus")
 
 
 @dataclass(frozen=True)
@@ -45,36 +65,177 @@ class RenderConfig:
                 "stereo_baseline_m": self.stereo_baseline, "train_fraction": self.train_fraction}
 
 
-def _component(kind: str, value, source: Path) -> dict:
-    """An inline component (a dict) or the bundled one of that name."""
+# ----------------------------------------------------------------------------- value checks
+# Each returns the value (integers as int) or raises ValueError naming ``key``, e.g.
+# "style.lane_width must be a number > 0, got '3.4'".
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _bounds(v, key: str, what: str, lo=None, hi=None, lo_open: bool = False):
+    low_bad = lo is not None and (v <= lo if lo_open else v < lo)
+    if low_bad or (hi is not None and v > hi):
+        fmt = lambda x: str(x) if isinstance(x, int) else f"{x:g}"  # noqa: E731
+        if lo is not None and hi is not None:
+            rng = f"in {'(' if lo_open else '['}{fmt(lo)}, {fmt(hi)}]"
+        elif lo is not None:
+            rng = f"{'>' if lo_open else '≥'} {fmt(lo)}"
+        else:
+            rng = f"≤ {fmt(hi)}"
+        raise ValueError(f"{key} must be {what} {rng}, got {v!r}")
+    return v
+
+
+def _int(v, key: str, lo=None, hi=None) -> int:
+    if not _is_number(v) or not math.isfinite(v) or v != int(v):
+        raise ValueError(f"{key} must be an integer, got {v!r}")
+    return _bounds(int(v), key, "an integer", lo, hi)
+
+
+def _num(v, key: str, lo=None, hi=None, lo_open: bool = False):
+    if not _is_number(v) or not math.isfinite(v):
+        raise ValueError(f"{key} must be a finite number, got {v!r}")
+    return _bounds(v, key, "a number", lo, hi, lo_open)
+
+
+def _prob(v, key: str):
+    return _num(v, key, 0, 1)
+
+
+def _range(v, key: str, check=_num, **bounds) -> list:
+    """A ``[low, high]`` pair with low ≤ high, each checked by ``check``."""
+    if not isinstance(v, (list, tuple)) or len(v) != 2:
+        raise ValueError(f"{key} must be a [low, high] pair, got {v!r}")
+    lo, hi = (check(x, f"{key}[{i}]", **bounds) for i, x in enumerate(v))
+    if lo > hi:
+        raise ValueError(f"{key} must be [low, high] with low ≤ high, got {v!r}")
+    return [lo, hi]
+
+
+def _str(v, key: str) -> str:
+    if not isinstance(v, str):
+        raise ValueError(f"{key} must be a string, got {v!r}")
+    return v
+
+
+def _bool(v, key: str) -> bool:
+    if not isinstance(v, bool):
+        raise ValueError(f"{key} must be true or false, got {v!r}")
+    return v
+
+
+def _choice(v, key: str, choices) -> str:
+    if v not in choices:
+        raise ValueError(f"{key} must be one of {', '.join(choices)}, got {v!r}")
+    return v
+
+
+def _object(d, key: str, required: dict, optional: dict) -> dict:
+    """Check a JSON object key by key: ``required``/``optional`` map a key to its check."""
+    if not isinstance(d, dict):
+        raise ValueError(f"{key} must be a JSON object, got {d!r}")
+    unknown = set(d) - set(required) - set(optional)
+    if unknown:
+        raise ValueError(f"unknown {key} keys {sorted(unknown)} (allowed: {sorted({*required, *optional})})")
+    checks = {**required, **optional}
+    checked = {k: checks[k](v, f"{key}.{k}") for k, v in d.items()}  # what is there first, then what is not
+    missing = [k for k in required if k not in d]
+    if missing:
+        raise ValueError(f"{key} lacks {', '.join(repr(k) for k in missing)}")
+    return checked
+
+
+_META = {"version": lambda v, k: _int(v, k, 0), "description": _str}
+
+
+def check_style(style) -> dict:
+    """A street style (``presets/styles/*.json``), every key the layout reads."""
+    length = lambda v, k: _num(v, k, 1, 1000)  # noqa: E731  (m; bounds the number of objects)
+    spacing = lambda v, k: v if _is_number(v) and v == 0 else _num(v, k, 1, 1000)  # noqa: E731  (0 = none)
+    count = lambda v, k: _range(v, k, _int, lo=0, hi=1000)  # noqa: E731
+    metres = lambda v, k: _range(v, k, lo=0, hi=1000)  # noqa: E731
+    size = lambda v, k: _range(v, k, lo=1, hi=1000)  # noqa: E731  (buildings: ≥ 1 m)
+    s = _object(style, "style", {
+        "name": _str, "lanes_per_direction": lambda v, k: _int(v, k, 1, 16),
+        "lane_width": lambda v, k: _num(v, k, 0.5, 20), "parking_width": lambda v, k: _num(v, k, 0, 20),
+        "sidewalk_width": metres, "setback": metres, "building_height": size, "building_width": size,
+        "building_depth": size, "building_gap": _prob, "street_length": length, "parked_probability": _prob,
+        "driving": count, "pedestrians": count, "cyclists": count, "pole_spacing": spacing,
+        "tree_spacing": spacing, "signs": count, "crosswalk_probability": _prob,
+        "vehicle_mix": _vehicle_mix, "sun_elevation_deg": lambda v, k: _range(v, k, lo=-90, hi=90),
+    }, _META)
+    return s
+
+
+def _vehicle_mix(v, key: str) -> dict:
+    mix = _object(v, key, {}, {kind: lambda x, k: _num(x, k, 0) for kind in VEHICLES})
+    if not sum(mix.values()) > 0:
+        raise ValueError(f"{key} must give some vehicle kind ({', '.join(VEHICLES)}) a weight > 0, got {v!r}")
+    return mix
+
+
+def check_camera(camera) -> dict:
+    """A camera (``presets/cameras/*.json``): size, focal length (``fx`` px or ``hfov_deg``), mount."""
+    side = lambda v, k: _int(v, k, MIN_SIDE, MAX_SIDE)  # noqa: E731
+    c = _object(camera, "camera", {
+        "name": _str, "width": side, "height": side, "height_m": lambda v, k: _num(v, k, 0, 100, lo_open=True),
+        "pitch_deg": lambda v, k: _range(v, k, lo=-90, hi=90), "yaw_deg": lambda v, k: _range(v, k, lo=-180, hi=180),
+        "roll_deg": lambda v, k: _range(v, k, lo=-180, hi=180),
+    }, {**_META, "fx": lambda v, k: _num(v, k, 0, lo_open=True),
+        "hfov_deg": lambda v, k: _num(v, k, 0, 179, lo_open=True),
+        "stereo_baseline_m": lambda v, k: _num(v, k, 0, lo_open=True)})
+    if ("fx" in c) == ("hfov_deg" in c):
+        raise ValueError("camera needs exactly one of 'fx' (pixels at its width) and 'hfov_deg'")
+    return c
+
+
+def check_quality(quality) -> dict:
+    """A render quality (``presets/quality/*.json``): what :func:`fogsim.render.blender.cycles.configure` reads."""
+    bounce = lambda v, k: _int(v, k, 0, 1024)  # noqa: E731  (Blender's limit)
+    return _object(quality, "quality", {}, {
+        **_META, "name": _str, "samples": lambda v, k: _int(v, k, 1, MAX_SAMPLES),
+        "adaptive_threshold": lambda v, k: _num(v, k, 0, 1), "denoise": _bool,
+        "denoise_quality": lambda v, k: _choice(v, k, ("HIGH", "BALANCED", "FAST")),
+        "denoise_prefilter": lambda v, k: _choice(v, k, ("ACCURATE", "FAST", "NONE")),
+        "bounces": lambda v, k: _object(v, k, {}, {b: bounce for b in
+                                                   ("total", "diffuse", "glossy", "transmission", "transparent")}),
+    })
+
+
+COMPONENT_CHECKS = {"styles": check_style, "cameras": check_camera, "quality": check_quality}
+
+
+def _component(kind: str, value, key: str, source: Path) -> dict:
+    """An inline component (a JSON object) or the bundled one of that name, checked key by key."""
     if isinstance(value, dict):
-        return value
-    return read_json(presets.component_path(kind, value, source))
+        return COMPONENT_CHECKS[kind](value)
+    if not isinstance(value, str):
+        raise ValueError(f"{key} must be a bundled {key} name or an inline JSON object, got {value!r}")
+    return COMPONENT_CHECKS[kind](read_json(presets.component_path(kind, value, source)))
 
 
-def _stereo_baseline(spec, camera: dict, override: bool | None, source: Path) -> float | None:
+def _stereo_baseline(spec, camera: dict, override: bool | None) -> float | None:
     """Baseline in metres from the preset's ``stereo`` ({"baseline_m": …} or true = the
     camera's ``stereo_baseline_m``, else Cityscapes' 0.209 m); ``override`` forces it on/off."""
+    if spec is not None and not isinstance(spec, (bool, dict)):
+        raise ValueError(f"stereo must be true, false or {{\"baseline_m\": …}}, got {spec!r}")
+    if isinstance(spec, dict):
+        spec = _object(spec, "stereo", {}, {"baseline_m": lambda v, k: _num(v, k, 0, lo_open=True)})
     on = bool(spec) if override is None else override
     if not on:
         return None
     b = spec.get("baseline_m") if isinstance(spec, dict) else None
-    b = float(b if b is not None else camera.get("stereo_baseline_m", 0.209))
-    if not b > 0:
-        raise InputError(source, f"stereo baseline must be > 0 m, got {b}")
-    return b
-
-
-def _positive(value, name: str) -> float:
-    v = float(value)
-    if not v > 0:
-        raise ValueError(f"{name} must be > 0, got {value}")
-    return v
+    return float(b if b is not None else camera.get("stereo_baseline_m", 0.209))
 
 
 def _resolution(value) -> tuple[int, int]:
-    w, h = (int(v) for v in value)
-    if w < 8 or h < 8:
+    if isinstance(value, str):
+        raise ValueError(f"resolution must be a [width, height] list of integers, e.g. [640, 426], got {value!r}")
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise ValueError(f"resolution must be a [width, height] list of integers, got {value!r}")
+    w, h = (_int(v, f"resolution[{i}]") for i, v in enumerate(value))
+    if w < MIN_SIDE or h < MIN_SIDE:
         raise ValueError(f"resolution must be at least 8×8 pixels, got {w}×{h}")
     return w, h
 
@@ -84,16 +245,39 @@ def parse_resolution(text: str) -> tuple[int, int]:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise ValueError(f"--resolution must look like 640x426, got {text!r}") from None
-    if w < 8 or h < 8:
+    if w < MIN_SIDE or h < MIN_SIDE:
         raise ValueError(f"--resolution {text}: at least 8×8 pixels")
     return w, h
+
+
+def check_size(w: int, h: int, max_pixels: int) -> str | None:
+    """Why a ``w``×``h`` render is refused (Blender's side limit, ``max_pixels``), or None."""
+    if w > MAX_SIDE or h > MAX_SIDE:
+        return f"{w}×{h} is larger than Blender renders ({MAX_SIDE} px a side)"
+    if w * h > max_pixels:
+        return (f"{w}×{h} = {w * h / 1e6:.1f} MP is above the limit of {max_pixels / 1e6:g} MP "
+                f"(--max-pixels {max_pixels}); raise --max-pixels to render it")
+    return None
+
+
+def _fog(value) -> list[FogLevel]:
+    """The preset's ``fog``: a bundled fog preset's name or a list of β (1/m; 0 or "clear" = clear)."""
+    if isinstance(value, str):
+        check_component_name(value, "fog")
+        return parse_levels(value)
+    if not isinstance(value, list) or not value:
+        raise ValueError(f"fog must be a fog preset name or a non-empty list of β, got {value!r}")
+    items = [v if v == "clear" else _num(v, f"fog[{i}]") for i, v in enumerate(value)]  # parse_levels: ≥ 0
+    return parse_levels(",".join(str(x) for x in items))
 
 
 def load_render_preset(name_or_path: str | None = None, *, frames: int | None = None,
                        seed: int | None = None, resolution: str | None = None,
                        samples: int | None = None, levels: str | None = None,
-                       stereo: bool | None = None, train_fraction: float | None = None) -> RenderConfig:
-    """Read a dataset preset and apply overrides; every problem names the preset file."""
+                       stereo: bool | None = None, train_fraction: float | None = None,
+                       max_pixels: int = MAX_PIXELS) -> RenderConfig:
+    """Read a dataset preset, check all of it and apply overrides; every problem of the
+    preset names the preset file (and the key), every bad override its flag."""
     path = preset_path(name_or_path)
     if not path.is_file():
         raise InputError(path, "preset not found")
@@ -107,40 +291,60 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
         if key not in d:
             raise InputError(path, f"preset lacks {key!r}")
     # command-line overrides: their errors are usage errors, not the preset's
+    max_pixels = _int(max_pixels, "--max-pixels", MIN_SIDE * MIN_SIDE)
     res_override = parse_resolution(resolution) if resolution else None
-    if samples is not None and samples < 1:
-        raise ValueError(f"--samples must be ≥ 1, got {samples}")
+    if res_override and (why := check_size(*res_override, max_pixels)):
+        raise ValueError(f"--resolution {why}")
+    if frames is not None:
+        frames = _int(frames, "--frames", 1)
+    if seed is not None:
+        seed = _int(seed, "--seed", 0)
+    if samples is not None:
+        samples = _int(samples, "--samples", 1, MAX_SAMPLES)
     lv_override = parse_levels(levels) if levels is not None else None
-    if train_fraction is not None and not 0 < train_fraction < 1:
+    if train_fraction is not None and not (_is_number(train_fraction) and 0 < train_fraction < 1):
         raise ValueError(f"--train-fraction must be between 0 and 1, got {train_fraction}")
     try:
-        quality = dict(_component("quality", d["quality"], path))
+        quality = dict(_component("quality", d["quality"], "quality", path))
         if samples is not None:
             quality["samples"] = samples
-        camera = _component("cameras", d["camera"], path)
-        res = res_override or _resolution(d.get("resolution") or (camera["width"], camera["height"]))
-        fog = d.get("fog", "paper")
-        baseline = _stereo_baseline(d.get("stereo"), camera, stereo, path)
-        lv = lv_override or parse_levels(",".join(str(x) for x in fog) if isinstance(fog, list) else str(fog))
+        camera = _component("cameras", d["camera"], "camera", path)
+        style = _component("styles", d["style"], "style", path)
+        res = res_override or _resolution(d["resolution"] if d.get("resolution") is not None
+                                          else (camera["width"], camera["height"]))
+        if not res_override and (why := check_size(*res, max_pixels)):
+            raise InputError(path, f"resolution {why}")
+        baseline = _stereo_baseline(d.get("stereo"), camera, stereo)
+        lv = lv_override or _fog(d.get("fog", "paper"))
+        fog_model = d.get("fog_model", {})
+        labels = d.get("labels", {})
+        for key, value in (("fog_model", fog_model), ("labels", labels)):
+            if not isinstance(value, dict):
+                raise ValueError(f"{key} must be a JSON object, got {value!r}")
         cfg = RenderConfig(
-            name=str(d.get("name", path.stem)), source=str(path),
-            style=_component("styles", d["style"], path), camera=camera,
-            resolution=(int(res[0]), int(res[1])), quality=quality, levels=tuple(lv),
-            fog_model=dict(d.get("fog_model", {})), labels=dict(d.get("labels", {})),
-            exposure=_positive(d.get("exposure", 1.0), "exposure"),
-            frames=int(frames if frames is not None else d.get("frames", 8)),
-            seed=int(seed if seed is not None else d.get("seed", 0)), stereo_baseline=baseline,
-            train_fraction=float(train_fraction if train_fraction is not None else d.get("train_fraction", 0.8)))
+            name=_str(d.get("name", path.stem), "name"), source=str(path),
+            style=style, camera=camera, resolution=res, quality=quality, levels=tuple(lv),
+            fog_model=dict(fog_model), labels=dict(labels),
+            exposure=_num(d.get("exposure", 1.0), "exposure", 0, lo_open=True),
+            frames=frames if frames is not None else _int(d.get("frames", 8), "frames", 1),
+            seed=seed if seed is not None else _int(d.get("seed", 0), "seed", 0), stereo_baseline=baseline,
+            train_fraction=(train_fraction if train_fraction is not None
+                            else _num(d.get("train_fraction", 0.8), "train_fraction")))
+        for key, check in _META.items():
+            if key in d:
+                check(d[key], key)
         if not 0 < cfg.train_fraction < 1:
             raise ValueError(f"train_fraction must be between 0 and 1, got {cfg.train_fraction}")
         fog_settings(cfg)  # fail now, naming the preset, not after the first render
         _check_labels(cfg.labels)
         if any(lv.key == "all" for lv in cfg.levels):
             raise ValueError("a fog level may not be keyed 'all' (the name of the mixed split)")
+    except InputError as exc:
+        if exc.source == str(path):
+            raise
+        raise InputError(path, f"malformed preset ({exc})") from None  # e.g. a bad bundled fog preset
     except (TypeError, KeyError, IndexError, ValueError) as exc:
         raise InputError(path, f"malformed preset ({exc})") from None
-    if cfg.frames < 1:
-        raise ValueError(f"--frames must be ≥ 1, got {cfg.frames}")
     return cfg
 
 
@@ -153,10 +357,15 @@ def fog_settings(config: RenderConfig) -> dict:
     if unknown:
         raise ValueError(f"unknown fog_model keys {sorted(unknown)}")
     kernel = None
-    if m.get("extended"):
-        kernel = Kernel(m.get("kernel", "box"), int(m.get("kernel_size", 19)), float(m.get("sigma", 5.0)),
-                        float(m.get("eps", 1e-3)))
+    if _bool(m.get("extended", False), "fog_model.extended"):
+        kernel = Kernel(_str(m.get("kernel", "box"), "fog_model.kernel"),
+                        _int(m.get("kernel_size", 19), "fog_model.kernel_size", 1, 4095),
+                        float(_num(m.get("sigma", 5.0), "fog_model.sigma")),
+                        float(_num(m.get("eps", 1e-3), "fog_model.eps")))
     airlight = m.get("airlight", 255)
+    if not (_is_number(airlight) or (isinstance(airlight, list) and len(airlight) == 3
+                                     and all(_is_number(a) for a in airlight))):
+        raise ValueError(f"fog_model.airlight must be a number or [R, G, B] in [0, 255], got {airlight!r}")
     airlight_rgb(airlight)  # validates: a number or R,G,B in [0, 255]
     space = m.get("space", "srgb")
     if space not in SPACES:
@@ -168,5 +377,7 @@ def _check_labels(labels: dict) -> None:
     unknown = set(labels) - {"min_pixels", "min_visible_fraction"}
     if unknown:
         raise ValueError(f"unknown labels keys {sorted(unknown)}")
-    if int(labels.get("min_pixels", 25)) < 1 or not 0 <= float(labels.get("min_visible_fraction", 0.1)) <= 1:
-        raise ValueError("labels: min_pixels must be ≥ 1 and min_visible_fraction in [0, 1]")
+    if "min_pixels" in labels:
+        _int(labels["min_pixels"], "labels.min_pixels", 1)
+    if "min_visible_fraction" in labels:
+        _prob(labels["min_visible_fraction"], "labels.min_visible_fraction")

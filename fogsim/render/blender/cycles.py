@@ -70,17 +70,28 @@ def _pick(channels: dict, names: list):
     raise KeyError(f"render output lacks {names}; it has {sorted(channels)}")
 
 
-def render(scene) -> RenderPasses:
-    """Render ``scene`` to a temporary multilayer EXR and return its passes."""
-    fd, path = tempfile.mkstemp(prefix="fogsim_render_", suffix=".exr")
-    os.close(fd)
+def render(scene, exr_path: str | os.PathLike | None = None) -> RenderPasses:
+    """Render ``scene`` to a temporary multilayer EXR and return its passes.
+
+    ``exr_path``: where Cycles writes that file (removed once read). A render job gives a path
+    in its dataset folder (:data:`fogsim.render.leftovers.TMP_DIR`), so a kill during Cycles
+    leaves it where the resumed job removes it; without one (or when the path holds a '#',
+    Blender's frame-number placeholder) it goes to the system temp folder.
+    """
+    path = None if exr_path is None else os.path.abspath(exr_path)
+    if path is None or "#" in path:  # Blender would put frame numbers in place of '#'
+        fd, path = tempfile.mkstemp(prefix="fogsim_render_", suffix=".exr")
+        os.close(fd)
+    else:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
     try:
         scene.render.filepath = path
         scene.render.use_file_extension = False
         bpy.ops.render.render(write_still=True, scene=scene.name)
         ch = read_exr(path)
     finally:
-        os.unlink(path)
+        if os.path.exists(path):
+            os.unlink(path)
     depth = _pick(ch, PASS_CHANNELS["depth"]).astype(np.float32)
     depth[depth >= NO_HIT_DEPTH] = np.inf
     index = np.rint(_pick(ch, PASS_CHANNELS["index"])).astype(np.uint16)

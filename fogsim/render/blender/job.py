@@ -2,6 +2,11 @@
 
 :class:`RenderJob` renders one frame per :meth:`RenderJob.step`, so the batch script can
 loop and the add-on's modal operator can step from a timer (progress bar, cancel).
+
+Before the dataset folder is claimed (``render_run.json``) the first frame's scene is
+described, so a preset the layout cannot use is a setup error, not a failure of every frame.
+Cycles writes into ``OUT/.fogsim_tmp``; a starting job removes what a killed one left of its
+own frames there and beside the outputs (:mod:`fogsim.render.leftovers`).
 """
 from __future__ import annotations
 
@@ -11,7 +16,9 @@ from pathlib import Path
 import bpy
 
 from fogsim.dataset.writer import DatasetLayout, finalize
-from fogsim.render.frame import commit_frame, describe_frame, frame_name, scene_meshes
+from fogsim.render.frame import check_scene, commit_frame, describe_frame, frame_name, scene_meshes
+from fogsim.render.leftovers import (remove_dataset_leftovers, remove_frame_leftovers, remove_render_tmp,
+                                     render_tmp_dir)
 from fogsim.deps import package_versions
 from fogsim.render.preset import RenderConfig
 from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
@@ -48,12 +55,16 @@ class RenderJob:
     def __init__(self, config: RenderConfig, out: str | Path, shard: tuple[int, int] = (0, 1),
                  resume: bool = True, gpu: bool = False):
         self.config, self.layout, self.gpu = config, DatasetLayout(out), gpu
+        i, n = shard
+        mine = [k for k in range(config.frames) if k % n == i]
+        if mine:  # a preset the layout cannot use must not claim the folder (setup error, exit 2)
+            check_scene(config, mine[0])
         Path(out).mkdir(parents=True, exist_ok=True)
         claim_output(Path(out) / RUN_FILE, dataset_parameters(config),
                      {"blender": bpy.app.version_string, "config": config.to_dict()},
                      what="dataset", legacy=_legacy_parameters)
-        i, n = shard
-        mine = [k for k in range(config.frames) if k % n == i]
+        self.mine = {frame_name(k) for k in mine}
+        remove_frame_leftovers(self.layout, self.mine)  # of a killed run: .part files, Cycles' EXR
         self.todo = [k for k in mine if not (resume and self.layout.frame_done(frame_name(k)))]
         self.skipped = len(mine) - len(self.todo)
         self.done: list[dict] = []
@@ -70,12 +81,14 @@ class RenderJob:
         built = scene_build.build(desc, self.scene, meshes)
         t2 = time.perf_counter()
         right = None
+        tmp = render_tmp_dir(self.layout)
+        name = frame_name(index)
         try:
-            passes = render(self.scene)
+            passes = render(self.scene, tmp / f"{name}.left.exr")
             if self.config.stereo_baseline:  # the right camera of a rectified pair, same scene
                 w2c = right_world_to_camera(desc["camera"]["world_to_camera"], self.config.stereo_baseline)
                 scene_build.set_camera_pose(self.scene, w2c)
-                right = render(self.scene).rgb_linear
+                right = render(self.scene, tmp / f"{name}.right.exr").rgb_linear
         finally:
             scene_build.clear(built)
         t3 = time.perf_counter()
@@ -93,9 +106,12 @@ class RenderJob:
                     "frame_seeds": {f: frame_seed(self.config.seed, int(f)) for f in frames},
                     "frame_seed_rule": FRAME_SEED_RULE,
                     "blender": bpy.app.version_string, "versions": package_versions()}
+        remove_dataset_leftovers(self.layout)  # .part files of a finalize that was killed
         finalize(self.layout, self.config.levels, manifest, self.config.train_fraction, seed=self.config.seed)
 
     def close(self) -> None:
+        """Remove the scene and this job's temporary renders (the folder too, once empty)."""
+        remove_render_tmp(self.layout, self.mine)
         if self.scene is not None and self.scene.name in bpy.data.scenes and len(bpy.data.scenes) > 1:
             bpy.data.scenes.remove(self.scene)
         self.scene = None

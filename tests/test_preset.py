@@ -1,0 +1,184 @@
+"""Render presets are checked in full when loaded — before any output folder is touched — and a
+killed render's leftovers are found and removed by frame. No Blender: the checks are pure, and
+``fogsim render`` loads the preset before it needs bpy."""
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from fogsim.dataset.layout import DatasetLayout
+from fogsim.errors import InputError
+from fogsim.presets import presets_dir
+from fogsim.render.preset import load_render_preset
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT = json.loads((presets_dir() / "default.json").read_text())
+STYLE = json.loads((presets_dir() / "styles" / "urban-canyon.json").read_text())
+CAMERA = json.loads((presets_dir() / "cameras" / "waymo-front.json").read_text())
+
+
+def preset_file(tmp_path, change: dict, name: str = "bad.json"):
+    path = tmp_path / name
+    path.write_text(json.dumps(DEFAULT | change))
+    return path
+
+
+@pytest.mark.parametrize("change, key", [
+    # the trial's cases (#20, #11): inline components with wrong types, names that are paths
+    ({"style": {"lanes_per_direction": "two"}}, "style.lanes_per_direction must be an integer, got 'two'"),
+    ({"style": {"lanes_per_direction": 2}}, "style lacks 'name', 'lane_width'"),
+    ({"style": STYLE | {"lanes_per_direction": "two"}}, "style.lanes_per_direction must be an integer, got 'two'"),
+    ({"quality": {"samples": -4}}, "quality.samples must be an integer in [1,"),
+    ({"seed": 1.7}, "seed must be an integer, got 1.7"),
+    ({"frames": 2.9}, "frames must be an integer, got 2.9"),
+    ({"resolution": "640x426"}, "resolution must be a [width, height] list of integers, e.g. [640, 426]"),
+    # more wrong types and ranges in style / camera / quality values
+    ({"style": STYLE | {"lane_width": "3.4"}}, "style.lane_width must be a finite number"),
+    ({"style": STYLE | {"driving": [12, 4]}}, "style.driving must be [low, high] with low ≤ high"),
+    ({"style": STYLE | {"pedestrians": [1.5, 3]}}, "style.pedestrians[0] must be an integer"),
+    ({"style": STYLE | {"vehicle_mix": {"tank": 1.0}}}, "unknown style.vehicle_mix keys ['tank']"),
+    ({"style": STYLE | {"crosswalk_probability": 2}}, "style.crosswalk_probability must be a number in [0, 1]"),
+    ({"style": STYLE | {"street_length": 1e9}}, "style.street_length must be a number in [1, 1000]"),
+    ({"style": STYLE | {"lane_widht": 3.0}}, "unknown style keys ['lane_widht']"),
+    ({"camera": CAMERA | {"height_m": "2.1"}}, "camera.height_m must be a finite number"),
+    ({"camera": CAMERA | {"hfov_deg": 0}}, "camera.hfov_deg must be a number in (0, 179]"),
+    ({"camera": CAMERA | {"fx": 2000.0}}, "exactly one of 'fx'"),
+    ({"camera": CAMERA | {"width": 1920.5}}, "camera.width must be an integer"),
+    ({"quality": {"samples": 8, "denoise": "yes"}}, "quality.denoise must be true or false"),
+    ({"quality": {"bounces": {"total": -1}}}, "quality.bounces.total must be an integer in [0, 1024]"),
+    ({"quality": 5}, "quality must be a bundled quality name or an inline JSON object"),
+    ({"resolution": [640.5, 426]}, "resolution[0] must be an integer"),
+    ({"stereo": "yes"}, "stereo must be true, false or"),
+    ({"stereo": {"baseline_m": -1}}, "stereo.baseline_m must be a number > 0"),
+    ({"fog_model": {"extended": True, "kernel_size": 19.5}}, "fog_model.kernel_size must be an integer"),
+    ({"fog_model": {"extended": "yes"}}, "fog_model.extended must be true or false"),
+    ({"labels": {"min_pixels": 2.5}}, "labels.min_pixels must be an integer"),
+    ({"exposure": True}, "exposure must be a finite number"),
+    ({"fog": ["0.03"]}, "fog[0] must be a finite number"),
+    ({"frames": 0}, "frames must be an integer ≥ 1"),
+    ({"seed": -1}, "seed must be an integer ≥ 0"),
+])
+def test_wrong_types_and_ranges_name_the_preset_and_the_key(tmp_path, change, key):
+    with pytest.raises(InputError) as err:
+        load_render_preset(str(preset_file(tmp_path, change)))
+    assert str(err.value).startswith(f"{tmp_path / 'bad.json'}: ")
+    assert key in str(err.value)
+
+
+@pytest.mark.parametrize("key, name", [
+    ("style", "../cameras/waymo-front"), ("camera", "waymo-front/../../styles/arterial"),
+    ("quality", "draft.json"), ("fog", "../fog/paper"), ("fog", "/etc/passwd.json"),
+])
+def test_component_names_are_never_paths(tmp_path, key, name):
+    with pytest.raises(InputError, match="may hold only letters, digits, '-' and '_'") as err:
+        load_render_preset(str(preset_file(tmp_path, {key: name})))
+    assert "bad.json" in str(err.value)
+
+
+def test_integers_are_integers_not_truncated(tmp_path):
+    cfg = load_render_preset(str(preset_file(tmp_path, {"frames": 3.0, "seed": 7.0})))
+    assert (cfg.frames, cfg.seed) == (3, 7) and type(cfg.frames) is int and type(cfg.seed) is int
+    for flag, kw in (("--frames", {"frames": 2.9}), ("--frames", {"frames": 0}), ("--seed", {"seed": 1.7}),
+                     ("--seed", {"seed": -1}), ("--samples", {"samples": 0}), ("--samples", {"samples": -4})):
+        with pytest.raises(ValueError, match=flag):
+            load_render_preset("default", **kw)
+
+
+def test_validation_keeps_the_bundled_presets_as_written():
+    """The checked components equal the files: a dataset rendered before keeps its parameters."""
+    for name in ("default", "suburban", "arterial", "cityscapes-stereo"):
+        raw = json.loads((presets_dir() / f"{name}.json").read_text())
+        cfg = load_render_preset(name)
+        assert cfg.style == json.loads((presets_dir() / "styles" / f"{raw['style']}.json").read_text())
+        assert cfg.camera == json.loads((presets_dir() / "cameras" / f"{raw['camera']}.json").read_text())
+        assert cfg.quality == json.loads((presets_dir() / "quality" / f"{raw['quality']}.json").read_text())
+        assert cfg.resolution == tuple(raw["resolution"])
+
+
+# --- #21: an upper bound on the render size ------------------------------------------------------
+def test_resolution_above_the_bound_is_refused_naming_the_flag(tmp_path):
+    from fogsim.render.preset import MAX_PIXELS
+
+    assert MAX_PIXELS == 40_000_000
+    with pytest.raises(ValueError, match=r"--resolution 9000×9000 = 81.0 MP is above the limit of 40 MP.*--max-pixels"):
+        load_render_preset("default", resolution="9000x9000")
+    with pytest.raises(ValueError, match="--resolution 100000×100000 is larger than Blender renders"):
+        load_render_preset("default", resolution="100000x100000", max_pixels=10**12)
+    assert load_render_preset("default", resolution="9000x9000", max_pixels=90_000_000).resolution == (9000, 9000)
+    with pytest.raises(InputError, match=r"bad.json: resolution 9000×9000 .*raise --max-pixels"):
+        load_render_preset(str(preset_file(tmp_path, {"resolution": [9000, 9000]})))
+    with pytest.raises(ValueError, match="--max-pixels"):
+        load_render_preset("default", max_pixels=0)
+
+
+def fogsim(*args, timeout=120):
+    """``fogsim …`` in a process of its own (a render that is not refused would take minutes)."""
+    try:
+        return subprocess.run([sys.executable, "-m", "fogsim", *map(str, args)], capture_output=True, text=True,
+                              timeout=timeout, cwd=ROOT)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"fogsim {' '.join(map(str, args))} was not refused: still running after {timeout} s")
+
+
+def test_render_refuses_before_anything_is_written(tmp_path):
+    """``fogsim render`` with a setup error: exit 2, one line naming the flag or preset, no
+    folder (#21, #11). The preset is loaded before bpy is needed, so this runs without Blender."""
+    out = tmp_path / "o"
+    r = fogsim("render", "--out", out, "--frames", "1", "--resolution", "100000x100000", "--samples", "1")
+    assert r.returncode == 2 and "--resolution 100000×100000" in r.stderr, r.stderr[-2000:]
+    assert len(r.stderr.strip().splitlines()) == 1
+    r = fogsim("render", "--out", out, "--frames", "1", "--resolution", "9000x9000", "--samples", "1")
+    assert r.returncode == 2 and "--max-pixels" in r.stderr, r.stderr[-2000:]
+    bad = preset_file(tmp_path, {"style": {"lanes_per_direction": "two"}})
+    r = fogsim("render", "--out", out, "--frames", "1", "--preset", bad)
+    assert r.returncode == 2 and f"{bad}: malformed preset" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert not out.exists()
+
+
+# --- #11: the scene of the first frame is described before the folder is claimed ---------------
+def test_check_scene_names_the_preset_when_the_layout_fails():
+    from fogsim.render.frame import check_scene
+
+    cfg = load_render_preset("default")
+    check_scene(cfg)
+    broken = dataclasses.replace(cfg, style={k: v for k, v in cfg.style.items() if k != "lane_width"})
+    with pytest.raises(InputError, match=r"default.json: cannot build a scene from this preset \(KeyError"):
+        check_scene(broken)
+
+
+# --- #18: leftovers of a killed render ------------------------------------------------------------
+def test_leftovers_of_a_killed_render_are_removed_by_frame(tmp_path):
+    from fogsim.render.leftovers import (TMP_DIR, part_target, remove_dataset_leftovers, remove_frame_leftovers,
+                                         remove_render_tmp)
+
+    layout = DatasetLayout(tmp_path / "ds")
+    real = [layout.image("clear", "000001"), layout.label("beta0.06", "000001"), layout.depth("000001"),
+            layout.meta("000000"), layout.coco("clear")]
+    mine = [layout.labels_dir("clear") / ".000001.txt.ab12cd_x.part",
+            layout.images_dir("beta0.06") / ".000001.png.q9w8e7r6.part",
+            layout.root / "depth" / ".000001.exr.zzzzzzzz.part", layout.meta_dir() / ".000001.json.a1b2c3d4.part",
+            layout.cityscapes("disparity", "000001", "train").with_name(".000001_disparity.png.k2j3h4g5.part"),
+            layout.root / TMP_DIR / "000001.left.exr"]
+    others = [layout.labels_dir("clear") / ".000002.txt.ab12cd_x.part",  # another shard's frame, maybe in flight
+              layout.root / TMP_DIR / "000002.left.exr"]
+    dataset_wide = [layout.root / "coco" / ".clear.json.abcdefgh.part", layout.root / ".dataset.json.abcdefgh.part",
+                    layout.root / "splits" / ".all_val.txt.abcdefgh.part"]
+    for p in real + mine + others + dataset_wide:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(b"x")
+    assert layout.done_frames() == ["000000"]  # a part file never counts as an output
+    assert part_target(".000001.txt.ab12cd_x.part") == "000001.txt" and part_target("000001.txt") is None
+    assert sorted(remove_frame_leftovers(layout, {"000001", "000003"})) == sorted(mine)
+    assert all(p.exists() for p in real + others + dataset_wide) and not any(p.exists() for p in mine)
+    assert sorted(remove_dataset_leftovers(layout)) == sorted(dataset_wide)
+    remove_render_tmp(layout, {"000001"})
+    assert (layout.root / TMP_DIR).is_dir()  # another shard's render is still in it
+    remove_render_tmp(layout, {"000002"})
+    assert not (layout.root / TMP_DIR).exists()
+    assert all(p.exists() for p in real)
+    assert [p.name for p in layout.root.rglob("*.part")] == [".000002.txt.ab12cd_x.part"]
+    assert os.listdir(layout.root / "meta") == ["000000.json"]
