@@ -105,7 +105,6 @@ def _report(bar, source: str, exc: BaseException) -> str:
 
 def _ila_predict(args) -> int:
     """Planar depth for every image; an unreadable image is named and skipped (exit 1 at the end)."""
-    from tqdm import tqdm
 
     from fogsim.depth.ila import load_model, predict_depth
     from fogsim.fileio import read_image, write_depth
@@ -114,24 +113,17 @@ def _ila_predict(args) -> int:
     model, config, camera = load_model(args.checkpoint)  # checked before anything is written
     samples = folder_samples(args.input, None)
     Path(args.out).mkdir(parents=True, exist_ok=True)  # an unwritable --out is a setup error
-    failed = []
-    with tqdm(samples, unit="img", disable=args.quiet, desc="ILA depth") as bar:
-        for s in bar:
-            try:
-                depth = predict_depth(model, config, camera, read_image(s.source))
-                write_depth(Path(args.out) / f"{s.key}.exr", depth)  # atomic: never half-written
-            except Exception as exc:  # keep going, as fogsim fog
-                failed.append(_report(bar, s.source, exc))
-    done = len(samples) - len(failed)
-    print(f"predicted planar depth (metres, EXR) for {done} of {len(samples)} images"
-          f"{f' ({len(failed)} failed)' if failed else ''} → {args.out}")
-    return EXIT_FAILED if failed else EXIT_OK
+
+    def predict(s):
+        depth = predict_depth(model, config, camera, read_image(s.source))
+        write_depth(Path(args.out) / f"{s.key}.exr", depth)  # atomic: never half-written
+
+    return _each(samples, predict, "ILA depth", "predicted planar depth (metres, EXR) for", args)
 
 
 def _ila_fill(args) -> int:
     """Holes (p = 0) of each disparity map → the ILA prediction; valid pixels are kept.
     A frame that cannot be read is named and skipped (exit 1 at the end)."""
-    from tqdm import tqdm
 
     from fogsim.camera import depth_to_disparity, encode_disparity_png
     from fogsim.depth.fill import fill_holes, register_fill
@@ -143,18 +135,29 @@ def _ila_fill(args) -> int:
     samples = cityscapes_samples(args.data, args.split)
     Path(args.out).mkdir(parents=True, exist_ok=True)
     register_fill("ila", fill)
+
+    def fill_one(s):
+        depth, cam = read_cityscapes_depth(s.depth.path, s.depth.camera_path)
+        filled = fill_holes(depth, "ila", read_image(s.source))
+        rel = Path(s.depth.path).relative_to(Path(args.data))
+        disparity = depth_to_disparity(filled, cam.baseline, cam.intrinsics.fx)
+        write_image(Path(args.out) / rel, encode_disparity_png(disparity))  # atomic
+
+    return _each(samples, fill_one, "ILA fill", "filled the disparity holes of", args)
+
+
+def _each(samples, work, desc: str, summary: str, args) -> int:
+    """``work(sample)`` for every sample with a progress bar; a failure is named and skipped, as
+    in ``fogsim fog``, and makes the exit code 1."""
+    from tqdm import tqdm
+
     failed = []
-    with tqdm(samples, unit="img", disable=args.quiet, desc="ILA fill") as bar:
+    with tqdm(samples, unit="img", disable=args.quiet, desc=desc) as bar:
         for s in bar:
             try:
-                depth, cam = read_cityscapes_depth(s.depth.path, s.depth.camera_path)
-                filled = fill_holes(depth, "ila", read_image(s.source))
-                rel = Path(s.depth.path).relative_to(Path(args.data))
-                disparity = depth_to_disparity(filled, cam.baseline, cam.intrinsics.fx)
-                write_image(Path(args.out) / rel, encode_disparity_png(disparity))  # atomic
+                work(s)
             except Exception as exc:  # keep going, as fogsim fog
                 failed.append(_report(bar, s.source, exc))
     done = len(samples) - len(failed)
-    print(f"filled the disparity holes of {done} of {len(samples)} images"
-          f"{f' ({len(failed)} failed)' if failed else ''} → {args.out}")
+    print(f"{summary} {done} of {len(samples)} images{f' ({len(failed)} failed)' if failed else ''} → {args.out}")
     return EXIT_FAILED if failed else EXIT_OK
