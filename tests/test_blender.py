@@ -258,11 +258,15 @@ def test_killed_render_leaves_no_temp_files(tmp_path):
         proc.wait()
     assert not (out / "meta" / "000002.json").exists(), "the kill came too late to interrupt the run"
     assert not list(systmp.glob("fogsim_render_*")), "Cycles' EXR was written to the system temp folder"
-    # what a kill at an unlucky moment leaves: a part file of each kind of output, a temporary EXR
-    stale = [out / "labels" / "clear" / ".000001.txt.k1ll3d_a.part",
-             out / "images" / "beta0.06" / ".000001.png.k1ll3d_b.part",
-             out / "depth" / ".000001.exr.k1ll3d_c.part", out / "meta" / ".000001.json.k1ll3d_d.part",
-             out / "coco" / ".clear.json.k1ll3d_e.part", out / ".fogsim_tmp" / "000001.left.exr"]
+    # what a kill at an unlucky moment leaves: a part file of each kind of output (named after the
+    # killed writer, as fogsim.fileio names them), a temporary EXR
+    from fogsim.fileio import _HOST
+
+    w = f"{_HOST}-{proc.pid}"
+    stale = [out / "labels" / "clear" / f".000001.txt.{w}.k1ll3d_a.part",
+             out / "images" / "beta0.06" / f".000001.png.{w}.k1ll3d_b.part",
+             out / "depth" / f".000001.exr.{w}.k1ll3d_c.part", out / "meta" / f".000001.json.{w}.k1ll3d_d.part",
+             out / "coco" / f".clear.json.{w}.k1ll3d_e.part", out / ".fogsim_tmp" / "000001.left.exr"]
     for p in stale:
         p.parent.mkdir(parents=True, exist_ok=True)
         p.write_bytes(b"half written")

@@ -151,34 +151,37 @@ def test_check_scene_names_the_preset_when_the_layout_fails():
 
 
 # --- #18: leftovers of a killed render ------------------------------------------------------------
-def test_leftovers_of_a_killed_render_are_removed_by_frame(tmp_path):
-    from fogsim.render.leftovers import (TMP_DIR, part_target, remove_dataset_leftovers, remove_frame_leftovers,
-                                         remove_render_tmp)
+def test_leftovers_of_a_killed_render_are_removed(tmp_path):
+    import subprocess
+    import sys
 
+    from fogsim.fileio import _HOST, remove_stale_parts
+    from fogsim.render.leftovers import TMP_DIR, remove_render_tmp
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()  # a writer that is gone
+    gone, running = f"{_HOST}-{dead.pid}", f"{_HOST}-{os.getpid()}"
     layout = DatasetLayout(tmp_path / "ds")
     real = [layout.image("clear", "000001"), layout.label("beta0.06", "000001"), layout.depth("000001"),
             layout.meta("000000"), layout.coco("clear")]
-    mine = [layout.labels_dir("clear") / ".000001.txt.ab12cd_x.part",
-            layout.images_dir("beta0.06") / ".000001.png.q9w8e7r6.part",
-            layout.root / "depth" / ".000001.exr.zzzzzzzz.part", layout.meta_dir() / ".000001.json.a1b2c3d4.part",
-            layout.cityscapes("disparity", "000001", "train").with_name(".000001_disparity.png.k2j3h4g5.part"),
-            layout.root / TMP_DIR / "000001.left.exr"]
-    others = [layout.labels_dir("clear") / ".000002.txt.ab12cd_x.part",  # another shard's frame, maybe in flight
-              layout.root / TMP_DIR / "000002.left.exr"]
-    dataset_wide = [layout.root / "coco" / ".clear.json.abcdefgh.part", layout.root / ".dataset.json.abcdefgh.part",
-                    layout.root / "splits" / ".all_val.txt.abcdefgh.part"]
-    for p in real + mine + others + dataset_wide:
+    stale = [layout.labels_dir("clear") / f".000001.txt.{gone}.ab12.part",
+             layout.images_dir("beta0.06") / f".000001.png.{gone}.q9w8.part",
+             layout.root / "depth" / f".000001.exr.{gone}.zzzz.part",
+             layout.meta_dir() / f".000001.json.{gone}.a1b2.part",
+             layout.cityscapes("disparity", "000001", "train").with_name(f".000001_disparity.png.{gone}.k2j3.part"),
+             layout.root / "coco" / f".clear.json.{gone}.abcd.part", layout.root / f".dataset.json.{gone}.abcd.part",
+             layout.root / "splits" / f".all_val.txt.{gone}.abcd.part"]
+    in_flight = [layout.labels_dir("clear") / f".000002.txt.{running}.ab12.part"]  # a live writer's
+    renders = [layout.root / TMP_DIR / "000001.left.exr", layout.root / TMP_DIR / "000002.left.exr"]
+    for p in real + stale + in_flight + renders:
         p.parent.mkdir(parents=True, exist_ok=True)
         p.write_bytes(b"x")
     assert layout.done_frames() == ["000000"]  # a part file never counts as an output
-    assert part_target(".000001.txt.ab12cd_x.part") == "000001.txt" and part_target("000001.txt") is None
-    assert sorted(remove_frame_leftovers(layout, {"000001", "000003"})) == sorted(mine)
-    assert all(p.exists() for p in real + others + dataset_wide) and not any(p.exists() for p in mine)
-    assert sorted(remove_dataset_leftovers(layout)) == sorted(dataset_wide)
+    assert remove_stale_parts(layout.root) == len(stale)
+    assert all(p.exists() for p in real + in_flight + renders) and not any(p.exists() for p in stale)
     remove_render_tmp(layout, {"000001"})
-    assert (layout.root / TMP_DIR).is_dir()  # another shard's render is still in it
+    assert not renders[0].exists() and renders[1].exists()  # another shard's render is still in it
     remove_render_tmp(layout, {"000002"})
     assert not (layout.root / TMP_DIR).exists()
     assert all(p.exists() for p in real)
-    assert [p.name for p in layout.root.rglob("*.part")] == [".000002.txt.ab12cd_x.part"]
     assert os.listdir(layout.root / "meta") == ["000000.json"]

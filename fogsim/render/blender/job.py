@@ -17,8 +17,8 @@ import bpy
 
 from fogsim.dataset.writer import DatasetLayout, finalize
 from fogsim.render.frame import check_scene, commit_frame, describe_frame, frame_name, scene_meshes
-from fogsim.render.leftovers import (remove_dataset_leftovers, remove_frame_leftovers, remove_render_tmp,
-                                     render_tmp_dir)
+from fogsim.fileio import remove_stale_parts
+from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
 from fogsim.deps import package_versions
 from fogsim.render.preset import RenderConfig
 from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
@@ -64,7 +64,8 @@ class RenderJob:
                      {"blender": bpy.app.version_string, "config": config.to_dict()},
                      what="dataset", legacy=_legacy_parameters)
         self.mine = {frame_name(k) for k in mine}
-        remove_frame_leftovers(self.layout, self.mine)  # of a killed run: .part files, Cycles' EXR
+        remove_stale_parts(self.layout.root)  # a killed run's unfinished writes (dead writers only)
+        remove_render_tmp(self.layout, self.mine)  # and its Cycles EXRs of this shard's frames
         self.todo = [k for k in mine if not (resume and self.layout.frame_done(frame_name(k)))]
         self.skipped = len(mine) - len(self.todo)
         self.done: list[dict] = []
@@ -106,7 +107,6 @@ class RenderJob:
                     "frame_seeds": {f: frame_seed(self.config.seed, int(f)) for f in frames},
                     "frame_seed_rule": FRAME_SEED_RULE,
                     "blender": bpy.app.version_string, "versions": package_versions()}
-        remove_dataset_leftovers(self.layout)  # .part files of a finalize that was killed
         finalize(self.layout, self.config.levels, manifest, self.config.train_fraction, seed=self.config.seed)
 
     def close(self) -> None:
