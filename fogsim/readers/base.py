@@ -84,6 +84,33 @@ class DepthSpec:
 
 
 @dataclass(frozen=True)
+class Labels:
+    """A real image's annotations, in the record format of rendered frames (``meta["objects"]``).
+
+    ``classes``: the dataset's own class list (YOLO ids index it; COCO ids are index + 1),
+    e.g. ``("vehicle", "pedestrian", "cyclist")`` for Waymo. ``objects``: one dict per
+    annotation with at least
+
+    * ``class`` (a name in ``classes``), ``class_id`` (its index),
+    * ``bbox`` ``[x0, y0, x1, y1)`` in pixel-edge coordinates, clamped to the image,
+    * ``pixels`` (instance-mask pixel count, or the box area where only a box exists),
+    * ``kept`` (False → an ignore region: COCO ``iscrowd = 1``, not in YOLO) and ``reason``,
+    * ``distance_m`` (ray distance camera centre → object in metres, or None = unknown) and
+      ``distance_source`` (how it was obtained, e.g. ``"laser box centre (association)"``,
+      ``"lidar points in box (near cluster)"``, ``"valid disparity (median)"``, ``"unknown"``),
+
+    plus whatever the dataset adds (``difficulty``, the dataset's object ``id``, …).
+    """
+
+    classes: tuple[str, ...]
+    objects: list[dict]
+
+
+#: A picklable callable giving a sample's :class:`Labels` (read on demand, like the image).
+LabelReader = Callable[[], Labels]
+
+
+@dataclass(frozen=True)
 class Sample:
     """One image to fog.
 
@@ -91,7 +118,8 @@ class Sample:
     (e.g. ``frankfurt/frankfurt_000000_000294_leftImg8bit``). ``source``: what to name in
     messages. ``read_image``: a picklable callable returning H×W×3 RGB. ``depth``: where
     the depth is (None when the dataset has none). ``intrinsics``: camera of the image,
-    when the dataset knows it (needed to turn planar depth into ray distance).
+    when the dataset knows it (needed to turn planar depth into ray distance). ``labels``:
+    the dataset's annotations of this image (None when it has none), see :class:`Labels`.
     """
 
     key: str
@@ -100,3 +128,4 @@ class Sample:
     depth: DepthSpec | None = None
     intrinsics: Intrinsics | None = None
     meta: dict = field(default_factory=dict, compare=False)
+    labels: LabelReader | None = None
