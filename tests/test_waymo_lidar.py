@@ -61,7 +61,15 @@ def test_vectorised_varints_match_protobuf_wire():
     values[:10] = [0, 1, 127, 128, 16383, 16384, -1, -128, 2**31 - 1, -(2**31)]
     blob = b"".join(pw.encode_varint(int(v)) for v in values)
     np.testing.assert_array_equal(wl._varints(np.frombuffer(blob, np.uint8), "x"), values)
+    np.testing.assert_array_equal(wl._varints_int32(np.frombuffer(blob, np.uint8), "x"), values)
     assert wl._encode_varints(values) == blob
+
+
+@pytest.mark.parametrize("value", [2**31, 2**32 + 5, -(2**31) - 1, 2**63 - 1])
+def test_int32_varints_out_of_range_are_refused(value):
+    blob = pw.encode_varint(3) + pw.encode_varint(value)
+    with pytest.raises(InputError, match="int32 range"):
+        wl._varints_int32(np.frombuffer(blob, np.uint8), "x")
 
 
 def test_matrix_errors_name_the_source():
@@ -378,3 +386,35 @@ def test_v2_lidar_pose_without_vehicle_pose_is_refused(tmp_path):
     (tmp_path / "vehicle_pose" / f"{fx.CONTEXT}.parquet").unlink()
     with pytest.raises(InputError, match="per-cell lidar poses"):
         wl.read_v2_lidar(tmp_path, fx.CONTEXT, fx.TIMESTAMP)
+
+
+def test_lidar_points_for_v2_sample(tmp_path):
+    pa = pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+
+    from fogsim.fileio import encode_image
+    from fogsim.readers.waymo import waymo_v2_samples
+
+    scene = _posed_scene()
+    fx.write_v2(tmp_path, scene)
+    (tmp_path / "camera_image").mkdir()
+    image = encode_image(np.zeros((fx.IMAGE_H, fx.IMAGE_W, 3), np.uint8), ".png")
+    pq.write_table(pa.table({"key.segment_context_name": [fx.CONTEXT],
+                             "key.frame_timestamp_micros": pa.array([fx.TIMESTAMP], pa.int64()),
+                             "key.camera_name": pa.array([1], pa.int8()),
+                             "[CameraImageComponent].image": pa.array([image], pa.binary())}),
+                   tmp_path / "camera_image" / f"{fx.CONTEXT}.parquet")
+    sample, = waymo_v2_samples(tmp_path, ["FRONT"])
+    provider = wl.lidar_points_for_sample(sample)
+    assert provider.kind == "v2" and provider.timestamp == fx.TIMESTAMP
+    uv, ray = provider("FRONT")
+    np.testing.assert_allclose(ray, wl.camera_points(_frame(scene), 1).ray, atol=1e-3)
+
+
+@pytest.mark.slow
+def test_bench_decode_runs_on_real_sizes():
+    from fogsim.readers.waymo_lidar_bench import bench_decode
+
+    r = bench_decode(1)
+    assert r["points"] > 10000 and 0 < r["pixels"] <= r["points"] and r["dropped"] < r["pixels"]
+    assert r["decode_ms"] > 0 and r["python_varints_ms"] > 0

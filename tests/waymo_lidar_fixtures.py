@@ -284,7 +284,11 @@ def write_v2(root, scene: Scene, timestamp: int = TIMESTAMP, camera_key_as_strin
         "key.camera_name": (pa.array([names[c.name] for c in cams]) if camera_key_as_string
                             else pa.array([c.name for c in cams], pa.int8())),
         "[CameraCalibrationComponent].extrinsic.transform": pa.array(
-            [c.extrinsic.ravel().tolist() for c in cams], pa.list_(pa.float64(), 16))})
+            [c.extrinsic.ravel().tolist() for c in cams], pa.list_(pa.float64(), 16)),
+        **{f"[CameraCalibrationComponent].intrinsic.{k}": pa.array([float(getattr(c, a)) for c in cams])
+           for k, a in (("f_u", "f"), ("f_v", "f"), ("c_u", "cu"), ("c_v", "cv"))},
+        "[CameraCalibrationComponent].width": pa.array([c.width for c in cams], pa.int32()),
+        "[CameraCalibrationComponent].height": pa.array([c.height for c in cams], pa.int32())})
 
 
 def float32_bits(x: float) -> bytes:
