@@ -325,7 +325,7 @@ def _cell_points(rows, cols, r, calibration: LaserCalibration, shape: tuple[int,
     if pixel_pose is not None:
         if frame_pose is None:
             raise ValueError(f"{laser_name(calibration.laser)} has a per-cell pose but the frame has no pose")
-        cell = np.asarray(pixel_pose, np.float64)[rows, cols]
+        cell = np.asarray(pixel_pose)[rows, cols].astype(np.float64)
         R = rotation_rpy(cell[:, 0], cell[:, 1], cell[:, 2])
         world = np.einsum("nij,nj->ni", R, p) + cell[:, 3:6]
         inv = np.linalg.inv(frame_pose)
@@ -370,7 +370,7 @@ def camera_points(frame: LidarFrame, camera: int | str, returns: Iterable[int] =
     names the camera. ``ray`` = ‖p_vehicle − t_cam‖ with t_cam the camera's position in the
     vehicle frame (= ‖inv(E_cam)·p_vehicle‖). Raises InputError when the frame has no range
     images, no camera projections, or no calibration for the camera."""
-    cam = _camera_id(camera)
+    cam, returns = _camera_id(camera), tuple(returns)
     cam_label = _CAMERA_LABEL.get(cam, f"camera {cam}")
     _require_frame_lidar(frame, "no laser data")
     if cam not in frame.cameras:
