@@ -69,7 +69,8 @@ def add_parsers(sub) -> None:
     d.add_argument("--depth-from", help="ila:CHECKPOINT — predict depth for every image with an ILA model "
                                         "(for datasets without depth, e.g. Waymo); lidar[:METHOD] (--waymo "
                                         "only) — complete each frame's LiDAR points into dense ray distance, "
-                                        "METHOD ipbasic (default) or ila:CHECKPOINT (ILA aligned to the points)")
+                                        "METHOD ipbasic (default), linear (beam-aware interpolation) or ila:CHECKPOINT "
+                                        "(ILA aligned to the points)")
     d.add_argument("--lidar-holdout", type=float, metavar="FRACTION",
                    help="with --depth-from lidar: hold this fraction of each image's points out of the "
                         "completion and save them (OUT/lidar_holdout/<key>.npz, with the completion in "

@@ -14,6 +14,11 @@ Completion methods (:data:`METHODS`):
   near edges by parallax), a median blur of the filled pixels, then a Gaussian smoothing of
   the filled pixels only (σ ≈ the beam spacing) that turns the beam-row staircase into a ramp.
   The LiDAR returns themselves are kept exactly.
+* ``linear`` — beam-aware: each return is spread along its row (near wins) to a line, then
+  every pixel interpolates inverse distance linearly in its column between the lines above
+  and below (exact on planes); across a depth edge (the two differ by > 25 %) it takes the
+  one nearer in the image instead of mixing them. On the synthetic FRONT frame of
+  ``fogsim bench lidar`` it has about half the AbsRel of ``ipbasic``.
 * ``ila`` — an ILA prediction (``fogsim.depth.ila``, planar → ray with the camera) aligned to
   the points by a per-image least-squares scale and shift on inverse distance
   (1/ℓ_lidar ≈ a·1/ℓ_ila + b), then the points override it at their pixels. ILA supplies the
@@ -37,7 +42,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-METHODS = ("ipbasic", "ila")
+METHODS = ("ipbasic", "linear", "ila")
+DEFAULT_METHOD = "ipbasic"
 SKY_RULES = ("above", "extend")
 DEFAULT_GAP_PX = 24
 
@@ -95,7 +101,7 @@ class Completion:
     record: dict
 
 
-def complete(sparse_ray: np.ndarray, method: str = "ipbasic", sky: str = "above", gap_px: int = DEFAULT_GAP_PX,
+def complete(sparse_ray: np.ndarray, method: str = DEFAULT_METHOD, sky: str = "above", gap_px: int = DEFAULT_GAP_PX,
              image: np.ndarray | None = None, checkpoint: str | None = None, camera=None) -> Completion:
     """Complete a sparse ray-distance map (0 = no point) into a dense one (see the module doc).
 
@@ -116,9 +122,11 @@ def complete(sparse_ray: np.ndarray, method: str = "ipbasic", sky: str = "above"
     if method == "ila":
         dense, extra = _complete_ila(sparse, points, image, checkpoint, camera)
         sky = "ila"
+    elif method == "linear":
+        dense, extra = _complete_linear(sparse, points, sky, gap_px)
     else:
         dense, extra = _complete_ipbasic(sparse, points, sky, gap_px)
-    record = {"method": method, "sky": sky, "gap_px": gap_px if method == "ipbasic" else None,
+    record = {"method": method, "sky": sky, "gap_px": gap_px if method != "ila" else None,
               "points": n, "coverage": round(n / points.size, 6),
               "sky_fraction": round(float(np.isinf(dense).mean()), 6), **extra,
               "seconds": round(time.perf_counter() - t0, 4)}
@@ -190,6 +198,43 @@ def _complete_ipbasic(sparse: np.ndarray, points: np.ndarray, sky: str, gap_px: 
             filled = _grow_nearest(filled, rest)
     with np.errstate(divide="ignore"):
         dense = np.where(filled > 0, 1.0 / np.maximum(filled, 1e-30), np.inf).astype(np.float32)
+    dense[points] = sparse[points]
+    return dense, {}
+
+
+def _complete_linear(sparse: np.ndarray, points: np.ndarray, sky: str, gap_px: int,
+                     col_px: int = 5, edge_ratio: float = 1.25) -> tuple[np.ndarray, dict]:
+    """Beam-aware interpolation of inverse distance: each return is first spread along its
+    row to the nearest (near-wins) empty pixels within ``col_px`` (a beam becomes a line),
+    then every pixel interpolates linearly in its column between the filled pixels above and
+    below — exact on planes, where inverse distance is linear in the row. Where the two differ
+    by more than ``edge_ratio`` (a depth edge) the pixel takes the one nearer in the image
+    instead of mixing them. Above the top (below the bottom) value of a column it is copied."""
+    h, w = sparse.shape
+    inv = np.zeros((h, w), np.float32)
+    inv[points] = 1.0 / sparse[points]
+    line = cv2.dilate(inv, np.ones((1, 2 * col_px + 1), np.uint8), borderType=cv2.BORDER_REPLICATE)
+    inv = np.where(points, inv, line)
+    valid = inv > 0
+    rows = np.arange(h, dtype=np.int32)[:, None]
+    prev = np.maximum.accumulate(np.where(valid, rows, -1), axis=0)
+    nxt = np.minimum.accumulate(np.where(valid, rows, h)[::-1], axis=0)[::-1]
+    vp = np.take_along_axis(inv, np.clip(prev, 0, h - 1), axis=0)
+    vn = np.take_along_axis(inv, np.clip(nxt, 0, h - 1), axis=0)
+    vp = np.where(prev >= 0, vp, vn)  # above the top: copy the top value
+    vn = np.where(nxt < h, vn, vp)    # below the bottom: copy the bottom value
+    span = np.maximum(nxt - prev, 1).astype(np.float32)
+    t = np.clip((rows - prev) / span, 0, 1).astype(np.float32)
+    lin = vp + t * (vn - vp)
+    edge = np.maximum(vp, vn) > edge_ratio * np.minimum(vp, vn)
+    out = np.where(edge, np.where(t < 0.5, vp, vn), lin)
+    out = np.where(valid, inv, out)
+    if not valid.any(axis=0).all():  # columns without a return: their neighbours' values
+        out = _grow_nearest(out, out == 0)
+    if sky == "above":
+        out[sky_mask(points, gap_px)] = 0
+    with np.errstate(divide="ignore"):
+        dense = np.where(out > 0, 1.0 / np.maximum(out, 1e-30), np.inf).astype(np.float32)
     dense[points] = sparse[points]
     return dense, {}
 

@@ -31,13 +31,14 @@ from typing import Callable
 import numpy as np
 
 from fogsim.camera import Intrinsics
-from fogsim.depth.complete import METHODS, SKY_RULES, complete, holdout_split, pixel_index, sparse_image
+from fogsim.depth.complete import (DEFAULT_METHOD, METHODS, SKY_RULES, complete, holdout_split, pixel_index,
+                                   sparse_image)
 from fogsim.errors import InputError
 
 PointsSource = Callable[[], "tuple[np.ndarray, np.ndarray]"]
 HOLDOUT_DIR, DEPTH_DIR = "lidar_holdout", "lidar_depth"
 USAGE = f"--depth-from lidar[:METHOD] with METHOD one of {', '.join(m for m in METHODS if m != 'ila')} " \
-        "(default ipbasic) or ila:CHECKPOINT"
+        f"(default {DEFAULT_METHOD}) or ila:CHECKPOINT"
 
 
 def parse_lidar(spec: str) -> tuple[str, str | None]:
@@ -47,7 +48,7 @@ def parse_lidar(spec: str) -> tuple[str, str | None]:
     if kind != "lidar":
         raise ValueError(f"not a LiDAR depth source: {spec!r} ({USAGE})")
     method, _, checkpoint = rest.partition(":")
-    method = method or "ipbasic"
+    method = method or DEFAULT_METHOD
     if method not in METHODS:
         raise ValueError(f"unknown LiDAR completion method {method!r} in --depth-from {spec} ({USAGE})")
     if method == "ila" and not checkpoint:
@@ -79,7 +80,7 @@ class LidarDepth:
 
     points: PointsSource
     camera: Intrinsics | None = None
-    method: str = "ipbasic"
+    method: str = DEFAULT_METHOD
     holdout_fraction: float = 0.0
     seed: int = 0
     holdout_path: str | None = None
