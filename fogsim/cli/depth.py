@@ -35,8 +35,17 @@ def cmd_score(args) -> int:
     from fogsim.fileio import read_json
     from fogsim.runs import check_output
 
-    check_output(args.out, {"--pred": args.pred, "--holdout": args.holdout, "--dataset": args.dataset,
-                            "--intrinsics": args.intrinsics}, allow_inside_out=("--holdout", "--dataset"))
+    from pathlib import Path
+
+    from fogsim.errors import InputError
+
+    # the report may go inside the fog output or dataset it scores (e.g. OUT/score), not over it
+    target = check_output(args.out, {"--pred": args.pred, "--intrinsics": args.intrinsics})
+    for flag, given in (("--holdout", args.holdout), ("--dataset", args.dataset)):
+        src = Path(given).resolve() if given else None
+        if src is not None and (src == target or target in src.parents):
+            raise InputError(args.out, f"--out is or contains {flag} {given}: choose a report folder "
+                                       "outside it (a subfolder of it is fine)")
     if args.depth_scale is not None and not args.depth_scale > 0:
         raise ValueError(f"--depth-scale must be > 0 metres per unit, got {args.depth_scale}")
     if args.holdout:
