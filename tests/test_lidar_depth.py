@@ -154,6 +154,26 @@ def test_lidar_depth_holds_out_writes_and_records(tmp_path):
     assert np.array_equal(dist.ray, expected)
 
 
+def _grid_points(distance: float):
+    uv = np.array([(u, v) for v in range(130, H, 4) for u in range(0, W, 2)], np.float64)
+    return uv, np.full(len(uv), distance, np.float32)
+
+
+def test_lidar_depth_pickles_for_worker_processes():
+    import pickle
+    from functools import partial
+
+    from fogsim.readers.base import DepthSpec
+
+    spec = DepthSpec("x", kind="ray", reader=LidarDepth(partial(_grid_points, 12.0), K, "ipbasic", 0.2, 5))
+    back = pickle.loads(pickle.dumps(spec))
+    assert back.decoded_by == "lidar:ipbasic" and back.is_ray_distance and back.reader.seed == 5
+    image = np.zeros((H, W, 3), np.uint8)
+    a, _, rec = back.read_with_record(image)
+    assert np.array_equal(a, spec.read_for_image(image)[0]) and rec["points_held_out"] > 0
+    assert np.all(a[130:] == 12.0)
+
+
 def test_lidar_depth_without_points_names_the_frame():
     reader = LidarDepth(lambda: (np.zeros((0, 2)), np.zeros(0, np.float32)), source="seg/123_FRONT")
     with pytest.raises(InputError, match="seg/123_FRONT: no LiDAR point"):
