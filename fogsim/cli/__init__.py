@@ -1,4 +1,4 @@
-"""``fogsim`` — the one front door: ``render | fog | ila | study | bench | levels | demo``.
+"""``fogsim`` — the one front door: ``render | fog | ila | depth | study | bench | levels | demo``.
 
 Every subcommand's ``--help`` works without Blender, torch or Ultralytics: they are imported
 only when a command needs them. Errors end a command with one line (never a traceback) and
@@ -15,7 +15,7 @@ from fogsim.errors import describe, exit_code
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from fogsim.cli import bench, fog, ila, render, study
+    from fogsim.cli import bench, depth, fog, ila, render, study
 
     parser = argparse.ArgumentParser(prog="fogsim", description="Labeled images in fog: render street scenes, "
                                      "fog rendered and real datasets, train and evaluate detectors per fog level.")
@@ -24,6 +24,7 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_parsers(sub)
     fog.add_parsers(sub)
     ila.add_parsers(sub)
+    depth.add_parsers(sub)
     study.add_parsers(sub)
     bench.add_parsers(sub)
     return parser

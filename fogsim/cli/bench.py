@@ -1,4 +1,4 @@
-"""``fogsim bench fog | render | ila``: the speed and accuracy benchmarks.
+"""``fogsim bench fog | render | ila | lidar``: the speed and accuracy benchmarks.
 
 Each prints its figures beside a baseline measured in the same run (ratios of medians:
 these machines are noisy); none of them is a test, and CI times nothing.
@@ -39,6 +39,12 @@ def add_parsers(sub) -> None:
     add_training_options(ila)  # --rounds 0: classical baselines only
     ila.set_defaults(run=lambda args: _ila(args))
 
+    lidar = bsub.add_parser("lidar", help="LiDAR completion time per 1920×1280 FRONT image (synthetic scan with "
+                            "the real density), one core, against the fog step of the same image")
+    lidar.add_argument("--repeat", type=int, default=5, help="interleaved repeats (medians)")
+    lidar.add_argument("--waymo", help="a Waymo .tfrecord to also time decoding + projection of its first frame")
+    lidar.set_defaults(run=lambda args: _lidar(args))
+
 
 def _positive(**values) -> None:
     bad = [f"--{k.replace('_', '-')}" for k, v in values.items() if not v > 0]
@@ -73,3 +79,10 @@ def _ila(args) -> int:
 
         config = training_config(args)
     return run_benchmark(args.out, args.frames, args.resolution, args.samples, args.panels, config)
+
+
+def _lidar(args) -> int:
+    from fogsim.depth.lidar_bench import run
+
+    _positive(repeat=args.repeat)
+    return run(args.repeat, args.waymo)

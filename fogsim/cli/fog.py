@@ -67,7 +67,14 @@ def add_parsers(sub) -> None:
     d.add_argument("--intrinsics", help="JSON with fx, fy, cx, cy, width, height (or K, width, height)")
     d.add_argument("--hfov", type=float, help="horizontal field of view in degrees (centred, square pixels)")
     d.add_argument("--depth-from", help="ila:CHECKPOINT — predict depth for every image with an ILA model "
-                                        "(for datasets without depth, e.g. Waymo)")
+                                        "(for datasets without depth, e.g. Waymo); lidar[:METHOD] (--waymo "
+                                        "only) — complete each frame's LiDAR points into dense ray distance, "
+                                        "METHOD ipbasic (default), linear (beam-aware interpolation) or ila:CHECKPOINT "
+                                        "(ILA aligned to the points)")
+    d.add_argument("--lidar-holdout", type=float, metavar="FRACTION",
+                   help="with --depth-from lidar: hold this fraction of each image's points out of the "
+                        "completion and save them (OUT/lidar_holdout/<key>.npz, with the completion in "
+                        "OUT/lidar_depth/<key>.exr) for `fogsim depth score` (default 0: none)")
     fog.add_argument("--split", default="val", help="Cityscapes split(s), comma-separated")
     fog.add_argument("--cameras", default="FRONT", help="Waymo cameras, comma-separated (FRONT, FRONT_LEFT, …)")
     fog.add_argument("--no-verify", action="store_true",
@@ -129,14 +136,48 @@ def _samples(args):
                          verify=not getattr(args, "no_verify", False))
 
 
-def _with_depth_from(samples, depth_from: str | None):
-    """``--depth-from ila:CKPT``: every sample's depth is predicted by that model.
+def _check_depth_from(args) -> None:
+    """``--depth-from`` and ``--lidar-holdout`` checked before any input is read (exit 2)."""
+    depth_from = args.depth_from or ""
+    if not depth_from.startswith("lidar"):
+        if args.lidar_holdout is not None:
+            raise ValueError("--lidar-holdout goes with --depth-from lidar[:METHOD]")
+        return
+    from fogsim.depth.complete import holdout_split
+    from fogsim.depth.lidar_source import parse_lidar
+
+    parse_lidar(depth_from)  # unknown method → the usage
+    if not args.waymo:
+        raise ValueError(f"--depth-from {depth_from} completes Waymo LiDAR points: it needs --waymo")
+    if args.depth_dir:
+        raise ValueError(f"--depth-from {depth_from} and --depth-dir are two depth sources for one image: "
+                         "give one of them")
+    holdout_split(0, args.lidar_holdout or 0.0)  # a fraction outside [0, 1) → the message
+
+
+def _depth_from_path(depth_from: str | None) -> str | None:
+    """The file ``--depth-from`` names (the checkpoint), or None."""
+    kind, _, rest = (depth_from or "").partition(":")
+    if kind == "lidar":
+        return rest.partition(":")[2] or None
+    return rest or None
+
+
+def _with_depth_from(samples, depth_from: str | None, out: str | None = None, holdout: float | None = None,
+                     seed: int = 0):
+    """``--depth-from ila:CKPT``: every sample's depth is predicted by that model;
+    ``--depth-from lidar[:METHOD]``: completed from its LiDAR points
+    (:func:`fogsim.depth.lidar_source.lidar_samples`, hold-out files under ``out``).
 
     The checkpoint is loaded and checked here, once, before the output folder is claimed: a
     missing, unreadable or unsafe one is one line naming it (exit 2), not a failure per image.
     """
     if not depth_from:
         return samples
+    if depth_from.startswith("lidar"):
+        from fogsim.depth.lidar_source import lidar_samples
+
+        return lidar_samples(samples, depth_from, out, holdout or 0.0, seed)
     from dataclasses import replace
 
     from fogsim.depth.ila import ILADepth, cached_model
@@ -144,7 +185,7 @@ def _with_depth_from(samples, depth_from: str | None):
 
     kind, _, path = depth_from.partition(":")
     if kind != "ila" or not path:
-        raise ValueError(f"--depth-from takes ila:CHECKPOINT, got {depth_from!r}")
+        raise ValueError(f"--depth-from takes ila:CHECKPOINT or lidar[:METHOD], got {depth_from!r}")
     checkpoint = str(Path(path).resolve())
     try:
         cached_model(checkpoint)  # this process's workers=1 run reuses it
@@ -190,7 +231,7 @@ def _job(args, out: str):
 def _inputs(args) -> dict:
     """What the run reads and how, recorded so a resumed run with other inputs is refused."""
     keys = ("input", "depth", "cityscapes", "split", "waymo", "depth_dir", "cameras", "depth_suffix",
-            "depth_encoding", "depth_scale", "depth_kind", "intrinsics", "hfov", "depth_from")
+            "depth_encoding", "depth_scale", "depth_kind", "intrinsics", "hfov", "depth_from", "lidar_holdout")
     out = {k: getattr(args, k) for k in keys if getattr(args, k, None) not in (None, "")}
     for k in ("input", "depth", "cityscapes", "waymo", "depth_dir", "intrinsics"):
         if k in out:
@@ -214,12 +255,14 @@ def cmd_fog(args) -> int:
 
     if args.workers < 1:
         raise ValueError("--workers must be ≥ 1")
+    _check_depth_from(args)
     check_output(args.out, {f"--{k.replace('_', '-')}": getattr(args, k)
                             for k in ("input", "depth", "cityscapes", "waymo", "depth_dir", "intrinsics")}
-                 | {"--depth-from": (args.depth_from or "").partition(":")[2] or None})
+                 | {"--depth-from": _depth_from_path(args.depth_from)})
     job = _job(args, args.out)
     shard = parse_shard(args.shard)
-    samples = select_shard(_with_depth_from(_samples(args), args.depth_from), shard)
+    samples = select_shard(_with_depth_from(_samples(args), args.depth_from, args.out, args.lidar_holdout,
+                                            args.seed), shard)
     summary = run(samples, job, args.workers, not args.no_resume, not args.quiet, environment())
     print(summary.line(job))
     for source, error in summary.failed:

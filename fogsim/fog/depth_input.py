@@ -50,12 +50,17 @@ def sample_distance(sample: Sample, width: int, height: int, fill: str = "none",
                     image: np.ndarray | None = None) -> Distance:
     """Read, validate, hole-fill and convert a sample's depth to ray distance.
 
+    A depth reader's own per-image record (:meth:`DepthSpec.read_with_record`, e.g. the LiDAR
+    points and coverage) goes into the record under ``depth_record``.
     Raises :class:`InputError` naming the depth file for missing depth, size mismatch,
     NaN or negative values, unfilled holes, or planar depth without intrinsics.
     """
     check_sample(sample)
     spec = sample.depth
-    depth, file_K = spec.read_for_image(image) if image is not None else spec.read(width, height)
+    if image is not None:
+        depth, file_K, reader_record = spec.read_with_record(image)
+    else:
+        (depth, file_K), reader_record = spec.read(width, height), {}
     src = spec.path
     if depth.shape != (height, width):
         raise InputError(src, f"depth is {depth.shape[1]}×{depth.shape[0]} but the image "
@@ -71,7 +76,7 @@ def sample_distance(sample: Sample, width: int, height: int, fill: str = "none",
     except HolesError as exc:
         raise InputError(src, str(exc)) from None
     record = {"depth_file": src, "encoding": spec.decoded_by, "fill": fill,
-              "hole_fraction": round(holes, 6)}
+              "hole_fraction": round(holes, 6)} | ({"depth_record": reader_record} if reader_record else {})
     if spec.is_ray_distance:
         record["distance"] = "ray (as stored)"
         return Distance(depth, record)

@@ -40,6 +40,9 @@ class DepthSpec:
     decoding a file (e.g. :class:`fogsim.depth.ila.ILADepth`, a model's prediction); when
     given, ``encoding`` is not used, ``path`` names the source in messages, and the reader's
     ``name`` attribute is what the fog sidecars record as the encoding (:attr:`decoded_by`).
+    A reader may also report on each image: a ``read_with_record(image) -> (depth, intrinsics,
+    record dict)`` method (e.g. :class:`fogsim.depth.lidar_source.LidarDepth`: points used,
+    coverage) is used by :meth:`read_with_record`, and the fog sidecars keep that record.
     """
 
     path: str
@@ -66,6 +69,14 @@ class DepthSpec:
         if self.reader is not None:
             return self.reader(image)
         return self.read(image.shape[1], image.shape[0])
+
+    def read_with_record(self, image: np.ndarray) -> tuple[np.ndarray, Intrinsics | None, dict]:
+        """:meth:`read_for_image` and what the :attr:`reader` reports about this image ({} for
+        files and for readers without a ``read_with_record`` method)."""
+        with_record = getattr(self.reader, "read_with_record", None)
+        if with_record is not None:
+            return with_record(image)
+        return (*self.read_for_image(image), {})
 
     def read(self, width: int, height: int) -> tuple[np.ndarray, Intrinsics | None]:
         """Depth in metres (0 = hole, inf = no hit) and the intrinsics the file implies."""
