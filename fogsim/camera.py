@@ -164,3 +164,31 @@ class StereoCamera:
         return {"extrinsic": {"baseline": self.baseline},
                 "intrinsic": {"fx": K.fx, "fy": K.fy, "u0": K.cx, "v0": K.cy},
                 "sensor": {"width": K.width, "height": K.height}}
+
+
+# ----------------------------------------------------------------------------- sparse points
+def pixel_index(uv: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Row, column (int) of each point's pixel and the mask of points inside the
+    ``width``×``height`` image. ``uv`` is in pixel-edge coordinates (0 = the left/top edge of
+    the first pixel, Waymo's camera-projection convention and fogsim's box convention), so a
+    point's pixel is ``floor(uv)``."""
+    uv = np.asarray(uv, np.float64).reshape(-1, 2)
+    col = np.floor(uv[:, 0])
+    row = np.floor(uv[:, 1])
+    inside = np.isfinite(col) & np.isfinite(row) & (col >= 0) & (col < width) & (row >= 0) & (row < height)
+    return np.where(inside, row, 0).astype(np.int64), np.where(inside, col, 0).astype(np.int64), inside
+
+
+def sparse_image(uv: np.ndarray, ray: np.ndarray, width: int, height: int) -> np.ndarray:
+    """H×W float32 sparse ray distance: each point at its pixel, **min**-pooled where several
+    land on one (as Waymo's ``build_camera_depth_image``); 0 = no point. Points outside the
+    image or with ray ≤ 0 / non-finite are dropped."""
+    ray = np.asarray(ray, np.float32).reshape(-1)
+    row, col, inside = pixel_index(uv, width, height)
+    if len(ray) != len(row):
+        raise ValueError(f"{len(row)} pixel positions but {len(ray)} distances")
+    keep = inside & np.isfinite(ray) & (ray > 0)
+    flat = np.full(height * width, np.inf, np.float32)
+    np.minimum.at(flat, row[keep] * width + col[keep], ray[keep])
+    flat[~np.isfinite(flat)] = 0
+    return flat.reshape(height, width)

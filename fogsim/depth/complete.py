@@ -42,6 +42,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from fogsim.camera import pixel_index, sparse_image  # noqa: F401  (re-exported)
+
 METHODS = ("ipbasic", "linear", "ila")
 DEFAULT_METHOD = "ipbasic"
 SKY_RULES = ("above", "extend")
@@ -63,31 +65,6 @@ def holdout_split(n_points: int, fraction: float = 0.1, seed: int = 0) -> tuple[
         return np.arange(n_points, dtype=np.int64), np.zeros(0, np.int64)
     perm = np.random.default_rng(seed).permutation(n_points)
     return np.sort(perm[n_held:]).astype(np.int64), np.sort(perm[:n_held]).astype(np.int64)
-
-
-def pixel_index(uv: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Row, column (int) of each point's pixel (integer = pixel centre: round) and the mask of
-    points that fall inside the ``width``×``height`` image."""
-    uv = np.asarray(uv, np.float64).reshape(-1, 2)
-    col = np.floor(uv[:, 0] + 0.5)
-    row = np.floor(uv[:, 1] + 0.5)
-    inside = np.isfinite(col) & np.isfinite(row) & (col >= 0) & (col < width) & (row >= 0) & (row < height)
-    return np.where(inside, row, 0).astype(np.int64), np.where(inside, col, 0).astype(np.int64), inside
-
-
-def sparse_image(uv: np.ndarray, ray: np.ndarray, width: int, height: int) -> np.ndarray:
-    """H×W float32 sparse ray distance: each point at its pixel, **min**-pooled where several
-    land on one (as Waymo's ``build_camera_depth_image``); 0 = no point. Points outside the
-    image or with ray ≤ 0 / non-finite are dropped."""
-    ray = np.asarray(ray, np.float32).reshape(-1)
-    row, col, inside = pixel_index(uv, width, height)
-    if len(ray) != len(row):
-        raise ValueError(f"{len(row)} pixel positions but {len(ray)} distances")
-    keep = inside & np.isfinite(ray) & (ray > 0)
-    flat = np.full(height * width, np.inf, np.float32)
-    np.minimum.at(flat, row[keep] * width + col[keep], ray[keep])
-    flat[~np.isfinite(flat)] = 0
-    return flat.reshape(height, width)
 
 
 @dataclass

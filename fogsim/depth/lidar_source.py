@@ -184,16 +184,12 @@ def read_holdout(path) -> Holdout:
 
 # ----------------------------------------------------------------------------- Waymo wiring
 def waymo_points_source(sample) -> PointsSource:
-    """The points source of a Waymo sample: ``fogsim.readers.waymo_lidar.LidarPoints(location)``
-    called with the sample's camera name, where the location is the sample's image reader
-    (it knows the record: file, offset, length). ``ValueError`` (a usage error, exit 2) when
-    the decoder is not part of this build."""
-    try:
-        from fogsim.readers.waymo_lidar import LidarPoints
-    except ImportError:
-        raise ValueError("--depth-from lidar needs the Waymo LiDAR decoder fogsim.readers.waymo_lidar, "
-                         "which this build lacks") from None
-    return partial(LidarPoints(sample.read_image), sample.meta.get("camera", "FRONT"))
+    """The points source of a Waymo sample: its frame's
+    :class:`fogsim.readers.waymo_lidar.LidarPoints` (v1 record or v2 split folder and key),
+    called with the sample's camera name."""
+    from fogsim.readers.waymo_lidar import lidar_points_for_sample
+
+    return partial(lidar_points_for_sample(sample), sample.meta.get("camera", "FRONT"))
 
 
 def lidar_samples(samples, depth_from: str, out: str | None, holdout: float = 0.0, seed: int = 0,

@@ -48,6 +48,7 @@ from typing import Iterable, NamedTuple
 import cv2
 import numpy as np
 
+from fogsim.camera import sparse_image
 from fogsim.errors import FogsimError, InputError
 from fogsim.readers import protobuf_wire as pw
 from fogsim.readers.tfrecord import read_record
@@ -415,17 +416,10 @@ def camera_points(frame: LidarFrame, camera: int | str, returns: Iterable[int] =
 
 # ----------------------------------------------------------------------------- sparse maps
 def sparse_ray_depth(uv: np.ndarray, ray: np.ndarray, width: int, height: int) -> np.ndarray:
-    """H×W float32 ray-distance map from points: pixel ``[int(v), int(u)]`` gets the nearest
-    (min) ray distance of the points landing on it; 0 = no point. Points outside the image or
-    with non-finite / non-positive distance are ignored."""
-    uv, ray = np.asarray(uv, np.float64).reshape(-1, 2), np.asarray(ray, np.float32).ravel()
-    depth = np.full(height * width, np.inf, np.float32)
-    ok = np.isfinite(uv).all(1) & np.isfinite(ray) & (ray > 0)
-    ok &= (uv[:, 0] >= 0) & (uv[:, 0] < width) & (uv[:, 1] >= 0) & (uv[:, 1] < height)
-    col, row = uv[ok, 0].astype(np.int64), uv[ok, 1].astype(np.int64)
-    np.minimum.at(depth, row * width + col, ray[ok])
-    depth[np.isinf(depth)] = 0.0
-    return depth.reshape(height, width)
+    """H×W float32 ray-distance map from points: pixel ``[floor(v), floor(u)]`` gets the nearest
+    (min) ray distance of the points landing on it; 0 = no point
+    (:func:`fogsim.camera.sparse_image`, the one rasteriser)."""
+    return sparse_image(uv, ray, width, height)
 
 
 def filter_bleed_through(depth: np.ndarray, window: int = 7, margin: float = 0.10) -> tuple[np.ndarray, int]:
