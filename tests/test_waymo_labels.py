@@ -1,6 +1,7 @@
 """Waymo 2D camera labels with a distance per box, on real-format v1 Frames and v2 parquet tables."""
 from __future__ import annotations
 
+import json
 import math
 import pickle
 
@@ -134,6 +135,7 @@ def test_association_distance_is_the_camera_range_of_the_box_centre(v1_file):
     assert ped["distance_m"] == round(math.sqrt(18.5 ** 2 + 3 ** 2 + 1 ** 2), 3) == 18.768
     assert ped["planar_depth_m"] == 18.5
     assert ped["distance_source"] == SOURCE_ASSOCIATION and ped["laser_id"] == lid("ped")
+    assert ped["laser_points_in_box"] == 100
     ped2 = _by_id(left.labels())["cam-ped2"]  # a camera turned 45° left: the inverse extrinsic counts
     assert ped2["distance_m"] == round(float(np.linalg.norm(P_PED2)), 3) and ped2["planar_depth_m"] == 10.0
     assert ped2["difficulty"] == 1
@@ -213,15 +215,23 @@ def test_distance_from_points_near_cluster():
 
 # ----------------------------------------------------------------------------- v2 = v1
 @pytest.mark.parametrize("camera_name", ["int8", "string"])
-def test_v2_gives_the_same_labels_as_v1(tmp_path, v1_file, camera_name):
+def test_v2_gives_the_same_labels_as_v1(tmp_path, camera_name):
     _pyarrow()
-    root = write_v2(tmp_path / "training", [scene(T0), scene(T1)], camera_name=camera_name)
-    v1 = waymo_v1_samples(v1_file, cameras=("FRONT", "FRONT_LEFT"))
+    second = scene(T1)
+    second.camera_labels[FRONT_LEFT] = []  # labelled, nothing there (v2: no camera_box rows)
+    frames = [scene(T0), second]
+    root = write_v2(tmp_path / "training", frames, camera_name=camera_name)
+    v1 = waymo_v1_samples(write_v1(tmp_path / "seg.tfrecord", frames), cameras=("FRONT", "FRONT_LEFT"))
     v2 = waymo_v2_samples(root, cameras=("FRONT", "FRONT_LEFT"))
     assert [s.key for s in v2] == [s.key for s in v1]
+    assert v2[3].labels() == v1[3].labels() == Labels(WAYMO_CLASSES, [])
+    assert len(v2[2].labels().objects) == 7
     for a, b in zip(v1, v2):
         assert isinstance(b.labels, WaymoV2Labels)
         assert a.labels.read() == b.labels.read()
+        objects = b.labels().objects  # plain Python values (JSON), not numpy scalars
+        assert json.loads(json.dumps(objects)) == objects
+        assert {type(v) for o in objects for v in (*o["bbox"], o["pixels"], o["class_id"], o["difficulty"])} == {int}
         assert a.meta["extrinsic"] == b.meta["extrinsic"]
     assert v1[1].meta["extrinsic"] == E_LEFT.tolist()
     points = WaymoV2Labels(**{**vars(v2[0].labels), "points": POINTS})
@@ -272,7 +282,9 @@ def test_labels_missing_is_said_clearly(tmp_path):
     with pytest.raises(InputError, match="no camera_labels entry for FRONT") as err:
         WaymoV1Labels(str(path), offset, length, FRONT, f"{path}#record 0 FRONT")()
     assert err.value.source == f"{path}#record 0 FRONT"
-    assert all(s.labels is None and "labels_missing" not in s.meta for s in waymo_samples(path, labels=False))
+    unlabelled = waymo_samples(path, labels=False)
+    assert all(s.labels is None and "labels_missing" not in s.meta for s in unlabelled)
+    assert unlabelled[0].meta["extrinsic"] == E_FRONT.tolist()  # recorded anyway
 
 
 def test_v2_without_camera_box_has_no_labels(tmp_path):

@@ -200,7 +200,7 @@ def waymo_v1_samples(path: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
     when there is nothing to do: no frames, or no image of the selected cameras in any.
     ``labels``: give each sample whose frame has a ``camera_labels`` entry for its camera a
     :class:`~fogsim.readers.waymo_labels.WaymoV1Labels` (others get ``labels = None`` and say why
-    in ``meta["labels_missing"]``); ``meta["extrinsic"]`` is the camera→vehicle 4×4.
+    in ``meta["labels_missing"]``). ``meta["extrinsic"]`` is the camera→vehicle 4×4 (when known).
     """
     from fogsim.readers.waymo_labels import WaymoV1Labels, v1_label_index
 
@@ -211,7 +211,7 @@ def waymo_v1_samples(path: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
             record = f"{file}#record {i}"
             data = read_record(file, offset, length, record, verify)
             name, timestamp, calibrations, present = _parse_frame(data, record)
-            labelled, extrinsics = v1_label_index(data, record) if labels else (set(), {})
+            labelled, extrinsics = v1_label_index(data, record, labels)
             frames, seen = frames + 1, seen | present
             for camera, cam_name in selected.items():
                 if camera in present:
@@ -314,7 +314,7 @@ def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
     no image of the selected cameras at all is an :class:`InputError` too.
     ``labels``: give each sample of a camera_image file with a ``camera_box/`` file of the same
     name a :class:`~fogsim.readers.waymo_labels.WaymoV2Labels` (others get ``labels = None`` and
-    say why in ``meta["labels_missing"]``); ``meta["extrinsic"]`` is the camera→vehicle 4×4.
+    say why in ``meta["labels_missing"]``). ``meta["extrinsic"]`` is the camera→vehicle 4×4 (when known).
     """
     from fogsim.readers.waymo_labels import V2_CAMERA_BOX, WaymoV2Labels, v2_extrinsics
 
@@ -323,7 +323,7 @@ def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
     if not files:
         raise InputError(root, "no camera_image/*.parquet here (expected a Waymo v2 split folder)")
     calibrations = _v2_calibrations(root / "camera_calibration")
-    extrinsics = v2_extrinsics(root) if labels else {}
+    extrinsics = v2_extrinsics(root)
     samples, rows, seen, listings = [], 0, set(), {}
     for file in files:
         pf, start = _open_parquet(file, V2_KEYS + (V2_IMAGE,)), 0

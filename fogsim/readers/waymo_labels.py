@@ -34,7 +34,8 @@ says which rule gave it), first that applies:
 
    For 1 and 2: ``p_cam = inv(E_cam)·[c, 1]`` with ``c`` the 3D box centre (vehicle frame) and
    ``E_cam`` the camera→vehicle extrinsic; ``distance_m = ‖p_cam‖`` and ``planar_depth_m =
-   p_cam.x`` (Waymo's camera frame: x forward, y left, z up). ``laser_id`` names the laser label.
+   p_cam.x`` (Waymo's camera frame: x forward, y left, z up). ``laser_id`` names the laser label
+   and ``laser_points_in_box`` is its ``num_lidar_points_in_box`` (None when unknown).
 3. ``"lidar points in box (near cluster)"``: :func:`distance_from_points` on the projected
    LiDAR points of this camera, from the reader's optional points provider.
 4. ``"unknown"``: ``distance_m = None``.
@@ -287,11 +288,12 @@ def build_labels(frame: CameraFrameLabels, points: PointsProvider | None = None,
     cloud: list = []  # the points, fetched on first need: [] not yet, [None] none
     objects = []
     for i, (b, box) in enumerate(kept):
-        distance = planar = laser_id = None
+        distance = planar = laser_id = laser_points = None
         source = SOURCE_UNKNOWN
         if i in laser_of:
             laser_id, source = laser_of[i]
             distance, planar = camera_range(frame.laser[laser_id].center, frame.extrinsic)
+            laser_points = frame.laser[laser_id].num_points
         elif points is not None:
             if not cloud:
                 cloud.append(points(frame.camera))
@@ -306,7 +308,8 @@ def build_labels(frame: CameraFrameLabels, points: PointsProvider | None = None,
             "truncated": x0 == 0 or y0 == 0 or x1 == frame.width or y1 == frame.height,
             "difficulty": b.difficulty,
             "distance_m": None if distance is None else round(distance, 3), "distance_source": source,
-            "planar_depth_m": None if planar is None else round(planar, 3), "laser_id": laser_id})
+            "planar_depth_m": None if planar is None else round(planar, 3), "laser_id": laser_id,
+            "laser_points_in_box": laser_points})
     return LabelRead(Labels(WAYMO_CLASSES, objects), {k: v for k, v in dropped.items() if v})
 
 
@@ -367,13 +370,14 @@ def _v1_laser(label: pw.Fields, source: str) -> LaserBox:
                     tuple(_finite(center, "laser box centre", source)), None if points < 0 else points)
 
 
-def v1_label_index(data: bytes, source: str) -> tuple[set[int], dict[int, list[list[float]]]]:
+def v1_label_index(data: bytes, source: str, labels: bool = True) -> tuple[set[int], dict[int, list[list[float]]]]:
     """For indexing: the cameras with a ``camera_labels`` entry in this Frame (an entry with no
-    labels counts: "labelled, nothing there") and each calibrated camera's extrinsic
-    (camera→vehicle, 4×4 row-major nested lists; an unusable one is left out)."""
+    labels counts: "labelled, nothing there"; none looked for unless ``labels``) and each
+    calibrated camera's extrinsic (camera→vehicle, 4×4 row-major nested lists; an unusable one is
+    left out)."""
     frame = pw.decode_fields(data, source)
     labelled = {pw.integer(pw.decode_fields(v, source), CAMERA_LABELS_NAME, 0, source)
-                for v in frame.get(FRAME_CAMERA_LABELS, [])}
+                for v in frame.get(FRAME_CAMERA_LABELS, [])} if labels else set()
     extrinsics = {}
     for cal in pw.submessages(pw.submessage(frame, FRAME_CONTEXT, source), CONTEXT_CALIBRATIONS, source):
         camera = pw.integer(cal, CALIB_NAME, 0, source)
@@ -448,7 +452,7 @@ class WaymoV1Labels:
 # ----------------------------------------------------------------------------- v2
 def camera_enum(value, source: str) -> int:
     """A v2 ``key.camera_name`` (int8, or a string "1" / "FRONT" as some files have) as the enum."""
-    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+    if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
         return int(value)
     if isinstance(value, str):
         if value.strip().isdigit():
@@ -459,30 +463,60 @@ def camera_enum(value, source: str) -> int:
 
 
 def _timestamp(value, source: str) -> int:
-    try:
-        if value is None or isinstance(value, bool):
-            raise TypeError
+    if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
         return int(value)
-    except (TypeError, ValueError):
-        raise InputError(source, f"malformed key.frame_timestamp_micros {value!r}") from None
+    raise InputError(source, f"malformed key.frame_timestamp_micros {value!r}")
 
 
-def _v2_rows(path: Path, required: tuple[str, ...], optional: tuple[str, ...] = ()) -> list[dict]:
-    """All rows of the named columns (``optional`` ones only where the file has them)."""
-    pf = _open_parquet(path, required)
-    columns = list(required) + [c for c in optional if c in pf.schema_arrow.names]
+@dataclass(frozen=True)
+class _Table:
+    """The named columns of one v2 file (lists, file order) and its rows grouped by key."""
+
+    path: str
+    columns: dict[str, list]
+    groups: dict[tuple, list[int]]
+
+    def rows(self, key: tuple) -> list[tuple[int, dict]]:
+        """(row number, {column: value}) of the rows with this key."""
+        return [(n, {c: v[n] for c, v in self.columns.items()}) for n in self.groups.get(key, ())]
+
+
+def _column_values(column):
+    """A parquet column as a sequence: numpy for floats (null → NaN) and null-free integers
+    (converting tens of thousands of rows to Python objects is what costs), else a list."""
+    import pyarrow as pa
+
+    if pa.types.is_floating(column.type) or (pa.types.is_integer(column.type) and column.null_count == 0):
+        return column.to_numpy()
+    return column.to_pylist()
+
+
+def _load_table(path: str, required: tuple[str, ...], optional: tuple[str, ...], key: tuple[str, ...]) -> _Table:
+    """Read the columns of a v2 file column-wise (``optional`` ones where the file has them) and
+    group the rows by the ``key`` columns (camera names as enum values, timestamps as int)."""
+    pf = _open_parquet(Path(path), required)
+    names = list(required) + [c for c in optional if c in pf.schema_arrow.names]
     try:
-        return pf.read(columns=columns).to_pylist()
+        table = pf.read(columns=names)
+        columns = {c: _column_values(table.column(c)) for c in names}
     except (OSError, ValueError) as exc:
         raise InputError(path, f"cannot read the columns ({exc})") from None
-
-
-def _stamp(path: Path) -> tuple[int, int] | None:
-    try:
-        stat = os.stat(path)
-    except OSError:
-        return None
-    return stat.st_mtime_ns, stat.st_size
+    converted = []
+    for c in key:
+        convert = camera_enum if c == K_CAMERA else _timestamp if c == K_TIME else None
+        if convert is None:
+            converted.append(columns[c])
+            continue
+        values = columns[c]
+        first = {}
+        for n, v in enumerate(values):  # convert each distinct value once (errors name its first row)
+            first.setdefault(v, n)
+        mapping = {v: convert(v, f"{path}#row {n}") for v, n in first.items()}
+        converted.append([mapping[v] for v in values])
+    groups: dict[tuple, list[int]] = {}
+    for n, k in enumerate(zip(*converted)):
+        groups.setdefault(k, []).append(n)
+    return _Table(path, columns, groups)
 
 
 def _v2_box2d(row: dict, prefix: str, label_id: str, laser_id: str | None, source: str) -> Box2D:
@@ -494,86 +528,57 @@ def _v2_box2d(row: dict, prefix: str, label_id: str, laser_id: str | None, sourc
     return Box2D(str(label_id), int(kind), cx, cy, length, width, int(difficulty or 0), laser_id)
 
 
-@lru_cache(maxsize=4)
-def _v2_camera_boxes(path: str, stamp) -> dict[tuple, list[tuple[int, dict]]]:
-    """(context, timestamp, camera) → [(row number, row)] of a camera_box file."""
-    out: dict[tuple, list] = {}
-    for n, row in enumerate(_v2_rows(Path(path), V2_CAMERA_BOX_COLUMNS, (V2_CAMERA_BOX_DIFFICULTY,))):
-        source = f"{path}#row {n}"
-        key = (row[K_CONTEXT], _timestamp(row[K_TIME], source), camera_enum(row[K_CAMERA], source))
-        out.setdefault(key, []).append((n, row))
-    return out
+@lru_cache(maxsize=16)
+def _v2_table(path: str, stamp, tag: str) -> _Table:
+    """One v2 label table, cached (keyed by ``stamp`` = mtime, size too): one load per file and
+    process, however many of its images are read."""
+    if tag == V2_CAMERA_BOX:
+        return _load_table(path, V2_CAMERA_BOX_COLUMNS, (V2_CAMERA_BOX_DIFFICULTY,), (K_CONTEXT, K_TIME, K_CAMERA))
+    if tag == V2_ASSOCIATION:
+        return _load_table(path, V2_ASSOCIATION_COLUMNS, (), (K_CONTEXT, K_TIME, K_CAMERA))
+    if tag == V2_LIDAR_BOX:
+        return _load_table(path, V2_LIDAR_BOX_COLUMNS, (V2_LIDAR_BOX_POINTS,), (K_CONTEXT, K_TIME))
+    if tag == V2_PROJECTED:
+        return _load_table(path, V2_PROJECTED_COLUMNS, (), (K_CONTEXT, K_TIME, K_CAMERA))
+    return _load_table(path, (K_CONTEXT, K_CAMERA), (V2_CAL_EXTRINSIC, *V2_CAL_SIZE), (K_CONTEXT, K_CAMERA))
 
 
-@lru_cache(maxsize=4)
-def _v2_associations(path: str, stamp) -> dict[tuple, str]:
-    """(context, timestamp, camera, camera object id) → laser object id."""
-    out = {}
-    for n, row in enumerate(_v2_rows(Path(path), V2_ASSOCIATION_COLUMNS)):
-        source = f"{path}#row {n}"
-        out[(row[K_CONTEXT], _timestamp(row[K_TIME], source), camera_enum(row[K_CAMERA], source),
-             row[K_CAMERA_OBJECT])] = row[K_LASER_OBJECT]
-    return out
+def _table(root: Path, tag: str, file_name: str) -> _Table | None:
+    """The cached table ``root/tag/file_name``, or None when the file is absent."""
+    path = root / tag / file_name
+    try:
+        stat = os.stat(path)
+    except OSError:
+        return None
+    return _v2_table(str(path), (stat.st_mtime_ns, stat.st_size), tag)
 
 
-@lru_cache(maxsize=4)
-def _v2_lidar_boxes(path: str, stamp) -> dict[tuple, dict[str, LaserBox]]:
-    """(context, timestamp) → {laser object id: LaserBox}."""
-    out: dict[tuple, dict] = {}
-    for n, row in enumerate(_v2_rows(Path(path), V2_LIDAR_BOX_COLUMNS, (V2_LIDAR_BOX_POINTS,))):
-        source = f"{path}#row {n}"
-        center = _finite([row[f"{_LB}.box.center.{a}"] for a in "xyz"], "laser box centre", source)
-        points = row.get(V2_LIDAR_BOX_POINTS)
-        box = LaserBox(str(row[K_LASER_OBJECT]), int(row[f"{_LB}.type"] or 0), tuple(center),
-                       None if points is None else int(points))
-        out.setdefault((row[K_CONTEXT], _timestamp(row[K_TIME], source)), {})[box.id] = box
-    return out
-
-
-@lru_cache(maxsize=4)
-def _v2_projected(path: str, stamp) -> dict[tuple, list[Box2D]]:
-    """(context, timestamp, camera) → projected laser boxes (id = laser object id)."""
-    out: dict[tuple, list] = {}
-    for n, row in enumerate(_v2_rows(Path(path), V2_PROJECTED_COLUMNS)):
-        source = f"{path}#row {n}"
-        camera = camera_enum(row[K_CAMERA], source)
-        laser_id = camera_label_id(str(row[K_LASER_OBJECT]), CAMERA_BY_ID.get(camera, str(camera)))
-        out.setdefault((row[K_CONTEXT], _timestamp(row[K_TIME], source), camera), []).append(
-            _v2_box2d(row, _PB, laser_id, None, source))
-    return out
-
-
-@lru_cache(maxsize=4)
-def _v2_calibration(path: str, stamp) -> dict[tuple, tuple]:
-    """(context, camera) → (extrinsic 4×4 or None, width or None, height or None)."""
-    out = {}
-    for n, row in enumerate(_v2_rows(Path(path), (K_CONTEXT, K_CAMERA), (V2_CAL_EXTRINSIC, *V2_CAL_SIZE))):
-        source = f"{path}#row {n}"
-        out[(row[K_CONTEXT], camera_enum(row[K_CAMERA], source))] = (
-            _extrinsic(row.get(V2_CAL_EXTRINSIC), source), row.get(V2_CAL_SIZE[0]) or None,
-            row.get(V2_CAL_SIZE[1]) or None)
-    return out
-
-
-def _cached(loader, path: Path):
-    """``loader(path, stamp)`` or None when the file is absent."""
-    stamp = _stamp(path)
-    return None if stamp is None else loader(str(path), stamp)
+def _v2_camera(table: _Table | None, context: str, camera: int) -> tuple:
+    """(extrinsic 4×4 or None, width or None, height or None) of a camera_calibration table."""
+    for n, row in (table.rows((context, camera)) if table else [])[-1:]:
+        width, height = (row.get(c) for c in V2_CAL_SIZE)
+        return (_extrinsic(row.get(V2_CAL_EXTRINSIC), f"{table.path}#row {n}"),
+                int(width) if width else None, int(height) if height else None)
+    return None, None, None
 
 
 def v2_extrinsics(root: str | os.PathLike) -> dict[tuple[str, int], list[list[float]]]:
     """(context, camera) → camera→vehicle extrinsic (4×4 nested lists) of every
     ``camera_calibration/*.parquet`` under a v2 split root that has the column ({} otherwise;
-    a file that cannot be read here is left out: the label reader refuses it when read)."""
+    a file or row that cannot be read here is left out: the label reader refuses it when read)."""
     out = {}
     for path in sorted((Path(root) / V2_CALIBRATION).glob("*.parquet")):
         try:
-            calibrations = _cached(_v2_calibration, path) or {}
+            table = _table(Path(root), V2_CALIBRATION, path.name)
         except InputError:
             continue
-        for key, (extrinsic, _, _) in calibrations.items():
+        for context, camera in table.groups:
+            try:
+                extrinsic = _v2_camera(table, context, camera)[0]
+            except InputError:
+                continue
             if extrinsic is not None:
-                out[key] = extrinsic.tolist()
+                out[(context, camera)] = extrinsic.tolist()
     return out
 
 
@@ -584,24 +589,32 @@ def parse_v2_labels(root: str | os.PathLike, file_name: str, context: str, times
     camera_box rows is labelled with no objects (v2 stores only boxes). ``image_size`` (W, H) is
     used when ``camera_calibration`` does not give the size."""
     root = Path(root)
-    boxes = _cached(_v2_camera_boxes, root / V2_CAMERA_BOX / file_name)
+    boxes = _table(root, V2_CAMERA_BOX, file_name)
     if boxes is None:
         return None
-    associations = _cached(_v2_associations, root / V2_ASSOCIATION / file_name) or {}
-    laser = (_cached(_v2_lidar_boxes, root / V2_LIDAR_BOX / file_name) or {}).get((context, timestamp), {})
-    projected = (_cached(_v2_projected, root / V2_PROJECTED / file_name) or {}).get(
-        (context, timestamp, camera), [])
-    extrinsic, width, height = (_cached(_v2_calibration, root / V2_CALIBRATION / file_name) or {}).get(
-        (context, camera), (None, None, None))
+    name = CAMERA_BY_ID.get(camera, str(camera))
+    frame_key, image_key = (context, timestamp), (context, timestamp, camera)
+    associations = _table(root, V2_ASSOCIATION, file_name)
+    assoc = {row[K_CAMERA_OBJECT]: row[K_LASER_OBJECT] for _, row in
+             (associations.rows(image_key) if associations else [])}
+    laser = {}
+    lidar = _table(root, V2_LIDAR_BOX, file_name)
+    for n, row in lidar.rows(frame_key) if lidar else []:
+        source = f"{lidar.path}#row {n}"
+        center = _finite([row[f"{_LB}.box.center.{a}"] for a in "xyz"], "laser box centre", source)
+        points = row.get(V2_LIDAR_BOX_POINTS)
+        laser[str(row[K_LASER_OBJECT])] = LaserBox(str(row[K_LASER_OBJECT]), int(row[f"{_LB}.type"] or 0),
+                                                   tuple(center), None if points is None else int(points))
+    projected_table = _table(root, V2_PROJECTED, file_name)
+    projected = [_v2_box2d(row, _PB, camera_label_id(str(row[K_LASER_OBJECT]), name), None,
+                           f"{projected_table.path}#row {n}")
+                 for n, row in (projected_table.rows(image_key) if projected_table else [])]
+    extrinsic, width, height = _v2_camera(_table(root, V2_CALIBRATION, file_name), context, camera)
     if (width is None or height is None) and image_size is not None:
         width, height = image_size
-    path = root / V2_CAMERA_BOX / file_name
-    camera_boxes = [
-        _v2_box2d(row, _CB, row[K_CAMERA_OBJECT],
-                  associations.get((context, timestamp, camera, row[K_CAMERA_OBJECT])), f"{path}#row {n}")
-        for n, row in boxes.get((context, timestamp, camera), [])]
-    return CameraFrameLabels(CAMERA_BY_ID.get(camera, str(camera)), width, height, extrinsic,
-                             camera_boxes, projected, laser)
+    camera_boxes = [_v2_box2d(row, _CB, row[K_CAMERA_OBJECT], assoc.get(row[K_CAMERA_OBJECT]),
+                              f"{boxes.path}#row {n}") for n, row in boxes.rows(image_key)]
+    return CameraFrameLabels(name, width, height, extrinsic, camera_boxes, projected, laser)
 
 
 @dataclass(frozen=True)
