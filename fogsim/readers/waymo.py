@@ -83,7 +83,7 @@ def _safe(name: str) -> str:
 
 def _sample(context: str, timestamp: int, camera: str, source: str, reader,
             calibration: Calibration | None, depth_dir: Path | None, depth: DepthSpec,
-            listings: dict | None = None) -> Sample:
+            listings: dict | None = None, labels=None, extra: dict | None = None) -> Sample:
     key = f"{_safe(context)}/{timestamp}_{camera}"
     spec = None
     if depth_dir is not None:
@@ -96,8 +96,8 @@ def _sample(context: str, timestamp: int, camera: str, source: str, reader,
         spec = replace(depth, path=str(found))
     intrinsics, distortion = calibration or (None, {})
     meta = {"dataset": "waymo", "context": context, "timestamp_micros": timestamp,
-            "camera": camera, "distortion": distortion}
-    return Sample(key, source, reader, spec, intrinsics, meta)
+            "camera": camera, "distortion": distortion} | (extra or {})
+    return Sample(key, source, reader, spec, intrinsics, meta, labels)
 
 
 def _depth_dir(depth_dir: str | os.PathLike | None) -> Path | None:
@@ -181,30 +181,50 @@ def _nothing_to_do(path, count: int, what: str, selected: dict[int, str], presen
                             "others with --cameras")
 
 
+def _label_meta(extrinsic, missing: str | None) -> dict:
+    """``meta["extrinsic"]`` (camera→vehicle 4×4, when known) and ``meta["labels_missing"]`` (why a
+    sample has no labels although they were asked for)."""
+    return ({} if extrinsic is None else {"extrinsic": extrinsic}) | ({} if missing is None else
+                                                                      {"labels_missing": missing})
+
+
 def waymo_v1_samples(path: str | os.PathLike, cameras: Iterable[str] = ("FRONT",),
                      depth_dir: str | os.PathLike | None = None,
-                     depth: DepthSpec = DEFAULT_DEPTH, verify: bool = True) -> list[Sample]:
+                     depth: DepthSpec = DEFAULT_DEPTH, verify: bool = True,
+                     labels: bool = True) -> list[Sample]:
     """Samples for the selected cameras of every Frame in a .tfrecord file or folder of them.
 
     Each record is read once here (image bytes are not kept); ``read_image`` re-reads it.
     ``depth`` is the template of every sample's :class:`DepthSpec` (its path is replaced).
     ``verify``: check every record's data CRC (on both reads). Raises :class:`InputError`
     when there is nothing to do: no frames, or no image of the selected cameras in any.
+    ``labels``: give each sample whose frame has a ``camera_labels`` entry for its camera a
+    :class:`~fogsim.readers.waymo_labels.WaymoV1Labels` (others get ``labels = None`` and say why
+    in ``meta["labels_missing"]``). ``meta["extrinsic"]`` is the camera→vehicle 4×4 (when known).
     """
+    from fogsim.readers.waymo_labels import WaymoV1Labels, v1_label_index
+
     selected, depth_dir = camera_ids(cameras), _depth_dir(depth_dir)
     samples, frames, seen, listings = [], 0, set(), {}
     for file in _tfrecord_files(Path(path)):
         for i, (offset, length) in enumerate(index_tfrecord(file)):
             record = f"{file}#record {i}"
-            name, timestamp, calibrations, present = _parse_frame(
-                read_record(file, offset, length, record, verify), record)
+            data = read_record(file, offset, length, record, verify)
+            name, timestamp, calibrations, present = _parse_frame(data, record)
+            labelled, extrinsics = v1_label_index(data, record, labels)
             frames, seen = frames + 1, seen | present
             for camera, cam_name in selected.items():
                 if camera in present:
                     source = f"{record} {cam_name}"
                     reader = TFRecordImage(str(file), offset, length, camera, source, verify)
+                    label_reader = missing = None
+                    if labels and camera in labelled:
+                        label_reader = WaymoV1Labels(str(file), offset, length, camera, source, verify)
+                    elif labels:
+                        missing = f"{record}: no camera_labels entry for {cam_name} (an unlabelled frame)"
                     samples.append(_sample(name, timestamp, cam_name, source, reader,
-                                           calibrations.get(camera), depth_dir, depth, listings))
+                                           calibrations.get(camera), depth_dir, depth, listings,
+                                           label_reader, _label_meta(extrinsics.get(camera), missing)))
     if not samples:
         raise _nothing_to_do(path, frames, "frames", selected, seen)
     return _unique(samples)
@@ -285,22 +305,30 @@ def _v2_key(source: str, name, timestamp) -> None:
 
 def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",),
                      depth_dir: str | os.PathLike | None = None,
-                     depth: DepthSpec = DEFAULT_DEPTH) -> list[Sample]:
+                     depth: DepthSpec = DEFAULT_DEPTH, labels: bool = True) -> list[Sample]:
     """Samples for the selected cameras of a Waymo v2 split folder (e.g. ``.../training``).
 
     Only the key columns are read here; ``read_image`` reads the image column of one row
     group when called. Without ``camera_calibration/`` the samples have no intrinsics.
     A row of a selected camera with a null or mistyped key is refused naming file and row;
     no image of the selected cameras at all is an :class:`InputError` too.
+    ``labels``: give each sample of a camera_image file with a ``camera_box/`` file of the same
+    name a :class:`~fogsim.readers.waymo_labels.WaymoV2Labels` (others get ``labels = None`` and
+    say why in ``meta["labels_missing"]``). ``meta["extrinsic"]`` is the camera→vehicle 4×4 (when known).
     """
+    from fogsim.readers.waymo_labels import V2_CAMERA_BOX, WaymoV2Labels, v2_extrinsics
+
     selected, depth_dir, root = camera_ids(cameras), _depth_dir(depth_dir), Path(root)
     files = sorted((root / "camera_image").glob("*.parquet"))
     if not files:
         raise InputError(root, "no camera_image/*.parquet here (expected a Waymo v2 split folder)")
     calibrations = _v2_calibrations(root / "camera_calibration")
+    extrinsics = v2_extrinsics(root)
     samples, rows, seen, listings = [], 0, set(), {}
     for file in files:
         pf, start = _open_parquet(file, V2_KEYS + (V2_IMAGE,)), 0
+        boxes = root / V2_CAMERA_BOX / file.name
+        labelled = labels and boxes.is_file()
         for group in range(pf.num_row_groups):
             keys = pf.read_row_group(group, columns=list(V2_KEYS)).to_pydict()
             for row, (name, timestamp, camera) in enumerate(zip(*(keys[k] for k in V2_KEYS))):
@@ -309,8 +337,14 @@ def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
                     source = f"{file}#row {start + row} {selected[camera]}"
                     _v2_key(source, name, timestamp)
                     reader = ParquetImage(str(file), group, row, source)
+                    label_reader = missing = None
+                    if labelled:
+                        label_reader = WaymoV2Labels(str(root), file.name, name, timestamp, camera, source, reader)
+                    elif labels:
+                        missing = f"{boxes}: not found (no 2D camera labels for this segment)"
                     samples.append(_sample(name, timestamp, selected[camera], source, reader,
-                                           calibrations.get((name, camera)), depth_dir, depth, listings))
+                                           calibrations.get((name, camera)), depth_dir, depth, listings,
+                                           label_reader, _label_meta(extrinsics.get((name, camera)), missing)))
             start += len(keys[V2_KEYS[0]])
         rows += start
     if not samples:
@@ -320,9 +354,10 @@ def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
 
 def waymo_samples(path: str | os.PathLike, cameras: Iterable[str] = ("FRONT",),
                   depth_dir: str | os.PathLike | None = None,
-                  depth: DepthSpec = DEFAULT_DEPTH, verify: bool = True) -> list[Sample]:
+                  depth: DepthSpec = DEFAULT_DEPTH, verify: bool = True, labels: bool = True) -> list[Sample]:
     """v2 when ``path`` is a folder with ``camera_image/``, else v1 TFRecord file(s) (whose
-    record CRCs are checked unless ``verify`` is false)."""
+    record CRCs are checked unless ``verify`` is false). ``labels``: attach the 2D camera labels
+    where the dataset has them (:mod:`fogsim.readers.waymo_labels`)."""
     if (Path(path) / "camera_image").is_dir():
-        return waymo_v2_samples(path, cameras, depth_dir, depth)
-    return waymo_v1_samples(path, cameras, depth_dir, depth, verify)
+        return waymo_v2_samples(path, cameras, depth_dir, depth, labels)
+    return waymo_v1_samples(path, cameras, depth_dir, depth, verify, labels)
