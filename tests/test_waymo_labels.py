@@ -348,3 +348,32 @@ def test_camera_enum_accepts_int_and_strings():
     for bad in (None, "BACK", 1.5, True):
         with pytest.raises(InputError, match="key.camera_name"):
             camera_enum(bad, "f.parquet#row 0")
+
+
+def test_v1_box_without_laser_label_gets_its_distance_from_the_frames_lidar(tmp_path):
+    """The wiring of the two decoders: a camera box with no laser label takes the near cluster
+    of the frame's own LiDAR points (the wall fixture: a plane at x = 20 m)."""
+    import waymo_lidar_fixtures as lfx
+    from waymo_fixtures import Box2D, camera_label, camera_labels_message
+
+    from fogsim.readers import waymo_lidar as wl
+    from fogsim.fileio import encode_image
+    from fogsim.readers.waymo import waymo_samples
+
+    scene = lfx.wall_scene()
+    image = encode_image(np.full((lfx.IMAGE_H, lfx.IMAGE_W, 3), 90, np.uint8), ".png")
+    box = Box2D("cam-box-1", 1, cx=lfx.IMAGE_W / 2, cy=lfx.IMAGE_H / 2 + 20, length=120, width=80)
+    frame = lfx.frame_msg(scene, image=image) + pw.bytes_field(8, camera_labels_message(1, [camera_label(box)]))
+    path = tmp_path / "seg.tfrecord"
+    write_tfrecord(path, [frame, lfx.frame_msg(scene, lfx.TIMESTAMP + 1, with_lasers=False, image=image)
+                          + pw.bytes_field(8, camera_labels_message(1, [camera_label(box)]))])
+    with_lidar, without = waymo_samples(path, ("FRONT",))
+    (obj,) = with_lidar.labels().objects
+    pts = wl.camera_points(wl.parse_v1_lidar(frame, "fixture"), "FRONT")
+    x0, y0, x1, y1 = obj["bbox"]
+    inside = (pts.uv[:, 0] >= x0) & (pts.uv[:, 0] < x1) & (pts.uv[:, 1] >= y0) & (pts.uv[:, 1] < y1)
+    assert inside.sum() >= 5
+    assert obj["distance_source"] == "lidar points in box (near cluster)"
+    assert abs(obj["distance_m"] - float(np.median(pts.ray[inside]))) < 0.5
+    (far,) = without.labels().objects  # no LiDAR in that frame: unknown, not an error
+    assert far["distance_m"] is None and far["distance_source"] == "unknown"

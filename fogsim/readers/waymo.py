@@ -181,6 +181,14 @@ def _nothing_to_do(path, count: int, what: str, selected: dict[int, str], presen
                             "others with --cameras")
 
 
+def _lidar_points(kind: str, *where):
+    """The frame's LiDAR points for the labels' near-cluster fallback (None without LiDAR);
+    imported here because :mod:`.waymo_lidar` builds on this module."""
+    from fogsim.readers.waymo_lidar import LidarPoints, OptionalPoints
+
+    return OptionalPoints(getattr(LidarPoints, kind)(*where))
+
+
 def _label_meta(extrinsic, missing: str | None) -> dict:
     """``meta["extrinsic"]`` (camera→vehicle 4×4, when known) and ``meta["labels_missing"]`` (why a
     sample has no labels although they were asked for)."""
@@ -219,7 +227,8 @@ def waymo_v1_samples(path: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
                     reader = TFRecordImage(str(file), offset, length, camera, source, verify)
                     label_reader = missing = None
                     if labels and camera in labelled:
-                        label_reader = WaymoV1Labels(str(file), offset, length, camera, source, verify)
+                        label_reader = WaymoV1Labels(str(file), offset, length, camera, source, verify,
+                                                     points=_lidar_points("v1", file, offset, length, record, verify))
                     elif labels:
                         missing = f"{record}: no camera_labels entry for {cam_name} (an unlabelled frame)"
                     samples.append(_sample(name, timestamp, cam_name, source, reader,
@@ -339,7 +348,9 @@ def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
                     reader = ParquetImage(str(file), group, row, source)
                     label_reader = missing = None
                     if labelled:
-                        label_reader = WaymoV2Labels(str(root), file.name, name, timestamp, camera, source, reader)
+                        points = _lidar_points("v2", root, name, timestamp, f"{file}#row {start + row}")
+                        label_reader = WaymoV2Labels(str(root), file.name, name, timestamp, camera, source, reader,
+                                                     points=points)
                     elif labels:
                         missing = f"{boxes}: not found (no 2D camera labels for this segment)"
                     samples.append(_sample(name, timestamp, selected[camera], source, reader,

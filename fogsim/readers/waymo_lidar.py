@@ -54,6 +54,11 @@ from fogsim.readers import protobuf_wire as pw
 from fogsim.readers.tfrecord import read_record
 from fogsim.readers.waymo import CAMERA_NAMES, camera_ids
 
+
+class NoLidar(InputError):
+    """The frame has no LiDAR range images (a test-split or camera-only frame): a per-frame
+    problem, which the label reader treats as "no points" and ``--depth-from lidar`` reports."""
+
 #: LaserName.Name enum of dataset.proto
 LASER_NAMES = {"TOP": 1, "FRONT": 2, "SIDE_LEFT": 3, "SIDE_RIGHT": 4, "REAR": 5}
 _LASER_LABEL = {v: k for k, v in LASER_NAMES.items()}
@@ -274,7 +279,7 @@ def _matrix4(values, source: str, what: str) -> np.ndarray:
 
 def _require_frame_lidar(frame: LidarFrame, what: str) -> LidarFrame:
     if not frame.returns:
-        raise InputError(frame.source, f"frame has no LiDAR range images ({what})")
+        raise NoLidar(frame.source, f"frame has no LiDAR range images ({what})")
     missing = [laser_name(k) for k in frame.returns if k not in frame.calibrations]
     if missing:
         raise InputError(frame.source, f"no laser calibration for {', '.join(missing)}")
@@ -644,7 +649,7 @@ def read_v2_lidar(root: str | os.PathLike, context: str, timestamp: int, source:
         raise ValueError(f"lidar returns are 1 or 2, not {returns}")
     lidar_file = _v2_file(root, "lidar", context)
     if not lidar_file.is_file():
-        raise InputError(source, f"frame has no LiDAR range images ({lidar_file} not found)")
+        raise NoLidar(source, f"frame has no LiDAR range images ({lidar_file} not found)")
     frame_keys = {V2_CONTEXT: context, V2_TIME: int(timestamp)}
 
     def ret_cols(tag: str, ns) -> list[str]:
@@ -652,7 +657,7 @@ def read_v2_lidar(root: str | os.PathLike, context: str, timestamp: int, source:
 
     rows = _v2_rows(lidar_file, frame_keys, [V2_LASER] + ret_cols("lidar", returns), source)
     if not rows:
-        raise InputError(source, f"frame has no LiDAR range images (no rows in {lidar_file})")
+        raise NoLidar(source, f"frame has no LiDAR range images (no rows in {lidar_file})")
     images: dict[int, dict[int, np.ndarray]] = {}
     for row in rows:
         laser = _sensor_key(row[V2_LASER], f"{lidar_file} {source}")
@@ -782,6 +787,21 @@ class LidarPoints:
     def __call__(self, camera: int | str) -> tuple[np.ndarray, np.ndarray]:
         pts = self.points(camera)
         return pts.uv, pts.ray
+
+
+@dataclass(frozen=True)
+class OptionalPoints:
+    """A :class:`LidarPoints` for the label reader's near-cluster fallback
+    (:data:`fogsim.readers.waymo_labels.PointsProvider`): ``None`` for a frame without LiDAR
+    instead of an error; a damaged range image still raises."""
+
+    lidar: LidarPoints
+
+    def __call__(self, camera: int | str):
+        try:
+            return self.lidar(camera)
+        except NoLidar:
+            return None
 
 
 def lidar_points_for_sample(sample) -> LidarPoints:
