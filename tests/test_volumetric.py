@@ -204,3 +204,13 @@ def test_ea_medium_equals_koschmieder_in_linear_light(kind, tmp_path):
         assert sum(b["pixels"] for b in bins) == inner.sum() and len(bins) >= 4
         worst = max(bins, key=lambda b: abs(b["bias"]))
         assert abs(worst["bias"]) <= 0.005, (r["blender"], key, bins)
+
+
+@pytest.mark.blender
+def test_addon_panel_renders_volumetric_fog(tmp_path):
+    res = run(runner("bpy")(SCRIPTS / "addon_ops.py", str(tmp_path / "ds"), "volumetric", "hybrid"))
+    assert res.returncode == 0, res.stderr[-3000:]
+    line = next(ln for ln in res.stdout.splitlines() if ln.startswith("RESULT "))
+    assert json.loads(line[len("RESULT "):])["status"].startswith("done: 1 frames")
+    fog = json.loads((tmp_path / "ds" / "meta" / "000000.json").read_text())["fog"]
+    assert fog["model"] == "volumetric" and fog["medium"] == "hybrid" and fog["scatter_fraction"] == 0.5
