@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from fogsim.camera import Intrinsics, planar_to_ray
+from fogsim.colour import linear_to_srgb8
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.errors import InputError
 from fogsim.fileio import read_depth_file, read_image, read_rgb_exr, read_uint16_map
@@ -83,6 +84,15 @@ def test_world_volume_preset_refused_before_anything_is_written(tmp_path, capsys
     err = capsys.readouterr().err
     assert "world volume cannot be used" in err and "sun" in err and "Traceback" not in err
     assert not out.exists()
+
+
+def test_render_fog_bench_and_fog_flags_have_help_without_extras():
+    from test_front_door import run_without_extras
+
+    res = run_without_extras("bench", "render-fog", "--help")
+    assert res.returncode == 0 and "--fog-samples" in res.stdout, res.stderr
+    res = run_without_extras("render", "--help")
+    assert res.returncode == 0 and "--fog {koschmieder,volumetric}" in res.stdout and "--fog-medium" in res.stdout
 
 
 # ----------------------------------------------------------------------------- pure helpers (fast)
@@ -169,7 +179,8 @@ EA_PRESET = {"style": "urban-canyon", "camera": "waymo-front", "resolution": [96
              "quality": {"samples": 16, "denoise": False, "adaptive_threshold": 0,
                          "bounces": {"total": 4, "diffuse": 2, "glossy": 2, "transmission": 0, "transparent": 0}},
              "fog_model": {"kind": "volumetric",
-                           "volumetric": {"medium": "ea", "emission": 0.8, "denoise": False, "keep_linear": True}}}
+                           "volumetric": {"medium": "ea", "emission": 0.8, "denoise": False, "keep_linear": True,
+                                          "exposure": "auto"}}}
 
 
 @pytest.mark.blender
@@ -204,6 +215,11 @@ def test_ea_medium_equals_koschmieder_in_linear_light(kind, tmp_path):
         assert sum(b["pixels"] for b in bins) == inner.sum() and len(bins) >= 4
         worst = max(bins, key=lambda b: abs(b["bias"]))
         assert abs(worst["bias"]) <= 0.005, (r["blender"], key, bins)
+        # exposure "auto": the 8-bit image is the linear render scaled to the clear render's median luminance
+        factor = meta["fog"]["exposure_factor"][key]
+        assert factor == pytest.approx(auto_exposure(clear, fog)) and factor != 1.0
+        assert np.array_equal(read_image(out / "images" / key / "000000.png"), linear_to_srgb8(fog, factor))
+    assert np.array_equal(read_image(out / "images" / "clear" / "000000.png"), linear_to_srgb8(clear))
 
 
 @pytest.mark.blender

@@ -164,8 +164,10 @@ class RenderJob:
                 "horizon_radiance": horizon, "horizon_rule": "median linear luminance beyond ln(20)/β",
                 "seed": cycles_used["seed"], "noise_seed": s["noise_seed"], "cycles": cycles_used,
                 "linear": linear or None, "clear_level": "the clear render (labels, depth, masks come from it)"}
-        if s["medium"] == "full":
+        if "phase" in medium:  # what Blender was given (MIE: the droplet diameter replaces g)
             info["phase"] = cycles_used["phase"]
+            if info["phase"] == "MIE":
+                info["diameter_um"] = s["diameter_um"]
         return foggy, info
 
     def finish(self) -> None:
