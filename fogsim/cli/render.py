@@ -4,10 +4,13 @@
     blender -b -P scripts/render_batch.py -- --preset default --out OUT      # Blender binary (3.4+)
 
 Each frame is rendered once (RGB, planar depth, object index) and fogged at every level of
-the preset. A frame is committed atomically (``meta/<frame>.json`` last); a restarted run
-skips committed frames, and ``--shard i/N`` renders frames i, i+N, … for a Slurm array or a
-Kubernetes indexed job (run ``--finalize-only`` once after all shards to rebuild COCO, YAMLs
-and the contact sheet over every frame). Needs bpy (the ``blender`` extra) or Blender itself.
+the preset — by Koschmieder's law on the clear render (default), or with ``--fog volumetric``
+by one more Cycles render per level with a participating medium around camera and scene
+(labels, depth and masks still come from the clear render). A frame is committed atomically
+(``meta/<frame>.json`` last); a restarted run skips committed frames, and ``--shard i/N``
+renders frames i, i+N, … for a Slurm array or a Kubernetes indexed job (run
+``--finalize-only`` once after all shards to rebuild COCO, YAMLs and the contact sheet over
+every frame). Needs bpy (the ``blender`` extra) or Blender itself.
 """
 from __future__ import annotations
 
