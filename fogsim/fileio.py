@@ -305,6 +305,39 @@ def _write_exr_openexr(path: Path, depth: np.ndarray) -> None:
             f.write(str(tmp))
 
 
+def write_rgb_exr(path: str | os.PathLike, rgb: np.ndarray) -> None:
+    """Write an H×W×3 float32 scene-linear RGB image as EXR (channels R, G, B, ZIP), atomically.
+
+    Same route as :func:`write_depth`: OpenCV when it has an EXR encoder, else the OpenEXR package.
+    """
+    path = Path(path)
+    rgb = np.ascontiguousarray(rgb, dtype=np.float32)
+    if rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise ValueError(f"an RGB EXR needs an H×W×3 array, got shape {rgb.shape}")
+    if not cv2.haveImageWriter(".exr"):
+        import OpenEXR
+
+        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+        with atomic_path(path) as tmp:
+            with OpenEXR.File(header, {c: np.ascontiguousarray(rgb[:, :, i]) for i, c in enumerate("RGB")}) as f:
+                f.write(str(tmp))
+        return
+    ok, data = cv2.imencode(".exr", np.ascontiguousarray(rgb[:, :, ::-1]),
+                            [cv2.IMWRITE_EXR_TYPE, cv2.IMWRITE_EXR_TYPE_FLOAT,
+                             cv2.IMWRITE_EXR_COMPRESSION, cv2.IMWRITE_EXR_COMPRESSION_ZIP])
+    if not ok:
+        raise ValueError(f"OpenCV could not encode a {rgb.shape} image as EXR")
+    atomic_write_bytes(path, data.tobytes())
+
+
+def read_rgb_exr(path: str | os.PathLike) -> np.ndarray:
+    """An EXR's R, G, B channels as H×W×3 float32 (what :func:`write_rgb_exr` writes)."""
+    ch = read_exr_channels(path)
+    if not all(c in ch for c in "RGB"):
+        raise InputError(path, f"not an RGB EXR (channels {sorted(ch)})")
+    return np.stack([ch[c] for c in "RGB"], axis=-1).astype(np.float32)
+
+
 def read_depth_file(path: str | os.PathLike, png_scale: float | None = None) -> np.ndarray:
     """Read a depth map in metres as H×W float32.
 

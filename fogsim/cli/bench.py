@@ -1,4 +1,4 @@
-"""``fogsim bench fog | render | ila | lidar``: the speed and accuracy benchmarks.
+"""``fogsim bench fog | render | render-fog | fog-physics | ila | lidar``: the speed and accuracy benchmarks.
 
 Each prints its figures beside a baseline measured in the same run (ratios of medians:
 these machines are noisy); none of them is a test, and CI times nothing.
@@ -25,6 +25,20 @@ def add_parsers(sub) -> None:
     render.add_argument("--baseline-frames", type=int, default=3)
     render.add_argument("--out", help="dataset folder (default: a temporary one)")
     render.set_defaults(run=lambda args: _render(args))
+
+    rfog = bsub.add_parser("render-fog", help="a volumetric-fog frame (full + OIDN, hybrid) against a Koschmieder "
+                           "frame of the same scenes, ratio in the same run (needs bpy)",
+                           formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    rfog.add_argument("--preset", default="default")
+    rfog.add_argument("--resolution", default="160x107", help="small by default to keep the run short; "
+                      "640x426 is the default preset's own")
+    rfog.add_argument("--frames", type=int, default=1)
+    rfog.add_argument("--repeat", type=int, default=1, help="interleaved repeats (medians)")
+    rfog.add_argument("--samples", type=int, help="clear-render samples (default: the preset's quality)")
+    rfog.add_argument("--fog-samples", type=int, help="fog-render samples (default: the clear render's)")
+    rfog.add_argument("--levels", help="fog levels (default: the preset's)")
+    rfog.add_argument("--out", help="folder of the three datasets (default: a temporary one)")
+    rfog.set_defaults(run=lambda args: _render_fog(args))
 
     ila = bsub.add_parser("ila", help="depth completion (classical fills, ILA) scored against exact rendered "
                           "depth; renders a stereo dataset first (needs bpy; torch for ILA)",
@@ -67,6 +81,18 @@ def _render(args) -> int:
     from fogsim.render.blender.bench import run
 
     return run(args)
+
+
+def _render_fog(args) -> int:
+    _positive(frames=args.frames, repeat=args.repeat)
+    if args.samples is not None or args.fog_samples is not None:
+        _positive(**{k: v for k, v in (("samples", args.samples), ("fog_samples", args.fog_samples)) if v is not None})
+    from fogsim.cli.render import require_bpy
+
+    require_bpy()
+    from fogsim.render.blender.bench import run_fog
+
+    return run_fog(args)
 
 
 def _ila(args) -> int:

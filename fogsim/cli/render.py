@@ -4,10 +4,13 @@
     blender -b -P scripts/render_batch.py -- --preset default --out OUT      # Blender binary (3.4+)
 
 Each frame is rendered once (RGB, planar depth, object index) and fogged at every level of
-the preset. A frame is committed atomically (``meta/<frame>.json`` last); a restarted run
-skips committed frames, and ``--shard i/N`` renders frames i, i+N, … for a Slurm array or a
-Kubernetes indexed job (run ``--finalize-only`` once after all shards to rebuild COCO, YAMLs
-and the contact sheet over every frame). Needs bpy (the ``blender`` extra) or Blender itself.
+the preset — by Koschmieder's law on the clear render (default), or with ``--fog volumetric``
+by one more Cycles render per level with a participating medium around camera and scene
+(labels, depth and masks still come from the clear render). A frame is committed atomically
+(``meta/<frame>.json`` last); a restarted run skips committed frames, and ``--shard i/N``
+renders frames i, i+N, … for a Slurm array or a Kubernetes indexed job (run
+``--finalize-only`` once after all shards to rebuild COCO, YAMLs and the contact sheet over
+every frame). Needs bpy (the ``blender`` extra) or Blender itself.
 """
 from __future__ import annotations
 
@@ -32,6 +35,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "about 8192×4883; Blender's own limit is 65536 px a side)")
     p.add_argument("--samples", type=int, help="Cycles samples (overrides the quality preset)")
     p.add_argument("--levels", help="fog levels: preset name or comma-separated β (overrides the preset)")
+    p.add_argument("--fog", choices=("koschmieder", "volumetric"),
+                   help="fog model (overrides the preset's fog_model.kind): koschmieder = the post-process on the "
+                        "clear render (default); volumetric = one Cycles render per fog level with a participating "
+                        "medium (labels, depth and masks still come from the clear render)")
+    p.add_argument("--fog-medium", choices=("full", "hybrid", "ea"),
+                   help="volumetric medium (implies --fog volumetric): full = pure scattering (default), "
+                        "hybrid = half absorption + emission (cheaper), ea = camera-only emission-absorption "
+                        "(exactly Koschmieder in linear light; a check)")
     p.add_argument("--stereo", action="store_true",
                    help="also render the right camera (preset baseline, else the camera's, else 0.209 m) "
                         "and write SGBM disparity in Cityscapes' layout under OUT/cityscapes/")
@@ -72,7 +83,8 @@ def cmd_render(args) -> int:
     check_output(args.out, {"--preset": preset_file})
     config = load_render_preset(args.preset, frames=args.frames, seed=args.seed, train_fraction=args.train_fraction,
                                 resolution=args.resolution, samples=args.samples, levels=args.levels,
-                                stereo=True if args.stereo else None, max_pixels=args.max_pixels)
+                                stereo=True if args.stereo else None, max_pixels=args.max_pixels,
+                                fog=args.fog, fog_medium=args.fog_medium)
     shard = parse_shard(args.shard)
     require_bpy()
     from fogsim.render.blender.job import RUN_FILE, RenderJob

@@ -6,6 +6,7 @@ Layout under the root::
     labels/<level>/<frame>.txt   YOLO lines, identical across levels (empty = background)
     depth/<frame>.exr            planar depth, metres        masks/<frame>.png  uint16 ids
     meta/<frame>.json            the frame record, written last: its presence marks the frame done
+    linear/<level>/<frame>.exr   scene-linear RGB renders (volumetric fog, ``keep_linear``; R, G, B float)
     cityscapes/<kind>/<split>/fogsim/<frame>_<kind>.{png,json}   the stereo pair (``--stereo``)
     coco/<level>.json            COCO detection annotations (objects the filters dropped: iscrowd = 1)
     splits/<level>_{train,val}.txt, splits/all_{train,val}.txt   image lists (absolute paths)
@@ -55,6 +56,10 @@ class DatasetLayout:
 
     def mask(self, frame: str) -> Path:
         return self.root / "masks" / f"{frame}.png"
+
+    def linear(self, level_key: str, frame: str) -> Path:
+        """Scene-linear float RGB render of one level (volumetric fog with ``keep_linear``; clear too)."""
+        return self.root / "linear" / level_key / f"{frame}.exr"
 
     def meta_dir(self) -> Path:
         return self.root / "meta"

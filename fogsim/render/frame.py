@@ -78,11 +78,15 @@ def write_stereo(layout: DatasetLayout, config: RenderConfig, name: str, K: Intr
 
 def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: dict, meshes: dict,
                  rgb_linear: np.ndarray, depth: np.ndarray, mask: np.ndarray, timings: dict,
-                 render_info: dict, right_linear: np.ndarray | None = None) -> dict:
+                 render_info: dict, right_linear: np.ndarray | None = None,
+                 foggy: dict | None = None, fog_info: dict | None = None) -> dict:
     """Ground truth, fog and every file of one frame; returns the frame record (meta).
 
     ``right_linear``: the right view of a stereo pair, if the preset asks for one; it is
     matched with SGBM and written with the left view in Cityscapes' layout.
+    ``foggy``: level key → 8-bit sRGB H×W×3 image rendered elsewhere (volumetric fog), one per
+    level of the preset; None = Koschmieder fog computed here from the clear render. ``fog_info``
+    then replaces the Koschmieder parameters in ``meta["fog"]`` (its ``levels`` stay).
     """
     t0 = time.perf_counter()
     name = frame_name(index)
@@ -99,8 +103,15 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: 
                              min_visible_fraction=float(lab.get("min_visible_fraction", 0.1)))
     t1 = time.perf_counter()
     fs = fog_settings(config)
-    fogger = Fogger(rgb, ray, fs["airlight"], fs["space"], fs["kernel"])
-    foggy = {lv.key: fogger(lv.beta) for lv in config.levels}
+    if foggy is None:
+        fogger = Fogger(rgb, ray, fs["airlight"], fs["space"], fs["kernel"])
+        foggy = {lv.key: fogger(lv.beta) for lv in config.levels}
+        fog_meta = {"model": "koschmieder", "distance": "planar→ray", "airlight": fs["airlight"],
+                    "blend_space": fs["space"], "kernel": fs["kernel"].to_dict() if fs["kernel"] else None}
+    else:
+        if {lv.key for lv in config.levels} - set(foggy):
+            raise ValueError(f"foggy images lack levels {sorted({lv.key for lv in config.levels} - set(foggy))}")
+        fog_meta = dict(fog_info or {})
     t2 = time.perf_counter()
     for lv in config.levels:
         write_image(layout.image(lv.key, name), foggy[lv.key])
@@ -113,9 +124,7 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: 
     timings = dict(timings, ground_truth=t1 - t0, fog=t2 - t1, write=t3 - t2)
     meta = {"frame": name, "index": index, "seed": desc["seed"], "width": w, "height": h,
             "camera": desc["camera"], "objects": records,
-            "fog": {"levels": [lv.to_dict() for lv in config.levels], "distance": "planar→ray",
-                    "airlight": fs["airlight"], "blend_space": fs["space"],
-                    "kernel": fs["kernel"].to_dict() if fs["kernel"] else None},
+            "fog": {"levels": [lv.to_dict() for lv in config.levels], **fog_meta},
             "depth": {"file": str(layout.depth(name).relative_to(layout.root)), "kind": "planar Z, metres",
                       "no_hit": "inf"},
             "stereo": stereo,

@@ -275,9 +275,14 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
                        seed: int | None = None, resolution: str | None = None,
                        samples: int | None = None, levels: str | None = None,
                        stereo: bool | None = None, train_fraction: float | None = None,
-                       max_pixels: int = MAX_PIXELS) -> RenderConfig:
+                       max_pixels: int = MAX_PIXELS, fog: str | None = None,
+                       fog_medium: str | None = None) -> RenderConfig:
     """Read a dataset preset, check all of it and apply overrides; every problem of the
-    preset names the preset file (and the key), every bad override its flag."""
+    preset names the preset file (and the key), every bad override its flag.
+
+    ``fog`` (``--fog``): "koschmieder" | "volumetric", sets ``fog_model.kind``;
+    ``fog_medium`` (``--fog-medium``): "full" | "hybrid" | "ea", sets
+    ``fog_model.volumetric.medium`` (and implies ``--fog volumetric``)."""
     path = preset_path(name_or_path)
     if not path.is_file():
         raise InputError(path, "preset not found")
@@ -302,6 +307,12 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
     if samples is not None:
         samples = _int(samples, "--samples", 1, MAX_SAMPLES)
     lv_override = parse_levels(levels) if levels is not None else None
+    if fog is not None:
+        _choice(fog, "--fog", FOG_KINDS)
+    if fog_medium is not None:
+        _choice(fog_medium, "--fog-medium", FOG_MEDIA)
+        if fog == "koschmieder":
+            raise ValueError("--fog-medium needs --fog volumetric")
     if train_fraction is not None and not (_is_number(train_fraction) and 0 < train_fraction < 1):
         raise ValueError(f"--train-fraction must be between 0 and 1, got {train_fraction}")
     try:
@@ -321,6 +332,7 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
         for key, value in (("fog_model", fog_model), ("labels", labels)):
             if not isinstance(value, dict):
                 raise ValueError(f"{key} must be a JSON object, got {value!r}")
+        fog_model = _fog_overrides(fog_model, fog, fog_medium)
         cfg = RenderConfig(
             name=_str(d.get("name", path.stem), "name"), source=str(path),
             style=style, camera=camera, resolution=res, quality=quality, levels=tuple(lv),
@@ -348,14 +360,29 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
     return cfg
 
 
+def _fog_overrides(fog_model: dict, fog: str | None, medium: str | None) -> dict:
+    """The preset's fog_model with ``--fog`` / ``--fog-medium`` applied (a new dict)."""
+    fog_model = dict(fog_model)
+    if medium is not None:
+        fog = "volumetric"
+    if fog is not None:
+        fog_model["kind"] = fog
+    if medium is not None:
+        spec = fog_model.get("volumetric", {})
+        fog_model["volumetric"] = {**(spec if isinstance(spec, dict) else {}), "medium": medium}
+    return fog_model
+
+
 def fog_settings(config: RenderConfig) -> dict:
     """The preset's ``fog_model`` as Fogger arguments: airlight (8-bit units), blend space, kernel."""
     from fogsim.fog.model import SPACES, Kernel, airlight_rgb
 
     m = config.fog_model
-    unknown = set(m) - {"extended", "kernel", "kernel_size", "sigma", "eps", "airlight", "space"}
+    unknown = set(m) - {"extended", "kernel", "kernel_size", "sigma", "eps", "airlight", "space", "kind",
+                        "volumetric"}
     if unknown:
         raise ValueError(f"unknown fog_model keys {sorted(unknown)}")
+    volumetric_settings(config)  # the kind and, for "volumetric", its medium: checked here too
     kernel = None
     if _bool(m.get("extended", False), "fog_model.extended"):
         kernel = Kernel(_str(m.get("kernel", "box"), "fog_model.kernel"),
@@ -371,6 +398,68 @@ def fog_settings(config: RenderConfig) -> dict:
     if space not in SPACES:
         raise ValueError(f"fog_model.space must be one of {', '.join(SPACES)}, got {space!r}")
     return {"airlight": airlight, "space": space, "kernel": kernel}
+
+
+FOG_KINDS = ("koschmieder", "volumetric")
+#: The participating media of ``fog_model.kind = "volumetric"`` (fogsim.render.blender.fog_volume).
+FOG_MEDIA = ("full", "hybrid", "ea")
+FOG_EXPOSURES = ("none", "auto")
+#: A fog render's box domain must lie inside the camera's clip_end (2000 m): half-width ≤ this.
+MAX_FOG_EXTENT_M = 1400.0
+_WORLD_VOLUME = ("a world volume cannot be used for fog: Cycles then ignores the world background and the "
+                 "sun entirely (the image is black); fogsim renders fog in a closed box domain around camera "
+                 "and scene (fog_model.volumetric.domain = \"box\", the default)")
+#: Defaults of ``fog_model.volumetric`` (units: β 1/m from the fog levels; metres; linear radiance).
+VOLUMETRIC_DEFAULTS = {
+    "medium": "full",          # full: pure scattering; hybrid: part absorption+emission; ea: camera-only EA
+    "g": 0.85,                 # Henyey–Greenstein anisotropy (droplet fog ≈ 0.85)
+    "phase": "HG",             # "MIE" (Blender 4.3+ only) uses diameter_um instead of g
+    "diameter_um": 10.0,
+    "scatter_fraction": 0.5,   # hybrid: σ_s = β·w, σ_a = β·(1 − w) with emission σ_a·emission
+    "emission": 1.0,           # hybrid / ea: the airlight radiance L = A, scene-linear (1.0 = white)
+    "layer_height_m": 100.0,   # fog layer thickness H above the ground
+    "extent_m": None,          # domain half-width R; None = max(400, 12/β_min) capped at 1400 m
+    "volume_bounces": 64,
+    "samples": None,           # None = the quality preset's samples
+    "denoise": True,           # OpenImageDenoise where this Blender has it
+    "exposure": "none",        # none | auto (median luminance of the clear render, see fog_volume)
+    "keep_linear": False,      # also write linear/<level>/<frame>.exr (scene-linear float renders)
+    "noise_seed": 0,           # added to Cycles' seed of the fog renders only
+    "domain": "box",
+}
+
+
+def volumetric_settings(config: RenderConfig) -> dict | None:
+    """``fog_model.volumetric`` with every default filled in, or None for Koschmieder fog.
+
+    Checked key by key (unknown keys refused, types and ranges); a world-volume domain is
+    refused with the reason. ValueError names the key.
+    """
+    m = config.fog_model
+    kind = _choice(m.get("kind", "koschmieder"), "fog_model.kind", FOG_KINDS)
+    spec = m.get("volumetric", {})
+    if isinstance(spec, dict) and spec.get("domain") == "world":
+        raise ValueError(f"fog_model.volumetric.domain: {_WORLD_VOLUME}")
+    checks = {
+        "medium": lambda v, k: _choice(v, k, FOG_MEDIA), "g": lambda v, k: _num(v, k, -0.99, 0.99),
+        "phase": lambda v, k: _choice(v, k, ("HG", "MIE")), "diameter_um": lambda v, k: _num(v, k, 0.01, 50),
+        "scatter_fraction": _prob, "emission": lambda v, k: _num(v, k, 0, 1e6),
+        "layer_height_m": lambda v, k: _num(v, k, 1, 1000),
+        "extent_m": lambda v, k: None if v is None else _num(v, k, 10, MAX_FOG_EXTENT_M),
+        "volume_bounces": lambda v, k: _int(v, k, 1, 1024),
+        "samples": lambda v, k: None if v is None else _int(v, k, 1, MAX_SAMPLES), "denoise": _bool,
+        "exposure": lambda v, k: _choice(v, k, FOG_EXPOSURES), "keep_linear": _bool,
+        "noise_seed": lambda v, k: _int(v, k, 0, 2**31 - 1), "domain": lambda v, k: _choice(v, k, ("box",)),
+    }
+    assert set(checks) == set(VOLUMETRIC_DEFAULTS)
+    settings = _object(spec, "fog_model.volumetric", {}, checks)
+    if kind != "volumetric":  # a volumetric block is still checked, so --fog can switch models
+        return None
+    settings = {**VOLUMETRIC_DEFAULTS, **settings}
+    if settings["extent_m"] is None:
+        betas = [lv.beta for lv in config.levels if lv.beta > 0]
+        settings["extent_m"] = min(MAX_FOG_EXTENT_M, max(400.0, 12.0 / min(betas))) if betas else 400.0
+    return settings
 
 
 def _check_labels(labels: dict) -> None:

@@ -1,6 +1,6 @@
 """Register the add-on, build a scene and render a dataset through bpy.ops, headless.
 
-``python addon_ops.py OUT_DIR`` (bpy module) or ``blender -b -P addon_ops.py -- OUT_DIR``.
+``python addon_ops.py OUT_DIR [volumetric MEDIUM]`` (bpy module) or ``blender -b -P addon_ops.py -- OUT_DIR …``.
 Prints one JSON line with what happened.
 """
 import json
@@ -16,11 +16,14 @@ import bpy  # noqa: E402
 
 import blender_addon  # noqa: E402
 
-out = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else sys.argv[1]
+args = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+out = args[0]
 blender_addon.register()
 s = bpy.context.scene.fogsim
 s.preset, s.seed, s.frame, s.frames = "default", 3, 0, 1
 s.resolution, s.samples, s.output = "96x64", 2, out
+if len(args) > 1:  # "volumetric MEDIUM": the panel's fog model choice
+    s.fog_model, s.fog_medium = args[1], args[2]
 objects_before = len(bpy.data.objects)
 r1 = bpy.ops.fogsim.build_scene()
 built = len(bpy.data.objects) - objects_before

@@ -31,6 +31,15 @@ class FogsimSettings(bpy.types.PropertyGroup):
     samples: IntProperty(name="Samples", default=0, min=0, description="Cycles samples override (0 = preset)")
     output: StringProperty(name="Output", default="//fogsim_dataset", subtype="DIR_PATH")
     use_gpu: BoolProperty(name="GPU", default=False, description="Render on the GPU when one exists")
+    fog_model: EnumProperty(name="Fog", default="PRESET", items=[
+        ("PRESET", "Preset's", "The preset's fog_model.kind (Koschmieder unless it says otherwise)"),
+        ("koschmieder", "Koschmieder", "Post-process on the clear render (fast)"),
+        ("volumetric", "Volumetric", "One Cycles render per fog level with a participating medium (slow)")])
+    fog_medium: EnumProperty(name="Medium", default="PRESET", items=[
+        ("PRESET", "Preset's", "The preset's fog_model.volumetric.medium (full unless it says otherwise)"),
+        ("full", "Full", "Pure scattering, white, Henyey-Greenstein g"),
+        ("hybrid", "Hybrid", "Half absorption + emission, half scattering: cheaper, lamps still glow"),
+        ("ea", "Emission-absorption", "Camera-only emission-absorption: Koschmieder in linear light")])
     progress: IntProperty(name="Progress", default=0, min=0, max=100, subtype="PERCENTAGE")
     status: StringProperty(name="Status", default="")
 
@@ -38,8 +47,10 @@ class FogsimSettings(bpy.types.PropertyGroup):
 def _config(s: FogsimSettings, frames: int | None = None):
     from fogsim.render.preset import load_render_preset
 
+    volumetric = s.fog_model == "volumetric"
     return load_render_preset(s.preset, frames=frames, seed=s.seed, resolution=s.resolution or None,
-                              samples=s.samples or None)
+                              samples=s.samples or None, fog=None if s.fog_model == "PRESET" else s.fog_model,
+                              fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None)
 
 
 class FOGSIM_OT_build_scene(bpy.types.Operator):
@@ -193,6 +204,9 @@ class FOGSIM_PT_panel(bpy.types.Panel):
         box.prop(s, "resolution")
         box.prop(s, "samples")
         box.prop(s, "use_gpu")
+        box.prop(s, "fog_model")
+        if s.fog_model == "volumetric":
+            box.prop(s, "fog_medium")
         box.prop(s, "output")
         if _state["job"] is None:
             box.operator("fogsim.render_dataset", icon="RENDER_ANIMATION")

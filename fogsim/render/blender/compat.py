@@ -89,3 +89,40 @@ def cycles_device(scene, want_gpu: bool) -> str:
     except (KeyError, AttributeError):
         pass
     return "CPU"
+
+
+def has_mie_phase() -> bool:
+    """True when Volume Scatter offers the Mie phase function (Blender 4.3+)."""
+    prop = bpy.types.ShaderNodeVolumeScatter.bl_rna.properties.get("phase")
+    return prop is not None and "MIE" in [e.identifier for e in prop.enum_items]
+
+
+def set_volume_phase(node, phase: str, g: float, diameter_um: float) -> str:
+    """Phase function of a Volume Scatter node: "HG" (anisotropy g, every version) or "MIE"
+    (droplet diameter in µm, Blender 4.3+); returns what was set. ValueError if MIE is absent."""
+    node.inputs["Anisotropy"].default_value = g
+    if phase == "HG":
+        if hasattr(node, "phase"):  # 4.3+: HG is the default, set it anyway
+            node.phase = "HENYEY_GREENSTEIN"
+        return "HG"
+    items = [e.identifier for e in node.bl_rna.properties["phase"].enum_items] if hasattr(node, "phase") else []
+    if "MIE" not in items:
+        raise ValueError(f"the Mie phase function needs Blender 4.3 or later (this is {bpy.app.version_string}); "
+                         "use phase \"HG\" with g = 0.85")
+    node.phase = "MIE"
+    node.inputs["Diameter"].default_value = diameter_um
+    return "MIE"
+
+
+def set_volume_unbiased(cycles) -> bool | None:
+    """5.0's null-scattering volume integrator (``volume_biased`` = False); None where absent (3.4)."""
+    if hasattr(cycles, "volume_biased"):
+        cycles.volume_biased = False
+        return False
+    return None
+
+
+def force_homogeneous(material) -> None:
+    """3.4: treat the material's volume as homogeneous (analytic path); 5.0 decides by itself."""
+    if hasattr(material.cycles, "homogeneous_volume"):
+        material.cycles.homogeneous_volume = True

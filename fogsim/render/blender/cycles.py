@@ -78,6 +78,20 @@ def render(scene, exr_path: str | os.PathLike | None = None) -> RenderPasses:
     leaves it where the resumed job removes it; without one (or when the path holds a '#',
     Blender's frame-number placeholder) it goes to the system temp folder.
     """
+    ch = _render_channels(scene, exr_path)
+    depth = _pick(ch, PASS_CHANNELS["depth"]).astype(np.float32)
+    depth[depth >= NO_HIT_DEPTH] = np.inf
+    index = np.rint(_pick(ch, PASS_CHANNELS["index"])).astype(np.uint16)
+    return RenderPasses(_pick(ch, PASS_CHANNELS["rgb"]).astype(np.float32), depth, index)
+
+
+def render_combined(scene, exr_path: str | os.PathLike | None = None) -> np.ndarray:
+    """Render only the Combined pass (H×W×3 float32, scene-linear): the caller has turned the Z and
+    object-index passes off (a fog render's are not valid, notes/path-traced-fog.md §4)."""
+    return _pick(_render_channels(scene, exr_path), PASS_CHANNELS["rgb"]).astype(np.float32)
+
+
+def _render_channels(scene, exr_path) -> dict:
     path = None if exr_path is None else os.path.abspath(exr_path)
     if path is None or "#" in path:  # Blender would put frame numbers in place of '#'
         fd, path = tempfile.mkstemp(prefix="fogsim_render_", suffix=".exr")
@@ -88,11 +102,7 @@ def render(scene, exr_path: str | os.PathLike | None = None) -> RenderPasses:
         scene.render.filepath = path
         scene.render.use_file_extension = False
         bpy.ops.render.render(write_still=True, scene=scene.name)
-        ch = read_exr(path)
+        return read_exr(path)
     finally:
         if os.path.exists(path):
             os.unlink(path)
-    depth = _pick(ch, PASS_CHANNELS["depth"]).astype(np.float32)
-    depth[depth >= NO_HIT_DEPTH] = np.inf
-    index = np.rint(_pick(ch, PASS_CHANNELS["index"])).astype(np.uint16)
-    return RenderPasses(_pick(ch, PASS_CHANNELS["rgb"]).astype(np.float32), depth, index)

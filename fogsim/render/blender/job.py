@@ -14,18 +14,23 @@ import time
 from pathlib import Path
 
 import bpy
+import numpy as np
 
 from fogsim.dataset.writer import DatasetLayout, finalize
 from fogsim.render.frame import check_scene, commit_frame, describe_frame, frame_name, scene_meshes
 from fogsim.fileio import remove_stale_parts
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
 from fogsim.deps import package_versions
+from fogsim.errors import InputError
 from fogsim.render.preset import RenderConfig
 from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
 from fogsim.depth.stereo import right_world_to_camera
 
 from fogsim.render.blender import build as scene_build
-from fogsim.render.blender.cycles import configure, render
+from fogsim.render.blender import fog_volume
+from fogsim.render.blender.compat import has_mie_phase
+from fogsim.render.blender.cycles import configure, render, render_combined
+from fogsim.render.preset import volumetric_settings
 
 RUN_FILE = "render_run.json"
 SCENE_NAME = "fogsim"
@@ -55,6 +60,10 @@ class RenderJob:
     def __init__(self, config: RenderConfig, out: str | Path, shard: tuple[int, int] = (0, 1),
                  resume: bool = True, gpu: bool = False):
         self.config, self.layout, self.gpu = config, DatasetLayout(out), gpu
+        self.fog = volumetric_settings(config)  # None: Koschmieder fog (post-process)
+        if self.fog is not None and self.fog["phase"] == "MIE" and not has_mie_phase():
+            raise InputError(config.source, f"fog_model.volumetric.phase \"MIE\" needs Blender 4.3 or later "
+                                            f"(this is {bpy.app.version_string}); use \"HG\" with g = 0.85")
         i, n = shard
         mine = [k for k in range(config.frames) if k % n == i]
         if mine:  # a preset the layout cannot use must not claim the folder (setup error, exit 2)
@@ -81,11 +90,15 @@ class RenderJob:
         info = configure(self.scene, self.config.quality, frame_seed(self.config.seed, index), self.gpu)
         built = scene_build.build(desc, self.scene, meshes)
         t2 = time.perf_counter()
-        right = None
+        right = fog_linear = fog_cycles = None
         tmp = render_tmp_dir(self.layout)
         name = frame_name(index)
         try:
             passes = render(self.scene, tmp / f"{name}.left.exr")
+            t_clear = time.perf_counter()
+            if self.fog is not None:  # one Combined-only render per β > 0, fog layer in place, same seed
+                fog_linear, fog_cycles = self._fog_renders(built, info["seed"], tmp / f"{name}.fog.exr")
+            t_fog = time.perf_counter()
             if self.config.stereo_baseline:  # the right camera of a rectified pair, same scene
                 w2c = right_world_to_camera(desc["camera"]["world_to_camera"], self.config.stereo_baseline)
                 scene_build.set_camera_pose(self.scene, w2c)
@@ -95,10 +108,67 @@ class RenderJob:
         t3 = time.perf_counter()
         info["blender"] = bpy.app.version_string
         timings = {"scene": t1 - t0, "bpy_build": t2 - t1, "render": t3 - t2}
+        foggy = fog_info = None
+        if self.fog is not None:
+            timings = {"scene": t1 - t0, "bpy_build": t2 - t1, "render": (t_clear - t2) + (t3 - t_fog),
+                       "fog_render": t_fog - t_clear}
+            foggy, fog_info = self._fog_images(name, desc, passes, fog_linear, fog_cycles)
         meta = commit_frame(self.layout, self.config, index, desc, meshes, passes.rgb_linear,
-                            passes.depth, passes.index, timings, info, right_linear=right)
+                            passes.depth, passes.index, timings, info, right_linear=right,
+                            foggy=foggy, fog_info=fog_info)
         self.done.append(meta)
         return meta
+
+    def _fog_renders(self, built, seed: int, exr_path) -> tuple[dict, dict]:
+        """Linear Combined renders of every level with β > 0 (level key → H×W×3), and the
+        Cycles settings they had; the scene's settings are restored afterwards."""
+        domain = fog_volume.build_domain(built, self.scene, self.fog)
+        out = {}
+        with fog_volume.fog_render_settings(self.scene, self.fog, self.config.quality, seed) as used:
+            for lv in self.config.levels:
+                if lv.beta > 0:
+                    fog_volume.set_density(domain, lv.beta)
+                    out[lv.key] = render_combined(self.scene, exr_path)
+        return out, dict(used, phase=domain.phase)
+
+    def _fog_images(self, name: str, desc: dict, passes, fog_linear: dict, cycles_used: dict):
+        """8-bit images per level (clear level = the clear render), linear EXRs if asked, meta["fog"]."""
+        from fogsim.camera import Intrinsics, planar_to_ray
+        from fogsim.fileio import write_rgb_exr
+        from fogsim.render.frame import to_srgb8
+        from fogsim.render.volumetric import auto_exposure, horizon_radiance
+
+        s, cfg = self.fog, self.config
+        ray = planar_to_ray(passes.depth, Intrinsics.from_dict(desc["camera"]["intrinsics"]))
+        foggy, factors, horizon, linear = {}, {}, {}, {}
+        for lv in cfg.levels:
+            if lv.beta == 0:
+                foggy[lv.key] = to_srgb8(passes.rgb_linear, cfg.exposure)
+                img = passes.rgb_linear
+            else:
+                img = fog_linear[lv.key]
+                factors[lv.key] = auto_exposure(passes.rgb_linear, img) if s["exposure"] == "auto" else 1.0
+                horizon[lv.key] = horizon_radiance(img, ray, lv.beta)
+                foggy[lv.key] = to_srgb8(img * np.float32(factors[lv.key]), cfg.exposure)
+            if s["keep_linear"]:  # the renders before any exposure scale
+                write_rgb_exr(self.layout.linear(lv.key, name), img)
+                linear[lv.key] = self.layout.relative(self.layout.linear(lv.key, name))
+        medium = {"full": ("g", "phase"), "hybrid": ("g", "phase", "scatter_fraction", "emission"),
+                  "ea": ("emission",)}[s["medium"]]
+        info = {"model": "volumetric", "medium": s["medium"], **{k: s[k] for k in medium},
+                "layer_height_m": s["layer_height_m"], "extent_m": s["extent_m"], "domain": "box",
+                "volume_bounces": cycles_used["volume_bounces"], "max_bounces": cycles_used["max_bounces"],
+                "samples": cycles_used["samples"], "denoise": cycles_used["denoise"],
+                "exposure": s["exposure"], "exposure_rule": "median luminance → the clear render's"
+                if s["exposure"] == "auto" else None, "exposure_factor": factors,
+                "horizon_radiance": horizon, "horizon_rule": "median linear luminance beyond ln(20)/β",
+                "seed": cycles_used["seed"], "noise_seed": s["noise_seed"], "cycles": cycles_used,
+                "linear": linear or None, "clear_level": "the clear render (labels, depth, masks come from it)"}
+        if "phase" in medium:  # what Blender was given (MIE: the droplet diameter replaces g)
+            info["phase"] = cycles_used["phase"]
+            if info["phase"] == "MIE":
+                info["diameter_um"] = s["diameter_um"]
+        return foggy, info
 
     def finish(self) -> None:
         """Write the dataset-level files (COCO, YAMLs, manifest, contact sheet) over all done frames."""
