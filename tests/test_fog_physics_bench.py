@@ -1,6 +1,7 @@
 """``fogsim bench fog-physics`` without the volumetric renderer: the render commands it would run, and
 its analysis on three datasets made here — a committed clear frame (commit_frame, fabricated passes:
-sky over a ground 40 → 8 m, 3 % a row) and two "volumetric" copies whose linear renders are exact linear Koschmieder × 0.35 plus noise."""
+sky over a ground 40 → 8 m, 3 % a row) and two "volumetric" copies whose linear renders are exact
+linear Koschmieder × 0.35 plus noise."""
 import argparse
 import json
 import math
