@@ -202,3 +202,18 @@ def test_render_commit_puts_visibility_in_meta_and_coco(tmp_path):
     assert ann[far["distance_m"]]["visible"] is False and ann[near["distance_m"]]["visible"] is True
     assert ann[far["distance_m"]]["contrast"] == far["visibility"][top]["contrast"]
     assert ann[near["distance_m"]]["transmission"] == near["visibility"][top]["transmission"]
+
+
+def test_real_dataset_records_are_box_based_and_16_bit_images_work():
+    """Waymo-like records: string ids, float boxes, unknown distance; a 16-bit image."""
+    img = np.full((20, 30, 3), 40000, np.uint16)
+    img[5:15, 10:20] = 10000
+    mask = np.zeros((20, 30), np.uint16)
+    recs = [{"id": "waymo-obj-1", "bbox": [9.6, 5.2, 19.8, 14.9], "distance_m": None, "kept": True},
+            {"id": 3, "bbox": [0, 0, 4, 4], "distance_m": 12.0, "kept": False}]
+    a, b = object_visibility(img, recs, 0.06, mask=mask, clear=img)
+    assert a["method"] == b["method"] == "box" and a["transmission"] is None  # id 3 is not in the mask
+    x = np.array([10000, 40000]) / 65535
+    l_obj, l_bg = np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+    assert a["contrast"] == pytest.approx((l_bg - l_obj) / l_bg, abs=1e-4) and a["visible"] is True
+    assert b["transmission"] == pytest.approx(math.exp(-0.72), abs=1e-5)
