@@ -72,7 +72,22 @@ def luminance(rgb_linear: np.ndarray) -> np.ndarray:
     return (x[..., 0] * np.float32(r) + x[..., 1] * np.float32(g) + x[..., 2] * np.float32(b)).astype(np.float32)
 
 
+def _decode_table(dtype) -> np.ndarray:
+    """srgb_to_linear of every code value of an integer dtype (float32 lookup table)."""
+    top = int(full_scale(dtype))
+    if top not in _DECODE:
+        _DECODE[top] = srgb_to_linear(np.arange(top + 1, dtype=np.float64) / top)
+    return _DECODE[top]
+
+
+_DECODE: dict[int, np.ndarray] = {}
+
+
 def srgb_luminance(image: np.ndarray) -> np.ndarray:
     """A stored (sRGB-encoded) image of any supported dtype → relative luminance Y in linear light,
-    H×W float32, 0–1 (white = 1): decode the transfer function per channel, then weight."""
-    return luminance(srgb_to_linear(np.asarray(image, np.float32) / np.float32(full_scale(image.dtype))))
+    H×W float32, 0–1 (white = 1): decode the transfer function per channel, then weight (8- and
+    16-bit images through a lookup table of :func:`srgb_to_linear`, the same numbers)."""
+    image = np.asarray(image)
+    if image.dtype in (np.uint8, np.uint16):
+        return luminance(_decode_table(image.dtype)[image])
+    return luminance(srgb_to_linear(image.astype(np.float32) / np.float32(full_scale(image.dtype))))

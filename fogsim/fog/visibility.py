@@ -119,7 +119,10 @@ def box_region(bbox, shape: tuple[int, int], ring_px: int = RING_PX, gap_px: int
 def object_regions(records: list[dict], shape: tuple[int, int], mask: np.ndarray | None = None,
                    ring_px: int = RING_PX, gap_px: int = GAP_PX) -> list[Region]:
     """One region per record: mask-based where ``mask`` holds the record's integer ``id``, else box-based."""
-    present = set(np.unique(mask).tolist()) if mask is not None else set()
+    present = set()
+    if mask is not None:  # the ids in the mask (a count per value is quicker than sorting for uint masks)
+        ids = np.flatnonzero(np.bincount(mask.ravel())) if mask.dtype.kind == "u" else np.unique(mask)
+        present = set(ids.tolist())
     out = []
     for rec in records:
         oid = rec.get("id")
