@@ -132,8 +132,11 @@ def analyse(out: Path, frames: list[str] | None = None, comparison: Comparison |
         for name, layout in zip(RUNS, (clear, fog0, fog1)):
             timing[name].append(float(read_meta(layout, frame).get("timings_s", {}).get("render", float("nan"))))
     seconds = {name: statistics.median(v) for name, v in timing.items()}
+    run_file = clear.root / "render_run.json"
+    exposure = read_json(run_file).get("parameters", {}).get("exposure", 1.0) if run_file.is_file() else 1.0
     result = write_report(comparison, out / "report")
     result["labels_identical"] = same_labels
+    result["preset_exposure"] = exposure  # the clear image has it; the linear fog renders are compared as written
     result["render_seconds_per_frame"] = seconds
     result["fog_over_clear_render_time"] = (seconds["volumetric_seed0"] / seconds["clear"]
                                             if seconds["clear"] > 0 else None)
@@ -150,6 +153,9 @@ def footer(result: dict) -> str:
         lines.append(f"Render seconds per frame (median): clear {s['clear']:.2f}, volumetric "
                      f"{s['volumetric_seed0']:.2f} (×{ratio:.1f} the clear render, same run).")
     lines.append(f"Instance masks identical across the three runs: {result['labels_identical']}.")
+    if result.get("preset_exposure", 1.0) != 1.0:
+        lines.append(f"Warning: the preset's exposure is {result['preset_exposure']:g}; the clear image includes it "
+                     "and the raw comparison assumes the linear fog renders do too.")
     return "\n".join(lines) + "\n"
 
 
