@@ -28,14 +28,17 @@ def args(**kw):
 
 
 def test_render_commands_two_volumetric_seeds_and_one_clear(tmp_path):
-    cmds = render_commands(tmp_path, args(levels="0,0.06"))
+    cmds = render_commands(tmp_path, args(levels="0,0.06", medium="ea"))
     assert list(cmds) == ["clear", "volumetric_seed0", "volumetric_seed1"]
-    assert "--fog" not in cmds["clear"] and cmds["clear"][cmds["clear"].index("--preset") + 1] == "default"
+    clear = cmds["clear"]
+    assert "--fog" not in clear and "--fog-medium" not in clear and clear[clear.index("--preset") + 1] == "default"
     for seed, name in enumerate(("volumetric_seed0", "volumetric_seed1")):
         cmd = cmds[name]
         assert cmd[cmd.index("--fog") + 1] == "volumetric" and cmd[cmd.index("--out") + 1] == str(tmp_path / name)
         preset = json.loads((tmp_path / "presets" / f"{name}.json").read_text())
-        assert preset["fog_model"]["volumetric"] == {"keep_linear": True, "noise_seed": seed}
+        assert preset["fog_model"]["volumetric"] == {"keep_linear": True, "noise_seed": seed, "exposure": "none",
+                                                     "denoise": False}
+        assert cmd[cmd.index("--fog-medium") + 1] == "ea"
         assert preset["fog_model"]["space"] == "srgb" and preset["style"] == "urban-canyon"  # the rest kept
     for cmd in cmds.values():
         i = cmd.index("render")

@@ -51,6 +51,11 @@ def add_parsers(sub) -> None:
     fp.add_argument("--samples", type=int, default=16, help="Cycles samples per render")
     fp.add_argument("--seed", type=int, default=3, help="dataset seed (the scenes)")
     fp.add_argument("--levels", help="fog levels (preset name or comma-separated β; must include 0)")
+    fp.add_argument("--medium", choices=("full", "hybrid", "ea"), default="full",
+                    help="volumetric medium (fogsim render --fog-medium); ea = camera-only emission-absorption, "
+                    "the zero-error control")
+    fp.add_argument("--denoise", action="store_true", help="denoise the fog renders (off: measurements want "
+                    "independent noise in the two seeds)")
     fp.add_argument("--gpu", action="store_true", help="render on the GPU when one is available")
     fp.add_argument("--analyse-only", action="store_true", help="only analyse the datasets already under OUT")
     fp.add_argument("--quiet", action="store_true", help="no progress bars")

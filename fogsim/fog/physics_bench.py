@@ -17,6 +17,10 @@ must be identical (labels come from the clear render in every fog model); the re
 whether they are.
 
     fogsim bench fog-physics [--frames 1] [--resolution 160x107] [--samples 16] [--out bench/fog-physics]
+                             [--medium full|hybrid|ea] [--denoise]
+
+``--medium ea`` (the camera-only emission–absorption medium) is the zero-error control: linear
+Koschmieder must match it to noise level in every bin.
 """
 from __future__ import annotations
 
@@ -59,15 +63,19 @@ def read_linear_rgb(path: Path) -> np.ndarray:
     return np.stack(pick, axis=-1)
 
 
-def fog_preset(base: str, noise_seed: int, path: Path) -> Path:
-    """Write the base preset with ``fog_model.volumetric.keep_linear = true`` and ``noise_seed``."""
+def fog_preset(base: str, noise_seed: int, path: Path, denoise: bool = False) -> Path:
+    """Write the base preset with ``fog_model.volumetric`` set for a measurement: ``keep_linear``,
+    ``noise_seed``, ``exposure = "none"`` (raw radiance: the comparison normalises itself) and
+    ``denoise`` off by default (a denoiser's residual is not independent between seeds, and it
+    biases; notes/path-traced-fog.md §6.6)."""
     src = preset_path(base)
     if not src.is_file():
         raise InputError(src, "preset not found")
     d = copy.deepcopy(read_json(src))
     fm = d.setdefault("fog_model", {})
     vol = fm.get("volumetric") if isinstance(fm.get("volumetric"), dict) else {}
-    fm["volumetric"] = {**vol, "keep_linear": True, "noise_seed": noise_seed}
+    fm["volumetric"] = {**vol, "keep_linear": True, "noise_seed": noise_seed, "exposure": "none",
+                        "denoise": denoise}
     write_json(path, d)
     return path
 
@@ -88,8 +96,11 @@ def render_commands(out: Path, args) -> dict[str, list[str]]:
         if noise_seed is None:
             cmd += ["--preset", args.preset]
         else:
-            preset = fog_preset(args.preset, noise_seed, out / "presets" / f"{name}.json")
+            preset = fog_preset(args.preset, noise_seed, out / "presets" / f"{name}.json",
+                                getattr(args, "denoise", False))
             cmd += ["--preset", str(preset), "--fog", "volumetric"]
+            if getattr(args, "medium", None):
+                cmd += ["--fog-medium", args.medium]
         cmds[name] = cmd + common
     return cmds
 
