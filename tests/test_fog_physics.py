@@ -129,6 +129,11 @@ def test_per_object_contrast_against_transmission():
     black = objs[1]
     assert black["distance_m"] == pytest.approx(9.5) and black["contrast_clear"] == pytest.approx(0.98, abs=1e-3)
     assert black["ratio_pt_k"]["srgb"] < 1.0
+    summary = comp.result()["per_beta"]["0.12"]["objects_summary"]
+    assert summary["linear"]["objects"] == 1 and summary["linear"]["median_ratio_pt_k"] == pytest.approx(1.0, abs=1e-4)
+    only = Comparison(models=(Model("linear"),))  # classes name the objects of the table
+    only.add_frame("f", rgb, ray, mask, {0.12: (k, k)}, classes={2: "van"})
+    assert [o["id"] for o in only.result()["per_beta"]["0.12"]["objects"]] == [2]
 
 
 def test_horizon_is_the_lowest_sky_and_its_profile():

@@ -187,7 +187,7 @@ class Comparison:
                   classes: dict[int, str] | None = None) -> None:
         """One frame: ``distance`` is ray distance (or planar Z when ``intrinsics`` is given);
         ``renders``: β → (seed-0 render, seed-1 render), linear float H×W×3; ``classes``:
-        mask id → class name (for the object table)."""
+        mask id → class name: the objects of the object table (None: every id in the mask)."""
         clear_linear = np.asarray(clear_linear, np.float32)
         if clear_linear.ndim != 3 or clear_linear.shape[2] != 3:
             raise ValueError(f"{name}: the clear render must be H×W×3, got {clear_linear.shape}")
@@ -202,7 +202,7 @@ class Comparison:
         where = {"sky": inner & sky, "all": inner & ~sky}
         for (lo, hi), key in zip(self.bins, BIN_NAMES):
             where[key] = inner & ~sky & (ray >= lo) & (ray < hi)
-        ids = [int(i) for i in np.unique(mask) if i != 0]
+        ids = [int(i) for i in np.unique(mask) if i != 0 and (classes is None or int(i) in classes)]
         obj_px = {i: inner & (mask == i) for i in ids}
         obj_px = {i: m for i, m in obj_px.items() if m.any()}
         obj_d = {i: float(np.median(ray[mask == i][np.isfinite(ray[mask == i])]))
@@ -281,12 +281,27 @@ class Comparison:
                             "rgb_mean": [_mean([h["rgb"][c] for h in hz]) for c in range(3)] if hz else None,
                             "mean_sky_over_horizon": _mean([h["mean_sky_over_horizon"] for h in hz]),
                             "frames": self._horizon.get(beta, [])},
-                "models": models, "objects": self._objects.get(beta, [])}
+                "models": models, "objects": self._objects.get(beta, []),
+                "objects_summary": _object_summary(self._objects.get(beta, []), [m.name for m in self.models])}
         return {"frames": self.frames, "bins_m": [[lo, hi if math.isfinite(hi) else None] for lo, hi in self.bins],
                 "interior_fraction": self._interior[0] / self._interior[1] if self._interior[1] else None,
                 "models": [m.name for m in self.models], "units": "linear light, A = white = 1.0",
                 "estimator": "bias = mean((E1+E2)/2); rms = sqrt(max(0, mean(E1*E2))) (noise-free, two seeds)",
                 "per_beta": per_beta}
+
+
+#: objects in the per-β summary: those that keep at least this transmission (some contrast to measure)
+SUMMARY_MIN_TRANSMISSION = 0.05
+
+
+def _object_summary(objects: list[dict], names: list[str]) -> dict:
+    """Per model: the median of PT/K over objects with t ≥ :data:`SUMMARY_MIN_TRANSMISSION`."""
+    out = {}
+    for n in names:
+        r = [o["ratio_pt_k"][n] for o in objects if (o["transmission"] or 0) >= SUMMARY_MIN_TRANSMISSION
+             and o["ratio_pt_k"].get(n) is not None]
+        out[n] = {"median_ratio_pt_k": float(np.median(r)) if r else None, "objects": len(r)}
+    return out
 
 
 def _mean(values) -> float | None:
@@ -323,19 +338,22 @@ def markdown(result: dict, model_names: tuple[str, ...] | None = None) -> str:
              f"noise-free RMS from two seeds on interior pixels ({_f(frac, '{:.0%}')} of pixels); "
              "normalised = path-traced image scaled so the horizon is A.", "",
              "| β (1/m) | A_h | sky / A_h | model | RMS raw | RMS normalised | "
-             + " | ".join(f"bias {b}" for b in BIN_NAMES) + " |",
-             "|---" * (6 + len(BIN_NAMES)) + "|"]
+             + " | ".join(f"bias {b}" for b in BIN_NAMES) + " | object contrast PT/K (median, n) |",
+             "|---" * (7 + len(BIN_NAMES)) + "|"]
     for key, pb in result["per_beta"].items():
         hz = pb["horizon"]
         for name in names:
             m = pb["models"].get(name, {})
             raw, norm = m.get("raw", {}), m.get("normalised", {})
             biases = [_f(norm.get(b, {}).get("bias")) for b in BIN_NAMES]
+            summ = pb.get("objects_summary", {}).get(name, {})
+            objs = f"{_f(summ.get('median_ratio_pt_k'), '{:.2f}')} ({summ.get('objects', 0)})"
             lines.append(f"| {key} | {_f(hz['luminance_mean'], '{:.3f}')} | {_f(hz['mean_sky_over_horizon'], '{:.2f}')}"
                          f" | {name} | {_f(raw.get('all', {}).get('rms'), '{:.3f}')} "
-                         f"| {_f(norm.get('all', {}).get('rms'), '{:.3f}')} | " + " | ".join(biases) + " |")
+                         f"| {_f(norm.get('all', {}).get('rms'), '{:.3f}')} | " + " | ".join(biases) + f" | {objs} |")
     lines += ["", "Per object (interior pixels): contrast against the airlight, C = 1 − Y/A; "
-              "C_K/C0 = t for linear Koschmieder; PT/K = C_PT / C_K.", "",
+              "C_K/C0 = t for linear Koschmieder; PT/K = C_PT / C_K (the summary column above: median over "
+              f"objects with t ≥ {SUMMARY_MIN_TRANSMISSION:g}).", "",
               "| β | frame | object | class | d (m) | t = e^(−βd) | C0 | C_PT / C0 | "
               + " | ".join(f"PT/K {n}" for n in names) + " |", "|---" * (8 + len(names)) + "|"]
     for key, pb in result["per_beta"].items():
