@@ -87,6 +87,9 @@ def test_a_known_exposure_factor_is_recovered_by_normalisation():
     assert raw["all"]["bias"] == pytest.approx(-0.7 * k[inner].mean(), rel=1e-4)
     assert raw["all"]["rms"] == pytest.approx(0.7 * np.sqrt((k[inner] ** 2).mean()), rel=1e-4)
     assert raw["sky"]["bias"] == pytest.approx(-0.7, rel=1e-5)
+    # "far": the median beyond the visibility (sky and fogged-out ground, K ≈ A there) becomes A
+    assert out["far_luminance_mean"] == pytest.approx(0.3, rel=0.03)
+    assert out["models"]["linear"]["far"]["all"]["rms"] < 0.03
 
 
 def test_constant_offset_and_the_srgb_model_by_hand():

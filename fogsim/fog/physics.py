@@ -16,7 +16,10 @@ seeds (linear, float). The method is that of ``shared/notes/path-traced-fog.md``
   so that the horizon radiance A_h becomes A. A_h = mean RGB of the *horizon* pixels: the sky
   pixels (ℓ = inf, index 0) in the lowest :data:`HORIZON_FRACTION` of the sky by image row
   (the sky nearest the horizon line; for a level camera the horizon itself). No sky → no
-  normalisation (None).
+  normalisation (None). ``far`` scales it instead so that the median luminance of the pixels
+  beyond the visibility (exp(−βℓ) < :data:`FAR_TRANSMISSION`, sky included: where Koschmieder
+  is all airlight) becomes A — in a street canyon, where the lowest sky lies at the end of the
+  street and the far field is seen at higher elevations, the two differ.
 * **Interior mask**: a pixel counts only when all 8 neighbours have the same object index and
   a distance within 5 % of its own (both sky is equal), so mixed (anti-aliased) edge pixels —
   whose depth comes from one sample and whose colour from all — are not counted as model error.
@@ -51,6 +54,9 @@ from fogsim.fog.model import PAPER_KERNEL, Fogger, Kernel
 #: distance bins in metres: [lo, hi)
 BINS = ((0.0, 10.0), (10.0, 20.0), (20.0, 40.0), (40.0, 80.0), (80.0, math.inf))
 HORIZON_FRACTION = 0.1
+#: the "far" exposure: pixels with exp(−βℓ) below this (beyond the visibility ln 20 / β; sky included)
+FAR_TRANSMISSION = 0.05
+EXPOSURES = ("raw", "normalised", "far")
 DEPTH_TOLERANCE = 0.05
 MIN_CONTRAST = 1e-3
 
@@ -176,6 +182,7 @@ class Comparison:
         self._sums: dict = {}
         self._objects: dict = {}
         self._horizon: dict = {}
+        self._far: dict = {}
         self._interior = [0, 0]
         self.frames: list[str] = []
 
@@ -220,6 +227,11 @@ class Comparison:
                 exposures["normalised"] = 1.0 / hz["luminance"]
             fmean = 0.5 * (f1 + f2)
             y_pt = luminance(fmean)
+            far = ray >= math.log(1.0 / FAR_TRANSMISSION) / beta
+            y_far = float(np.median(y_pt[far])) if far.any() else 0.0
+            if y_far > 0:
+                exposures["far"] = 1.0 / y_far
+            self._far.setdefault(beta, []).append(y_far if y_far > 0 else None)
             kimgs = {}
             for model in self.models:
                 k = koschmieder_linear(clear_linear, ray, beta, model)
@@ -269,7 +281,7 @@ class Comparison:
             models = {}
             for model in self.models:
                 models[model.name] = {}
-                for exposure in ("raw", "normalised"):
+                for exposure in EXPOSURES:
                     keys = ("all", *BIN_NAMES, "sky")
                     if any((beta, model.name, exposure, key) in self._sums for key in keys):
                         models[model.name][exposure] = {
@@ -281,6 +293,7 @@ class Comparison:
                             "rgb_mean": [_mean([h["rgb"][c] for h in hz]) for c in range(3)] if hz else None,
                             "mean_sky_over_horizon": _mean([h["mean_sky_over_horizon"] for h in hz]),
                             "frames": self._horizon.get(beta, [])},
+                "far_luminance_mean": _mean(self._far.get(beta, [])),
                 "models": models, "objects": self._objects.get(beta, []),
                 "objects_summary": _object_summary(self._objects.get(beta, []), [m.name for m in self.models])}
         return {"frames": self.frames, "bins_m": [[lo, hi if math.isfinite(hi) else None] for lo, hi in self.bins],
@@ -292,6 +305,7 @@ class Comparison:
 
 #: objects in the per-β summary: those that keep at least this transmission (some contrast to measure)
 SUMMARY_MIN_TRANSMISSION = 0.05
+TABLE_MIN_TRANSMISSION = 0.01
 
 
 def _object_summary(objects: list[dict], names: list[str]) -> dict:
@@ -336,10 +350,11 @@ def markdown(result: dict, model_names: tuple[str, ...] | None = None) -> str:
     frac = result.get("interior_fraction")
     lines = [f"Koschmieder against path-traced fog, {len(result['frames'])} frame(s); linear light, A = white = 1; "
              f"noise-free RMS from two seeds on interior pixels ({_f(frac, '{:.0%}')} of pixels); "
-             "normalised = path-traced image scaled so the horizon is A.", "",
-             "| β (1/m) | A_h | sky / A_h | model | RMS raw | RMS normalised | "
+             "normalised = path-traced image scaled so the horizon is A (bias columns: normalised); "
+             "far-normalised = scaled so the median beyond the visibility is A.", "",
+             "| β (1/m) | A_h | sky / A_h | model | RMS raw | RMS normalised | RMS far-normalised | "
              + " | ".join(f"bias {b}" for b in BIN_NAMES) + " | object contrast PT/K (median, n) |",
-             "|---" * (7 + len(BIN_NAMES)) + "|"]
+             "|---" * (8 + len(BIN_NAMES)) + "|"]
     for key, pb in result["per_beta"].items():
         hz = pb["horizon"]
         for name in names:
@@ -350,14 +365,19 @@ def markdown(result: dict, model_names: tuple[str, ...] | None = None) -> str:
             objs = f"{_f(summ.get('median_ratio_pt_k'), '{:.2f}')} ({summ.get('objects', 0)})"
             lines.append(f"| {key} | {_f(hz['luminance_mean'], '{:.3f}')} | {_f(hz['mean_sky_over_horizon'], '{:.2f}')}"
                          f" | {name} | {_f(raw.get('all', {}).get('rms'), '{:.3f}')} "
-                         f"| {_f(norm.get('all', {}).get('rms'), '{:.3f}')} | " + " | ".join(biases) + f" | {objs} |")
+                         f"| {_f(norm.get('all', {}).get('rms'), '{:.3f}')} "
+                         f"| {_f(m.get('far', {}).get('all', {}).get('rms'), '{:.3f}')} | "
+                         + " | ".join(biases) + f" | {objs} |")
     lines += ["", "Per object (interior pixels): contrast against the airlight, C = 1 − Y/A; "
               "C_K/C0 = t for linear Koschmieder; PT/K = C_PT / C_K (the summary column above: median over "
-              f"objects with t ≥ {SUMMARY_MIN_TRANSMISSION:g}).", "",
+              f"objects with t ≥ {SUMMARY_MIN_TRANSMISSION:g}); rows with t < {TABLE_MIN_TRANSMISSION:g} are "
+              "in the JSON only.", "",
               "| β | frame | object | class | d (m) | t = e^(−βd) | C0 | C_PT / C0 | "
               + " | ".join(f"PT/K {n}" for n in names) + " |", "|---" * (8 + len(names)) + "|"]
     for key, pb in result["per_beta"].items():
         for o in pb["objects"]:
+            if (o["transmission"] or 0) < TABLE_MIN_TRANSMISSION:
+                continue
             rel = None if o["contrast_pt"] is None or abs(o["contrast_clear"]) < MIN_CONTRAST \
                 else o["contrast_pt"] / o["contrast_clear"]
             lines.append(f"| {key} | {o['frame']} | {o['id']} | {o['class'] or '—'} | {_f(o['distance_m'], '{:.1f}')} "
