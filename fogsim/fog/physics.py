@@ -269,8 +269,7 @@ class Comparison:
         err = luminance(s * fmean - lin)
         tiles = [linear_to_srgb8(clear), linear_to_srgb8(fmean), linear_to_srgb8(fmean, s), linear_to_srgb8(lin),
                  linear_to_srgb8(srgb), signed_map(err, 0.25), (inner[..., None] * 255).repeat(3, 2).astype(np.uint8)]
-        caps = ["clear", f"PT b={beta:g} raw", f"PT normalised x{s:.2f}", "K linear", "K srgb",
-                "PT-K (lin, norm) +-0.25", "interior"]
+        caps = [f"b={beta:g} clear", "PT raw", f"PT x{s:.2f}", "K lin", "K srgb", "PT-K +-.25", "interior"]
         return strip(tiles, caps, width=max(160, clear.shape[1]))
 
     def result(self) -> dict:
