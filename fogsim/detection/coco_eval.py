@@ -15,7 +15,9 @@ on one is neither a true nor a false positive (pycocotools overwrites an ``ignor
 ``visible_only``: objects whose annotation says ``visible: false`` (fogsim's per-level flag:
 contrast against the surround below 5 % in that level's image, :mod:`fogsim.fog.visibility`)
 become ignore regions as well, so a detector is not charged for what no eye can see; an
-annotation without the field (or ``null``) counts as visible.
+annotation without the field (or ``null``) counts as visible. The result records
+``visible_only`` and ``ignored_invisible`` (objects within the distance limit that this
+policy ignored).
 Matching is COCO's: detections by descending score take the best-IoU unmatched non-ignored
 ground truth of their class at IoU ≥ 0.5, else an ignored one (then they are ignored), else
 they are false positives — so duplicates are false positives. The matcher's own AP equals
