@@ -141,7 +141,8 @@ def analyse(out: Path, frames: list[str] | None = None, comparison: Comparison |
         classes = {int(r["id"]): r["class"] for r in meta["objects"]}
         comparison.add_frame(frame, clear_linear, planar_to_ray(depth, K), mask, renders, classes=classes)
         for name, layout in zip(RUNS, (clear, fog0, fog1)):
-            timing[name].append(float(read_meta(layout, frame).get("timings_s", {}).get("render", float("nan"))))
+            t = read_meta(layout, frame).get("timings_s", {})  # the fog renders are timed apart ("fog_render")
+            timing[name].append(float(t.get("render", float("nan"))) + float(t.get("fog_render", 0.0)))
     seconds = {name: statistics.median(v) for name, v in timing.items()}
     run_file = clear.root / "render_run.json"
     exposure = read_json(run_file).get("parameters", {}).get("exposure", 1.0) if run_file.is_file() else 1.0
