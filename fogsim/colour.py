@@ -59,3 +59,35 @@ def linear_to_srgb8(rgb_linear: np.ndarray, exposure: float = 1.0) -> np.ndarray
     half up."""
     x = linear_to_srgb(np.clip(rgb_linear * np.float32(exposure), 0.0, 1.0))
     return from_float(np.multiply(x, 255.0, out=x), np.uint8)
+
+
+#: Relative-luminance weights of linear sRGB / Rec. 709 primaries (IEC 61966-2-1, ITU-R BT.709).
+LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)
+
+
+def luminance(rgb_linear: np.ndarray) -> np.ndarray:
+    """Linear-light RGB (H×W×3, any scale) → relative luminance Y (H×W float32, same scale)."""
+    x = np.asarray(rgb_linear, np.float32)
+    r, g, b = LUMINANCE_WEIGHTS
+    return (x[..., 0] * np.float32(r) + x[..., 1] * np.float32(g) + x[..., 2] * np.float32(b)).astype(np.float32)
+
+
+def _decode_table(dtype) -> np.ndarray:
+    """srgb_to_linear of every code value of an integer dtype (float32 lookup table)."""
+    top = int(full_scale(dtype))
+    if top not in _DECODE:
+        _DECODE[top] = srgb_to_linear(np.arange(top + 1, dtype=np.float64) / top)
+    return _DECODE[top]
+
+
+_DECODE: dict[int, np.ndarray] = {}
+
+
+def srgb_luminance(image: np.ndarray) -> np.ndarray:
+    """A stored (sRGB-encoded) image of any supported dtype → relative luminance Y in linear light,
+    H×W float32, 0–1 (white = 1): decode the transfer function per channel, then weight (8- and
+    16-bit images through a lookup table of :func:`srgb_to_linear`, the same numbers)."""
+    image = np.asarray(image)
+    if image.dtype in (np.uint8, np.uint16):
+        return luminance(_decode_table(image.dtype)[image])
+    return luminance(srgb_to_linear(image.astype(np.float32) / np.float32(full_scale(image.dtype))))

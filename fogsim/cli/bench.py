@@ -9,7 +9,8 @@ import argparse
 
 
 def add_parsers(sub) -> None:
-    bench = sub.add_parser("bench", help="benchmarks: fog speed, render speed, depth completion (ILA)")
+    bench = sub.add_parser("bench", help="benchmarks: fog speed, render speed, depth completion (ILA), "
+                           "Koschmieder against path-traced fog")
     bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="BENCH")
 
     fog = bsub.add_parser("fog", help="fog engine speed, 1920×1280, one core, against Eq. 2 in float64 "
@@ -59,6 +60,27 @@ def add_parsers(sub) -> None:
     lidar.add_argument("--waymo", help="a Waymo .tfrecord to also time decoding + projection of its first frame")
     lidar.set_defaults(run=lambda args: _lidar(args))
 
+    fp = bsub.add_parser("fog-physics", help="Koschmieder against Cycles path-traced fog on the same frames: "
+                         "per-pixel error per distance bin, per-object contrast (renders with fogsim render "
+                         "--fog volumetric, twice, and once clear)",
+                         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    fp.add_argument("--out", default="bench/fog-physics", help="benchmark folder (three datasets and report/)")
+    fp.add_argument("--frames", type=int, default=1)
+    fp.add_argument("--preset", default="default")
+    fp.add_argument("--resolution", default="160x107")
+    fp.add_argument("--samples", type=int, default=16, help="Cycles samples per render")
+    fp.add_argument("--seed", type=int, default=3, help="dataset seed (the scenes)")
+    fp.add_argument("--levels", help="fog levels (preset name or comma-separated β; must include 0)")
+    fp.add_argument("--medium", choices=("full", "hybrid", "ea"), default="full",
+                    help="volumetric medium (fogsim render --fog-medium); ea = camera-only emission-absorption, "
+                    "the zero-error control")
+    fp.add_argument("--denoise", action="store_true", help="denoise the fog renders (off: measurements want "
+                    "independent noise in the two seeds)")
+    fp.add_argument("--gpu", action="store_true", help="render on the GPU when one is available")
+    fp.add_argument("--analyse-only", action="store_true", help="only analyse the datasets already under OUT")
+    fp.add_argument("--quiet", action="store_true", help="no progress bars")
+    fp.set_defaults(run=lambda args: _fog_physics(args))
+
 
 def _positive(**values) -> None:
     bad = [f"--{k.replace('_', '-')}" for k, v in values.items() if not v > 0]
@@ -93,6 +115,12 @@ def _render_fog(args) -> int:
     from fogsim.render.blender.bench import run_fog
 
     return run_fog(args)
+
+def _fog_physics(args) -> int:
+    from fogsim.fog.physics_bench import run
+
+    _positive(frames=args.frames, samples=args.samples)
+    return run(args)
 
 
 def _ila(args) -> int:

@@ -61,6 +61,8 @@ def add_parsers(sub) -> None:
     tr.add_argument("--no-plots", action="store_true", help="skip Ultralytics' training plots")
     ev = p.add_argument_group("evaluation")
     ev.add_argument("--max-distance", type=float, default=100.0, help="objects farther (m) are ignored")
+    ev.add_argument("--visible-only", action="store_true", help="also score mAP@50 and the distance bins "
+                    "with invisible objects (contrast < 5 %%) ignored; recall is reported both ways always")
     ev.add_argument("--shard", help="i/N: train and predict models i, i+N, … only (array jobs)")
     what = ev.add_mutually_exclusive_group()
     what.add_argument("--report-only", action="store_true", help="only evaluate and write OUT/report")
@@ -122,7 +124,7 @@ def cmd_study(args) -> int:
         print(f"fogsim: shard {shard[0]}/{shard[1]} done; when every shard has finished, "
               f"write the report with --report-only")
         return EXIT_OK
-    study.report(args.max_distance)
+    study.report(args.max_distance, visible_only=args.visible_only)
     report = out / "report"
     print((report / "cross_density.md").read_text())
     print(f"report: {report / 'report.md'} (heatmaps: recall_heatmap.png, map50_heatmap.png)")

@@ -24,6 +24,7 @@ from fogsim.dataset.reader import read_meta, read_metas
 from fogsim.fileio import atomic_write_bytes, read_image, write_image, write_json
 from fogsim.render.labels import coco_annotation, coco_categories
 from fogsim.fog.levels import FogLevel
+from fogsim.fog.visibility import visibility_fields
 from fogsim.runs import split_key
 from fogsim.viz import strip
 from fogsim.scene.classes import LABELLED
@@ -75,7 +76,8 @@ def coco_dataset(metas: list[dict], level: FogLevel, layout: DatasetLayout) -> d
         images.append({"id": image_id, "file_name": path, "width": meta["width"],
                        "height": meta["height"], "frame": meta["frame"]})
         for rec in meta["objects"]:
-            annotations.append(coco_annotation(rec, len(annotations) + 1, image_id))
+            annotations.append(coco_annotation(rec, len(annotations) + 1, image_id)
+                               | visibility_fields(rec, level.key))  # transmission, contrast, visible
     return {"info": {"description": f"fogsim, fog level {level.key}", "fog_level": level.to_dict(),
                      "area": "visible (instance mask) pixel count",
                      "category_id": "YOLO class id + 1"},

@@ -11,6 +11,13 @@ on one is neither a true nor a false positive (pycocotools overwrites an ``ignor
 * ``ultralytics_R`` / ``ultralytics_P`` — at the confidence that maximises the class-mean
   F1, as Ultralytics reports "R" and "P" (most likely the paper's Recall).
 * ``recall_by_distance`` — recall with every detection, per distance bin (metres).
+
+``visible_only``: objects whose annotation says ``visible: false`` (fogsim's per-level flag:
+contrast against the surround below 5 % in that level's image, :mod:`fogsim.fog.visibility`)
+become ignore regions as well, so a detector is not charged for what no eye can see; an
+annotation without the field (or ``null``) counts as visible. The result records
+``visible_only`` and ``ignored_invisible`` (objects within the distance limit that this
+policy ignored).
 Matching is COCO's: detections by descending score take the best-IoU unmatched non-ignored
 ground truth of their class at IoU ≥ 0.5, else an ignored one (then they are ignored), else
 they are false positives — so duplicates are false positives. The matcher's own AP equals
@@ -39,6 +46,15 @@ def mark_far_ignored(gt: dict, max_distance_m: float) -> dict:
     for a in gt["annotations"]:
         d = a.get("distance_m")
         a["iscrowd"] = int(bool(a.get("iscrowd")) or (d is not None and d > max_distance_m))
+    return gt
+
+
+def mark_invisible_ignored(gt: dict) -> dict:
+    """A copy of a COCO dict whose annotations with ``visible`` False are ``iscrowd = 1``
+    (a missing or null ``visible`` counts as visible)."""
+    gt = copy.deepcopy(gt)
+    for a in gt["annotations"]:
+        a["iscrowd"] = int(bool(a.get("iscrowd")) or a.get("visible") is False)
     return gt
 
 
@@ -186,9 +202,13 @@ def ultralytics_pr(curves: dict) -> tuple[float, float, float]:
 
 
 def evaluate(gt: dict, dets: list[dict], max_distance_m: float = 100.0, conf: float = 0.25,
-             bins=BINS) -> dict:
-    """All metrics of one (model, level) cell; ``gt`` is a fogsim COCO dict, ``dets`` COCO results."""
+             bins=BINS, visible_only: bool = False) -> dict:
+    """All metrics of one (model, level) cell; ``gt`` is a fogsim COCO dict, ``dets`` COCO results.
+    ``visible_only``: invisible objects are ignored too (see the module docstring)."""
     gt = mark_far_ignored(gt, max_distance_m)
+    counted = sum(not a["iscrowd"] for a in gt["annotations"])
+    if visible_only:
+        gt = mark_invisible_ignored(gt)
     records, matched = match(gt, dets)
     real = [a for a in gt["annotations"] if not a["iscrowd"]]
     n_gt = {c["id"]: sum(a["category_id"] == c["id"] for a in real) for c in gt["categories"]}
@@ -204,7 +224,8 @@ def evaluate(gt: dict, dets: list[dict], max_distance_m: float = 100.0, conf: fl
             "recall_at_conf": sum(s >= conf for s in matched.values()) / n, "conf": conf,
             "ultralytics_P": P, "ultralytics_R": R, "ultralytics_conf": at,
             "recall_by_distance": by_bin, "objects": len(real),
-            "ignored": len(gt["annotations"]) - len(real), "max_distance_m": max_distance_m}
+            "ignored": len(gt["annotations"]) - len(real), "max_distance_m": max_distance_m,
+            "visible_only": visible_only, "ignored_invisible": counted - len(real)}
 
 
 def evaluate_files(gt_json: str | Path, predictions: str | Path, **kw) -> dict:

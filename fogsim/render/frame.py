@@ -18,6 +18,7 @@ from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import frame_split, write_frame_labels
 from fogsim.errors import InputError
 from fogsim.fog.model import Fogger
+from fogsim.fog.visibility import attach_visibility
 from fogsim.fileio import write_depth, write_image, write_json
 from fogsim.render.labels import object_records
 from fogsim.render.preset import RenderConfig, fog_settings
@@ -112,6 +113,7 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: 
         if {lv.key for lv in config.levels} - set(foggy):
             raise ValueError(f"foggy images lack levels {sorted({lv.key for lv in config.levels} - set(foggy))}")
         fog_meta = dict(fog_info or {})
+    attach_visibility(records, rgb, foggy, {lv.key: lv.beta for lv in config.levels}, mask)  # per object, level
     t2 = time.perf_counter()
     for lv in config.levels:
         write_image(layout.image(lv.key, name), foggy[lv.key])
