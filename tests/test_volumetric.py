@@ -19,7 +19,8 @@ from fogsim.dataset.layout import DatasetLayout
 from fogsim.errors import InputError
 from fogsim.fileio import read_depth_file, read_image, read_rgb_exr, read_uint16_map
 from fogsim.render.preset import load_render_preset, volumetric_settings
-from fogsim.render.volumetric import (auto_exposure, bin_bias, horizon_radiance, interior_mask,
+from fogsim.fog.physics import interior_mask
+from fogsim.render.volumetric import (auto_exposure, bin_bias, horizon_radiance,
                                       koschmieder_linear)
 
 from test_blender import KINDS, ROOT, SCRIPTS, dataset_digest, run, runner
@@ -125,18 +126,6 @@ def test_koschmieder_linear_and_bins_against_the_formula():
     assert bins[-1]["bias"] == pytest.approx(0.3)
 
 
-def test_interior_mask_drops_edges_and_depth_jumps():
-    index = np.zeros((6, 8), np.uint16)
-    index[:, 4:] = 7
-    depth = np.full((6, 8), 10.0, np.float32)
-    depth[:, :4] = np.inf
-    depth[4:, 6:] = 20.0
-    m = interior_mask(index, depth)
-    assert not m[0].any() and not m[:, 0].any()  # image border
-    assert m[2, 2] and m[2, 5] and not m[2, 3] and not m[2, 4]  # the index edge
-    assert not m[3, 6] and not m[4, 6]  # the depth step
-
-
 def test_linear_path_in_the_layout(tmp_path):
     assert DatasetLayout(tmp_path).linear("beta0.06", "000003") == tmp_path / "linear" / "beta0.06" / "000003.exr"
 
@@ -205,7 +194,7 @@ def test_ea_medium_equals_koschmieder_in_linear_light(kind, tmp_path):
     K = Intrinsics.from_dict(meta["camera"]["intrinsics"])
     depth = read_depth_file(out / "depth" / "000000.exr")
     ray = planar_to_ray(depth, K)
-    inner = interior_mask(read_uint16_map(out / "masks" / "000000.png"), depth)
+    inner = interior_mask(depth, read_uint16_map(out / "masks" / "000000.png"))
     assert inner.mean() > 0.3
     clear = read_rgb_exr(out / "linear" / "clear" / "000000.exr")
     for key, beta in (("beta0.03", 0.03), ("beta0.12", 0.12)):

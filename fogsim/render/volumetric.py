@@ -15,8 +15,8 @@ scene. These functions turn such renders into the numbers recorded in ``meta["fo
   e^(−βℓ) < 5 %), None when no pixel is that far.
 * :func:`koschmieder_linear`: I·t + A·(1 − t) in linear light, the law the camera-only
   emission–absorption medium must reproduce (through :func:`fogsim.fog.model.koschmieder`).
-* :func:`interior_mask`: pixels whose 3×3 neighbourhood has one object and depth within 5 %
-  (mixed anti-aliased edge pixels disagree with any per-pixel model).
+
+The interior mask (mixed edge pixels masked) is :func:`fogsim.fog.physics.interior_mask`.
 """
 from __future__ import annotations
 
@@ -24,15 +24,10 @@ import math
 
 import numpy as np
 
-#: Rec. 709 / sRGB luminance weights of scene-linear RGB.
-LUMA = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+from fogsim.colour import luminance
+
 EXPOSURE_LIMITS = (1.0 / 64.0, 64.0)
 VISIBILITY_CONTRAST = 0.05  # t at the meteorological visibility: V = ln(20)/β
-
-
-def luminance(rgb_linear: np.ndarray) -> np.ndarray:
-    """H×W luminance of an H×W×3 scene-linear image."""
-    return np.asarray(rgb_linear, dtype=np.float32) @ LUMA
 
 
 def auto_exposure(clear_linear: np.ndarray, fog_linear: np.ndarray) -> float:
@@ -59,25 +54,6 @@ def koschmieder_linear(clear_linear: np.ndarray, ray: np.ndarray, beta: float, a
     # a float image blended in its own values ("srgb" = no transfer applied): linear light here
     return koschmieder(np.asarray(clear_linear, dtype=np.float32), ray, beta, airlight=255.0 * airlight,
                        space="srgb")
-
-
-def interior_mask(index: np.ndarray, depth: np.ndarray, rel: float = 0.05) -> np.ndarray:
-    """True where every 3×3 neighbour has the same object index and a depth within ``rel``
-    (sky: all neighbours sky); image borders are False."""
-    h, w = index.shape
-    ok = np.zeros((h, w), bool)
-    inner = np.ones((h - 2, w - 2), bool)
-    c_idx, c_d = index[1:-1, 1:-1], depth[1:-1, 1:-1]
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            n_idx = index[1 + dy:h - 1 + dy, 1 + dx:w - 1 + dx]
-            n_d = depth[1 + dy:h - 1 + dy, 1 + dx:w - 1 + dx]
-            both_sky = np.isinf(n_d) & np.isinf(c_d)
-            with np.errstate(invalid="ignore"):
-                close = np.abs(n_d - c_d) <= rel * c_d
-            inner &= (n_idx == c_idx) & (both_sky | close)
-    ok[1:-1, 1:-1] = inner
-    return ok
 
 
 def bin_bias(diff: np.ndarray, ray: np.ndarray, mask: np.ndarray,
