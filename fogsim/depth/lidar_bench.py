@@ -15,8 +15,6 @@ ratios are printed.
 """
 from __future__ import annotations
 
-import statistics
-import time
 
 import cv2
 import numpy as np
@@ -64,13 +62,10 @@ def bench_frame(seed: int = 0):
 
 
 def _median_s(fns: dict, repeat: int) -> dict:
-    times = {k: [] for k in fns}
-    for _ in range(repeat):
-        for name, fn in fns.items():
-            t0 = time.perf_counter()
-            fn()
-            times[name].append(time.perf_counter() - t0)
-    return {k: statistics.median(v) for k, v in times.items()}
+    """Median seconds of interleaved repeats (:func:`fogsim.fog.bench.median_ms`)."""
+    from fogsim.fog.bench import median_ms
+
+    return {k: v / 1e3 for k, v in median_ms(fns, repeat).items()}
 
 
 def _waymo_decode(path: str | None):

@@ -91,18 +91,23 @@ def laser_name(laser: int) -> str:
 
 
 # ----------------------------------------------------------------------------- matrices
+def _varint_spans(buf: np.ndarray, source: str) -> tuple[np.ndarray, np.ndarray]:
+    """Start offset and byte length of every varint in a packed run (a byte < 0x80 ends one)."""
+    ends = np.flatnonzero(buf < 0x80)
+    if ends.size == 0 or ends[-1] != buf.size - 1:
+        raise InputError(source, "malformed matrix (truncated varint)")
+    starts = np.empty_like(ends)
+    starts[0], starts[1:] = 0, ends[:-1] + 1
+    return starts, ends - starts + 1
+
+
 def _varints(buf: np.ndarray, source: str) -> np.ndarray:
     """Decode a packed run of base-128 varints (uint8 array) into int64 (two's complement)."""
     if buf.size == 0:
         return np.zeros(0, np.int64)
     if not (buf & 0x80).any():
         return buf.astype(np.int64)
-    ends = np.flatnonzero(buf < 0x80)
-    if ends.size == 0 or ends[-1] != buf.size - 1:
-        raise InputError(source, "malformed matrix (truncated varint)")
-    starts = np.empty_like(ends)
-    starts[0], starts[1:] = 0, ends[:-1] + 1
-    lengths = ends - starts + 1
+    starts, lengths = _varint_spans(buf, source)
     if lengths.max() > 10:
         raise InputError(source, "malformed matrix (overlong varint)")
     values = (buf[starts] & 0x7F).astype(np.uint64)
@@ -120,12 +125,7 @@ def _varints_int32(buf: np.ndarray, source: str) -> np.ndarray:
     that is not a sign-extended int32) is refused as out of the int32 range."""
     if buf.size == 0 or not (buf & 0x80).any():
         return buf.astype(np.int32)
-    ends = np.flatnonzero(buf < 0x80)
-    if ends.size == 0 or ends[-1] != buf.size - 1:
-        raise InputError(source, "malformed matrix (truncated varint)")
-    starts = np.empty_like(ends)
-    starts[0], starts[1:] = 0, ends[:-1] + 1
-    lengths = ends - starts + 1
+    starts, lengths = _varint_spans(buf, source)
     values = (buf[starts] & 0x7F).astype(np.uint32)
     longer = np.flatnonzero(lengths > 1)
     for k in range(1, 5):
