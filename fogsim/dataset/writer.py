@@ -67,8 +67,9 @@ def split_frames(frames: list[str], train_fraction: float = 0.8, seed: int = 0) 
     return train, val
 
 
-def coco_dataset(metas: list[dict], level: FogLevel, layout: DatasetLayout) -> dict:
-    """COCO detection JSON of one level; image ids follow the sorted frame order from 1."""
+def coco_dataset(metas: list[dict], level: FogLevel, layout: DatasetLayout, classes=LABELLED) -> dict:
+    """COCO detection JSON of one level; image ids follow the sorted frame order from 1;
+    categories named by ``classes`` (the dataset's own list; renders: fogsim's LABELLED)."""
     images, annotations = [], []
     for image_id, meta in enumerate(metas, start=1):
         path = layout.relative(layout.image(level.key, meta["frame"]))
@@ -80,29 +81,34 @@ def coco_dataset(metas: list[dict], level: FogLevel, layout: DatasetLayout) -> d
                      "area": "visible (instance mask) pixel count",
                      "category_id": "YOLO class id + 1"},
             "licenses": [], "images": images, "annotations": annotations,
-            "categories": coco_categories()}
+            "categories": coco_categories(classes)}
 
 
-def data_yaml(root: Path, train: str, val: str, description: str) -> str:
-    """An Ultralytics data file: image lists ``train`` and ``val`` relative to ``root``."""
+def data_yaml(root: Path, train: str, val: str, description: str, classes=LABELLED) -> str:
+    """An Ultralytics data file: image lists ``train`` and ``val`` relative to ``root``, class
+    names ``classes`` (YOLO id = index)."""
     lines = [f"# {description}", f"path: {json.dumps(str(root.resolve()))}",
              f"train: {json.dumps(train)}", f"val: {json.dumps(val)}", "names:"]
-    lines += [f"  {i}: {json.dumps(n)}" for i, n in enumerate(LABELLED)]
+    lines += [f"  {i}: {json.dumps(n)}" for i, n in enumerate(classes)]
     return "\n".join(lines) + "\n"
 
 
-def _write_lists(layout: DatasetLayout, name: str, split: dict[str, list[Path]], description: str) -> None:
+def _write_lists(layout: DatasetLayout, name: str, split: dict[str, list[Path]], description: str,
+                 classes=LABELLED) -> None:
     """The split lists of ``name`` (a level key or MIXED_SPLIT) and its data file."""
     for part, paths in split.items():
         text = "".join(f"{p.resolve()}\n" for p in paths)
         atomic_write_bytes(layout.split_file(name, part), text.encode())
     lists = [layout.relative(layout.split_file(name, part)) for part in PARTS]
-    atomic_write_bytes(layout.data_yaml(name), data_yaml(layout.root, *lists, description).encode())
+    atomic_write_bytes(layout.data_yaml(name), data_yaml(layout.root, *lists, description, classes).encode())
 
 
 def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: float = 0.8,
-             seed: int = 0) -> dict:
-    """Write every dataset-level file from the committed frames; returns ``dataset.json``'s content."""
+             seed: int = 0, classes=LABELLED) -> dict:
+    """Write every dataset-level file from the committed frames; returns ``dataset.json``'s content.
+
+    ``classes``: the dataset's own class list (YOLO ids index it, COCO ids are index + 1; it is
+    ``dataset.json``'s ``classes``). Renders keep the default, fogsim's LABELLED."""
     levels = list(levels)
     if any(lv.key == MIXED_SPLIT for lv in levels):
         raise ValueError(f"fog level key {MIXED_SPLIT!r} is reserved for the mixed-level split")
@@ -113,24 +119,25 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
     train, val = split_frames(frames, train_fraction, seed)
     mixed = {part: [] for part in PARTS}
     for lv in levels:
-        write_json(layout.coco(lv.key), coco_dataset(metas, lv, layout))
+        write_json(layout.coco(lv.key), coco_dataset(metas, lv, layout, classes))
         split = {"train": [layout.image(lv.key, f) for f in train],
                  "val": [layout.image(lv.key, f) for f in val]}
-        _write_lists(layout, lv.key, split, f"fogsim dataset, fog level {lv.key}: beta = {lv.beta:g} 1/m")
+        _write_lists(layout, lv.key, split, f"fogsim dataset, fog level {lv.key}: beta = {lv.beta:g} 1/m", classes)
         for part in mixed:
             mixed[part] += split[part]
-    _write_lists(layout, MIXED_SPLIT, mixed, "fogsim dataset, every fog level mixed")
-    summary = dict(manifest) | _summary(metas, levels, train, val, train_fraction, seed)
+    _write_lists(layout, MIXED_SPLIT, mixed, "fogsim dataset, every fog level mixed", classes)
+    summary = dict(manifest) | _summary(metas, levels, train, val, train_fraction, seed, classes)
     write_json(layout.manifest(), summary)
     write_image(layout.contact_sheet(), contact_sheet(layout, levels, frames))
     return summary
 
 
-def _summary(metas: list[dict], levels, train: list, val: list, train_fraction: float, seed: int) -> dict:
+def _summary(metas: list[dict], levels, train: list, val: list, train_fraction: float, seed: int,
+             classes=LABELLED) -> dict:
     records = [r for m in metas for r in m["objects"]]
     kept = Counter(r["class"] for r in records if r["kept"])
-    return {"frames": len(metas), "classes": list(LABELLED), "levels": [lv.to_dict() for lv in levels],
-            "counts": {c: kept.get(c, 0) for c in LABELLED},
+    return {"frames": len(metas), "classes": list(classes), "levels": [lv.to_dict() for lv in levels],
+            "counts": {c: kept.get(c, 0) for c in classes},
             "filtered": dict(Counter(r["reason"] for r in records if not r["kept"])),
             "split": {"train": len(train), "val": len(val), "train_fraction": train_fraction,
                       "rule": f"crc32('{seed}/<frame>') % 1000 < {round(1000 * train_fraction)} → train"}}
