@@ -246,3 +246,189 @@ def test_label_boxes_outside_the_image_and_wrong_classes_fail_their_sample(folde
     assert "labels of classes ['car']" in errors[samples[1].source]
     assert DatasetLayout(tmp_path / "out").done_frames() == []
     assert not (tmp_path / "out" / "images").exists()
+
+
+# --- fogsim study on the fogged Cityscapes dataset -------------------------------------------------
+import importlib.util  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+
+from fogsim.dataset.reader import dataset_classes, val_ground_truth  # noqa: E402
+from fogsim.detection.class_map import (BUILTIN, ClassMap, load_class_map, map_detections,  # noqa: E402
+                                        map_ground_truth)
+from fogsim.detection.coco_eval import distance_coverage, ignore_policy  # noqa: E402
+from fogsim.detection.study import Study, sim_class_map  # noqa: E402
+from fogsim.detection.yolo import MIXED_MODEL, TrainConfig, training_view  # noqa: E402
+from fogsim.scene.classes import LABELLED  # noqa: E402
+from synthetic_dataset import make_dataset  # noqa: E402
+
+STUDY_LEVELS = ["clear", "beta0.06"]
+
+
+@pytest.fixture(scope="module")
+def fogged(tmp_path_factory):
+    """The two-frame Cityscapes tree fogged at clear and β = 0.06 into the dataset layout."""
+    base = tmp_path_factory.mktemp("fogged")
+    root = make_tree(base / "cs")
+    out = base / "ds"
+    assert main(["fog", "--cityscapes", str(root), "--split", "val", "--levels", "0,0.06", "--out", str(out),
+                 "--quiet"]) == 0
+    return out
+
+
+def test_study_reads_the_class_list_from_the_dataset(fogged, tmp_path):
+    assert dataset_classes(fogged) == list(CITYSCAPES_CLASSES)
+    study = Study(fogged, tmp_path / "s", TrainConfig())
+    assert study.levels == STUDY_LEVELS and study.classes == list(CITYSCAPES_CLASSES)
+    data = training_view(fogged, tmp_path / "yolo", STUDY_LEVELS)
+    text = data[MIXED_MODEL].read_text()
+    assert '  0: "person"' in text and '  2: "car"' in text and "pedestrian" not in text
+    manifest = fogged / "dataset.json"
+    bad = json.loads(manifest.read_text())
+    try:
+        manifest.write_text(json.dumps(bad | {"classes": ["car", "car"]}))
+        with pytest.raises(InputError, match="'classes' must be a list of distinct class names"):
+            dataset_classes(fogged)
+    finally:
+        manifest.write_text(json.dumps(bad))
+
+
+def test_unknown_distance_policies_and_their_counts(fogged):
+    gt = val_ground_truth(fogged, "clear")
+    cov = distance_coverage(gt, 100.0)
+    # the validation frame: 2 cars, 1 person with a distance, 1 all-hole person; 2 ignore regions
+    assert cov == {"objects": 4, "within": 3, "beyond": 0, "unknown": 1, "no_distance": 0, "ignore": 3, "count": 4,
+                   "max_distance_m": 100.0}
+    assert distance_coverage(gt, 12.0)["beyond"] == 2  # 15.3 m person and 23.4 m car
+    crowd = {pol: sum(a["iscrowd"] for a in ignore_policy(gt, 100.0, pol)["annotations"])
+             for pol in ("ignore", "count")}
+    assert crowd == {"ignore": 3, "count": 2}
+    with pytest.raises(ValueError, match="unknown_distance"):
+        ignore_policy(gt, 100.0, "drop")
+
+
+def test_class_maps():
+    waymo = load_class_map("fogsim-to-waymo")
+    assert set(waymo.mapping) == set(LABELLED) == set(BUILTIN["fogsim-to-cityscapes"].mapping)
+    assert waymo.category_ids(LABELLED) == {1: 1, 2: 1, 3: 1, 4: 1, 5: 2, 6: 3, 7: None, 8: None}
+    cs = BUILTIN["fogsim-to-cityscapes"]
+    assert {c: cs.mapping[c] for c in ("car", "truck", "bus", "pedestrian", "cyclist")} == {
+        "car": "car", "truck": "truck", "bus": "bus", "pedestrian": "person", "cyclist": "rider"}
+    assert cs.reached() == ["person", "rider", "car", "truck", "bus"]
+    dets = [{"image_id": 1, "category_id": c, "bbox": [0, 0, 1, 1], "score": 0.5} for c in (1, 5, 8)]
+    assert [d["category_id"] for d in map_detections(dets, cs, LABELLED)] == [3, 1]  # car, person; sign dropped
+    gt = {"images": [], "annotations": [dict(d, id=i) for i, d in enumerate(dets)], "categories": []}
+    mapped = map_ground_truth(gt, waymo, LABELLED)
+    assert [a["category_id"] for a in mapped["annotations"]] == [1, 2]
+    assert [c["name"] for c in mapped["categories"]] == ["vehicle", "pedestrian", "cyclist"]
+    inline = load_class_map('{"map": {"a": "x", "b": null}, "classes": ["x", "y"]}')
+    assert inline == ClassMap("json", {"a": "x", "b": None}, ("x", "y"))
+    assert load_class_map('{"a": "x", "c": "z"}').targets == ("x", "z")
+    with pytest.raises(InputError, match="no entry in class map"):
+        inline.check_source(["a", "c"], "ds")
+    with pytest.raises(InputError, match="not a class map"):
+        load_class_map("no-such-map")
+    with pytest.raises(InputError, match="not JSON"):
+        load_class_map("{oops")
+    with pytest.raises(InputError, match="not in its class list"):
+        load_class_map('{"map": {"a": "x"}, "classes": ["y"]}')
+    # sim → real: the identity, the built-in whose lists match, else ask for --class-map
+    assert sim_class_map(None, ["a"], ["a"], "ds").name == "identity"
+    assert sim_class_map(None, LABELLED, CITYSCAPES_CLASSES, "ds") is cs
+    assert sim_class_map(None, LABELLED, WAYMO, "ds") is waymo
+    with pytest.raises(InputError, match="give --class-map"):
+        sim_class_map(None, LABELLED, ["thing"], "ds")
+    with pytest.raises(InputError, match="maps to"):
+        sim_class_map(waymo, LABELLED, CITYSCAPES_CLASSES, "ds")
+
+
+def perfect(gt, score=0.9, ids=None):
+    """A detection on every annotation (ignore regions too), category through ``ids`` if given."""
+    return [{"image_id": a["image_id"], "category_id": (ids or {}).get(a["category_id"], a["category_id"]),
+             "bbox": a["bbox"], "score": score} for a in gt["annotations"]]
+
+
+def write_predictions(paths_and_dets):
+    for path, dets in paths_and_dets:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(dets))
+
+
+@pytest.mark.detect
+def test_study_report_on_the_fogged_cityscapes_dataset(fogged, tmp_path):
+    """Each level model finds every object of its own level; the report counts the all-hole
+    person by --unknown-distance, in Cityscapes' classes."""
+    pytest.importorskip("pycocotools")
+    out = tmp_path / "study"
+    study = Study(fogged, out, TrainConfig())
+    gts = study.ground_truth()
+    study.check_parameters(gts)
+    write_predictions((study.prediction(m, lv), perfect(gts[lv]) if m in (lv, MIXED_MODEL) else [])
+                      for m in study.models for lv in STUDY_LEVELS)
+    table = study.report()
+    for lv in STUDY_LEVELS:
+        assert table["oracle"][lv]["objects"] == 3 and table["oracle"][lv]["ap50"] == pytest.approx(1.0)
+        assert table[MIXED_MODEL][lv]["recall_max"] == pytest.approx(1.0)
+    assert table["clear"]["beta0.06"]["recall_max"] == 0.0
+    md = (out / "report" / "report.md").read_text()
+    assert "`--unknown-distance ignore` evaluates 3 objects, `count` 4; this report: **ignore**" in md
+    assert "Classes of the dataset: person, rider, car, truck, bus, train, motorcycle, bicycle." in md
+    policy = json.loads((out / "report" / "distance_policy.json").read_text())
+    assert policy["per_level"]["clear"]["unknown"] == 1 and policy["unknown_distance"] == "ignore"
+    counted = Study(fogged, out, TrainConfig(), unknown_distance="count").report()
+    assert counted["oracle"]["clear"]["objects"] == 4 and counted["oracle"]["clear"]["recall_max"] == 1.0
+    # in another class list: persons and riders only (a JSON map)
+    cmap = load_class_map(json.dumps({"map": {c: ("human" if c in ("person", "rider") else None)
+                                              for c in CITYSCAPES_CLASSES}}))
+    mapped = Study(fogged, out, TrainConfig(), class_map=cmap).report()
+    assert mapped["oracle"]["clear"]["objects"] == 1  # the person with a distance
+    assert "Evaluated through the class map `json` in the classes human." in (out / "report" / "report.md").read_text()
+
+
+@pytest.mark.detect
+def test_sim_to_real_rows(fogged, tmp_path):
+    """Models of a rendered dataset (fogsim's classes) on the fogged Cityscapes levels: the
+    built-in fogsim-to-cityscapes map, rows 'sim <model>', every row on the classes it reaches."""
+    pytest.importorskip("pycocotools")
+    sim_ds = make_dataset(tmp_path / "sim", frames=4)
+    out = tmp_path / "study"
+    study = Study(fogged, out, TrainConfig(), sim_dataset=sim_ds)
+    assert study.sim_map.name == "fogsim-to-cityscapes"
+    gts = study.ground_truth()
+    study.check_parameters(gts)
+    write_predictions((study.prediction(m, lv), perfect(gts[lv])) for m in study.models for lv in STUDY_LEVELS)
+    to_fogsim = {1: 5, 3: 1}  # Cityscapes person → fogsim pedestrian, car → car (the models' ids)
+    write_predictions((study.sim_prediction(m, lv), perfect(gts[lv], 0.8, to_fogsim) if m == MIXED_MODEL else [])
+                      for m in study.sim.models for lv in STUDY_LEVELS)
+    with pytest.raises(InputError, match="prediction files are missing"):
+        Study(fogged, tmp_path / "other", TrainConfig(), sim_dataset=sim_ds).report()
+    table = study.report()
+    assert set(table) >= {f"sim {m}" for m in study.sim.models}
+    for lv in STUDY_LEVELS:
+        assert table[f"sim {MIXED_MODEL}"][lv]["ap50"] == pytest.approx(1.0)
+        assert table["sim clear"][lv]["recall_max"] == 0.0
+        assert table["oracle"][lv]["ap50"] == pytest.approx(1.0)
+    md = (out / "report" / "report.md").read_text()
+    assert "| sim mixed |" in md and "mapped by `fogsim-to-cityscapes`" in md
+    assert "person, rider, car, truck, bus." in md
+    assert (out / "report" / "recall_heatmap.png").stat().st_size > 0
+    with pytest.raises(InputError, match="is the --dataset itself"):
+        Study(fogged, tmp_path / "x", TrainConfig(), sim_dataset=fogged)
+
+
+@pytest.mark.detect
+@pytest.mark.slow
+def test_tiny_training_on_the_fogged_cityscapes_dataset(fogged, tmp_path):
+    if importlib.util.find_spec("ultralytics") is None or importlib.util.find_spec("pycocotools") is None:
+        pytest.skip("the 'detect' extra (Ultralytics, pycocotools) is not installed")
+    out = tmp_path / "study"
+    r = subprocess.run([sys.executable, "-m", "fogsim", "study", "--dataset", str(fogged), "--out", str(out),
+                        "--epochs", "1", "--imgsz", "64", "--batch", "2", "--workers", "0", "--device", "cpu",
+                        "--no-plots", "--quiet"], capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "**recall**" in r.stdout
+    for m in (*STUDY_LEVELS, MIXED_MODEL):
+        assert (out / "runs" / m / "fogsim_done.json").is_file()
+    assert '  7: "bicycle"' in (out / "yolo" / "clear" / "data.yaml").read_text()
+    table = json.loads((out / "report" / "cross_density.json").read_text())
+    assert table["oracle"]["clear"]["objects"] == 3 and table["oracle"]["clear"]["unknown_distance"] == "ignore"

@@ -44,6 +44,19 @@ def dataset_levels(dataset: str | Path | DatasetLayout) -> list[str]:
     return levels
 
 
+def dataset_classes(dataset: str | Path | DatasetLayout) -> list[str]:
+    """The dataset's own class list (``dataset.json``'s ``classes``; YOLO id = index, COCO id =
+    index + 1): fogsim's renderer classes for renders, e.g. Cityscapes' 8 for a fogged Cityscapes."""
+    layout = as_layout(dataset)
+    dataset_levels(layout)  # a manifest that exists and is well formed
+    classes = read_json(layout.manifest()).get("classes")
+    if not isinstance(classes, list) or not classes or not all(isinstance(c, str) and c for c in classes) \
+            or len(set(classes)) != len(classes):
+        raise InputError(layout.manifest(), "malformed fogsim dataset manifest: 'classes' must be a list of "
+                                            "distinct class names (rewrite it with --finalize-only)")
+    return classes
+
+
 def _safe_key(key: str) -> bool:
     """A level key is a folder name under images/ and labels/: no path of its own."""
     return "/" not in key and "\\" not in key and key not in (".", "..")
