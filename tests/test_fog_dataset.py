@@ -432,3 +432,16 @@ def test_tiny_training_on_the_fogged_cityscapes_dataset(fogged, tmp_path):
     assert '  7: "bicycle"' in (out / "yolo" / "clear" / "data.yaml").read_text()
     table = json.loads((out / "report" / "cross_density.json").read_text())
     assert table["oracle"]["clear"]["objects"] == 3 and table["oracle"]["clear"]["unknown_distance"] == "ignore"
+    # the same study with a sim-to-real row: only the rendered dataset's models are trained now
+    done = {m: (out / "runs" / m / "fogsim_done.json").stat().st_mtime for m in (*STUDY_LEVELS, MIXED_MODEL)}
+    sim = make_dataset(tmp_path / "sim", frames=4)
+    r = subprocess.run([sys.executable, "-m", "fogsim", "study", "--dataset", str(fogged), "--out", str(out),
+                        "--sim-dataset", str(sim), "--epochs", "1", "--imgsz", "64", "--batch", "2", "--workers", "0",
+                        "--device", "cpu", "--no-plots", "--quiet"], capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert {m: (out / "runs" / m / "fogsim_done.json").stat().st_mtime for m in done} == done
+    assert "| sim mixed |" in r.stdout and "| sim beta0.12 |" in r.stdout
+    for m in ("clear", "beta0.12", MIXED_MODEL):
+        assert (out / "sim_to_real" / "study" / "runs" / m / "fogsim_done.json").is_file()
+        dets = json.loads((out / "sim_to_real" / "predictions" / m / "beta0.06.json").read_text())
+        assert all(1 <= d["category_id"] <= len(LABELLED) for d in dets)  # the rendered classes, as predicted

@@ -140,6 +140,11 @@ class CityscapesLabels:
     min_valid_pixels: int = MIN_VALID_PIXELS
     classes: tuple[str, ...] = CITYSCAPES_CLASSES
 
+    @property
+    def source(self) -> str:
+        """The label file, named in messages about these labels."""
+        return self.instance_ids
+
     def __call__(self) -> Labels:
         path = Path(self.instance_ids)
         if not path.is_file():
