@@ -35,7 +35,9 @@ def _add_fog_options(p: argparse.ArgumentParser) -> None:
 
 def _add_batch_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("batch")
-    g.add_argument("--out", required=True, help="output folder (OUT/<level>/<input tree>)")
+    g.add_argument("--out", required=True, help="output folder: a labelled dataset (images/<level>/<frame>.png, "
+                                                "labels/, meta/, coco/, …) when the input has labels, else "
+                                                "OUT/<level>/<input tree>")
     g.add_argument("--format", dest="image_format", choices=("png", "jpg"), default="png",
                    help="png keeps the input's bit depth (8 or 16); jpg is 8-bit only: 16-bit input is "
                         "scaled to 8 bit, v8 = round(v16·255/65535), and the sidecar records it")

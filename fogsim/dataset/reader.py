@@ -29,7 +29,8 @@ def dataset_levels(dataset: str | Path | DatasetLayout) -> list[str]:
     manifest = layout.manifest()
     if not manifest.is_file():
         raise InputError(layout.root, "not a fogsim dataset (no dataset.json): render one with "
-                                      "scripts/render_batch.py or pass --render")
+                                      "scripts/render_batch.py or pass --render, or fog a labelled dataset "
+                                      "with fogsim fog (after sharded runs: fogsim fog --finalize-only)")
     data = read_json(manifest)
     records = data.get("levels") if isinstance(data, dict) else None
     if not isinstance(records, list) or not all(isinstance(lv, dict) and isinstance(lv.get("key"), str)
