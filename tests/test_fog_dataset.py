@@ -445,3 +445,47 @@ def test_tiny_training_on_the_fogged_cityscapes_dataset(fogged, tmp_path):
         assert (out / "sim_to_real" / "study" / "runs" / m / "fogsim_done.json").is_file()
         dets = json.loads((out / "sim_to_real" / "predictions" / m / "beta0.06.json").read_text())
         assert all(1 <= d["category_id"] <= len(LABELLED) for d in dets)  # the rendered classes, as predicted
+
+
+def test_split_by_folder_keeps_each_sequence_on_one_side(folder_dataset, tmp_path):
+    from fogsim.dataset.writer import split_frames
+
+    frames = [f"seg{g:02d}__{t:04d}_FRONT" for g in range(20) for t in range(5)]
+    groups = {f: f.split("__")[0] for f in frames}
+    train, val = split_frames(frames, 0.7, 0, groups)
+    assert train and val and sorted(train + val) == sorted(frames)
+    assert not {groups[f] for f in train} & {groups[f] for f in val}
+    assert (train, val) == split_frames(list(reversed(frames)), 0.7, 0, groups)
+    assert split_frames(frames, 0.7) != (train, val)  # by frame, sequences straddle the cut
+    one = {f: "same" for f in frames}
+    assert split_frames(frames, 0.7, 0, one) == split_frames(frames, 0.7)  # one group: by frame
+    # every group on the train side: the group nearest the cut moves to val, whole
+    two = frames[:10]
+    t, v = split_frames(two, 0.999, 0, groups)
+    assert len(v) == 5 and len({groups[f] for f in v}) == 1 and len(t) == 5
+    # through fogsim fog's finalize: the sample key's folder is the group
+    boxes = {"a": (("vehicle", (1, 1, 9, 9), 10.0),), "sub/b": (("vehicle", (1, 1, 9, 9), 10.0),)}
+    samples = [replace(s, key=f"seg_{s.key.replace('/', '_')}/{i:04d}_FRONT") for i, s in
+               enumerate(waymo_like(folder_dataset, boxes))]
+    out = tmp_path / "out"
+    job = FogJob(tuple(parse_levels("0")), str(out), labels=True, classes=WAYMO)
+    assert run(samples, job, progress=False).done == 2
+    ds = finalize_dataset(out, 0.5, "folder")
+    assert ds["split"]["groups"] == 2 and "group = the sample key's folder" in ds["split"]["rule"]
+    with pytest.raises(ValueError, match="--split-by"):
+        finalize_dataset(out, 0.5, "segment")
+
+
+def test_split_by_is_recorded_and_used_by_finalize_only(tree, tmp_path):
+    out = tmp_path / "out"
+    make_tree(tree, "train")  # a second folder of samples: leftImg8bit/train/aachen
+    assert main(["fog", "--cityscapes", str(tree), "--split", "val,train", "--out", str(out), "--quiet",
+                 "--levels", "0", "--split-by", "folder"]) == 0
+    assert read(out / "fogsim_run.json")["parameters"]["inputs"]["split_by"] == "folder"
+    ds = read(out / "dataset.json")
+    assert ds["split"]["groups"] == 2 and ds["split"]["train"] == ds["split"]["val"] == 2
+    for part in ("train", "val"):
+        names = [Path(p).stem for p in (out / "splits" / f"clear_{part}.txt").read_text().split()]
+        assert len({n.split("__")[1] for n in names}) == 1  # one Cityscapes split on each side
+    assert main(["fog", "--finalize-only", "--out", str(out), "--split-by", "frame"]) == 0
+    assert "groups" not in read(out / "dataset.json")["split"]

@@ -59,6 +59,10 @@ def _add_label_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--train-fraction", type=float, default=None,
                    help="share of frames in the train split (hash of the frame name; default 0.8, or the "
                         "run's with --finalize-only)")
+    g.add_argument("--split-by", choices=("frame", "folder"), default=None,
+                   help="train/val split by hash of each frame's name, or of its input folder so one sequence "
+                        "never sits on both sides (Waymo: the segment; Cityscapes: the city); default frame, or "
+                        "the run's with --finalize-only")
     g.add_argument("--finalize-only", action="store_true",
                    help="only write the dataset-wide files (COCO, splits, data YAMLs, dataset.json, contact "
                         "sheet) of OUT, e.g. after the shards of an array job (--shard runs do not)")
@@ -209,6 +213,7 @@ def _job(args, out: str, classes: tuple[str, ...] = ()):
         raise ValueError(f"--min-pixels must be ≥ 0, got {min_pixels}")
     if classes:
         inputs["train_fraction"] = _train_fraction(args)
+        inputs["split_by"] = getattr(args, "split_by", None) or "frame"
     return FogJob(levels, out, airlight, args.space, kernel, fill, args.heterogeneity,
                   args.heterogeneity_scale, args.seed, getattr(args, "image_format", "png"), inputs,
                   labels=bool(classes), classes=tuple(classes), min_pixels=min_pixels)
@@ -278,14 +283,14 @@ def cmd_fog(args) -> int:
             print(f"fogsim: error: {args.out}: no frame was fogged, so there is no dataset to finalize",
                   file=sys.stderr)
             return EXIT_FAILED
-        _finalize(args.out, job.inputs["train_fraction"])
+        _finalize(args.out, job.inputs["train_fraction"], job.inputs["split_by"])
     return EXIT_FAILED if summary.failed else EXIT_OK
 
 
-def _finalize(out: str, train_fraction: float) -> None:
+def _finalize(out: str, train_fraction: float, split_by: str = "frame") -> None:
     from fogsim.fog.batch import finalize_dataset
 
-    summary = finalize_dataset(out, train_fraction)
+    summary = finalize_dataset(out, train_fraction, split_by)
     counts = ", ".join(f"{c} {n}" for c, n in summary["counts"].items())
     print(f"dataset: {summary['frames']} frames ({summary['split']['train']} train / {summary['split']['val']} "
           f"val), objects kept: {counts} → {out}/dataset.json")
@@ -297,7 +302,8 @@ def _finalize_only(args) -> int:
 
     given = [f"--{k}" for k in ("input", "cityscapes", "waymo", "shard") if getattr(args, k, None)]
     if given:
-        raise ValueError(f"--finalize-only takes --out (and --train-fraction) only, not {', '.join(given)}")
+        raise ValueError(f"--finalize-only takes --out (and --train-fraction, --split-by) only, not "
+                         f"{', '.join(given)}")
     run_file = Path(args.out) / RUN_FILE
     if not run_file.is_file():
         raise InputError(args.out, f"no {RUN_FILE} here: not a fogsim fog output to finalize")
@@ -305,8 +311,9 @@ def _finalize_only(args) -> int:
     if not isinstance(labels, dict):
         raise InputError(run_file, "this run wrote images without labels (--no-labels): there is no "
                                    "dataset to finalize")
-    stored = (read_json(run_file)["parameters"].get("inputs") or {}).get("train_fraction", 0.8)
-    _finalize(args.out, _train_fraction(args, stored))
+    inputs = read_json(run_file)["parameters"].get("inputs") or {}
+    _finalize(args.out, _train_fraction(args, inputs.get("train_fraction", 0.8)),
+              args.split_by or inputs.get("split_by", "frame"))
     return EXIT_OK
 
 

@@ -50,20 +50,29 @@ def frame_split(frame: str, train_fraction: float = 0.8, seed: int = 0) -> str:
     return "train" if split_key(frame, seed) < round(1000 * train_fraction) else "val"
 
 
-def split_frames(frames: list[str], train_fraction: float = 0.8, seed: int = 0) -> tuple[list, list]:
-    """Deterministic (train, val) frame lists by hash of name (see the module docstring)."""
+def split_frames(frames: list[str], train_fraction: float = 0.8, seed: int = 0,
+                 groups: dict[str, str] | None = None) -> tuple[list, list]:
+    """Deterministic (train, val) frame lists by hash of name (see the module docstring).
+
+    ``groups`` (frame → group name, e.g. a Waymo segment or a Cityscapes city): the hash is of
+    the frame's group instead, so the frames of one group (near-duplicates of one sequence)
+    never sit on both sides; the empty-split rule then moves a whole group. With fewer than two
+    groups the frames are split by their own names."""
     if len(frames) == 1:
         return list(frames), list(frames)
     cut = round(1000 * train_fraction)
-    key = {f: split_key(f, seed) for f in frames}
+    if groups is not None and len({groups[f] for f in frames}) < 2:
+        groups = None
+    name = {f: groups[f] if groups is not None else f for f in frames}
+    key = {f: split_key(name[f], seed) for f in frames}
     train = sorted(f for f in frames if key[f] < cut)
     val = sorted(f for f in frames if key[f] >= cut)
-    if frames and not val:  # never leave a split empty: the frame nearest the cut changes sides
-        moved = max(train, key=lambda f: (key[f], f))
-        train, val = [f for f in train if f != moved], [moved]
+    if frames and not val:  # never leave a split empty: the frame (group) nearest the cut changes sides
+        moved = name[max(train, key=lambda f: (key[f], name[f]))]
+        train, val = [f for f in train if name[f] != moved], [f for f in train if name[f] == moved]
     elif frames and not train:
-        moved = min(val, key=lambda f: (key[f], f))
-        train, val = [moved], [f for f in val if f != moved]
+        moved = name[min(val, key=lambda f: (key[f], name[f]))]
+        train, val = [f for f in val if name[f] == moved], [f for f in val if name[f] != moved]
     return train, val
 
 
@@ -104,11 +113,13 @@ def _write_lists(layout: DatasetLayout, name: str, split: dict[str, list[Path]],
 
 
 def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: float = 0.8,
-             seed: int = 0, classes=LABELLED) -> dict:
+             seed: int = 0, classes=LABELLED, split_group=None) -> dict:
     """Write every dataset-level file from the committed frames; returns ``dataset.json``'s content.
 
     ``classes``: the dataset's own class list (YOLO ids index it, COCO ids are index + 1; it is
-    ``dataset.json``'s ``classes``). Renders keep the default, fogsim's LABELLED."""
+    ``dataset.json``'s ``classes``). Renders keep the default, fogsim's LABELLED.
+    ``split_group``: None (split by frame name), or ``(description, meta → group name)`` to keep
+    each group's frames on one side (:func:`split_frames`)."""
     levels = list(levels)
     if any(lv.key == MIXED_SPLIT for lv in levels):
         raise ValueError(f"fog level key {MIXED_SPLIT!r} is reserved for the mixed-level split")
@@ -116,7 +127,8 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
     if not frames:
         raise ValueError(f"{layout.root}: no finished frames (meta/*.json) to finalize")
     metas = read_metas(layout, frames)
-    train, val = split_frames(frames, train_fraction, seed)
+    groups = None if split_group is None else {f: split_group[1](m) for f, m in zip(frames, metas)}
+    train, val = split_frames(frames, train_fraction, seed, groups)
     mixed = {part: [] for part in PARTS}
     for lv in levels:
         write_json(layout.coco(lv.key), coco_dataset(metas, lv, layout, classes))
@@ -127,6 +139,11 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
             mixed[part] += split[part]
     _write_lists(layout, MIXED_SPLIT, mixed, "fogsim dataset, every fog level mixed", classes)
     summary = dict(manifest) | _summary(metas, levels, train, val, train_fraction, seed, classes)
+    if groups is not None and len(set(groups.values())) > 1:
+        cut = round(1000 * train_fraction)
+        summary["split"]["rule"] = (f"crc32('{seed}/<group>') % 1000 < {cut} → train, group = "
+                                    f"{split_group[0]}")
+        summary["split"]["groups"] = len(set(groups.values()))
     write_json(layout.manifest(), summary)
     write_image(layout.contact_sheet(), contact_sheet(layout, levels, frames))
     return summary

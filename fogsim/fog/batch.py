@@ -331,11 +331,25 @@ def dataset_classes(samples: list[Sample]) -> tuple[str, ...]:
     return classes
 
 
-def finalize_dataset(out: str | Path, train_fraction: float = 0.8) -> dict:
+#: how the train/val split of a fogged dataset groups frames (``fogsim fog --split-by``)
+SPLIT_BY = ("frame", "folder")
+
+
+def key_folder(key: str) -> str:
+    """The folder of a sample key (its parent path: Waymo ``ctx/ts_CAM`` → the segment ``ctx``;
+    Cityscapes ``leftImg8bit/val/<city>/<name>`` → ``leftImg8bit/val/<city>``; "" at the top)."""
+    return key.rpartition("/")[0]
+
+
+def finalize_dataset(out: str | Path, train_fraction: float = 0.8, split_by: str = "frame") -> dict:
     """Write the dataset-wide files of a labelled ``fogsim fog`` run (COCO per level with the
     dataset's classes and ``distance_m`` per annotation, split lists, data YAMLs,
     ``dataset.json``, contact sheet) from its committed frames and ``fogsim_run.json``.
-    The split seed is the run's ``--seed``. Returns ``dataset.json``'s content."""
+    The split seed is the run's ``--seed``; ``split_by="folder"`` keeps the frames of one input
+    folder (:func:`key_folder`: a Waymo segment, a Cityscapes city) on one side of the split.
+    Returns ``dataset.json``'s content."""
+    if split_by not in SPLIT_BY:
+        raise ValueError(f"--split-by must be one of {', '.join(SPLIT_BY)}, got {split_by!r}")
     run_file = Path(out) / RUN_FILE
     if not run_file.is_file():
         raise InputError(out, f"no {RUN_FILE} here: not a fogsim fog output to finalize")
@@ -347,8 +361,9 @@ def finalize_dataset(out: str | Path, train_fraction: float = 0.8) -> dict:
     classes = tuple(params["labels"]["classes"])
     manifest = {"source": "fogsim fog", "fog": {k: v for k, v in params.items() if k != "inputs"},
                 "inputs": params.get("inputs", {}), "seed": params.get("seed", 0)}
+    group = None if split_by == "frame" else ("the sample key's folder", lambda meta: key_folder(meta["key"]))
     return finalize(DatasetLayout(out), levels, manifest, train_fraction, seed=params.get("seed", 0),
-                    classes=classes)
+                    classes=classes, split_group=group)
 
 
 def _init_worker(parent_pid: int):
