@@ -35,7 +35,9 @@ def _add_fog_options(p: argparse.ArgumentParser) -> None:
 
 def _add_batch_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("batch")
-    g.add_argument("--out", required=True, help="output folder (OUT/<level>/<input tree>)")
+    g.add_argument("--out", required=True, help="output folder: a labelled dataset (images/<level>/<frame>.png, "
+                                                "labels/, meta/, coco/, …) when the input has labels, else "
+                                                "OUT/<level>/<input tree>")
     g.add_argument("--format", dest="image_format", choices=("png", "jpg"), default="png",
                    help="png keeps the input's bit depth (8 or 16); jpg is 8-bit only: 16-bit input is "
                         "scaled to 8 bit, v8 = round(v16·255/65535), and the sidecar records it")
@@ -46,10 +48,30 @@ def _add_batch_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def _add_label_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("labels (datasets with annotations: Cityscapes gtFine, Waymo camera labels)")
+    g.add_argument("--no-labels", action="store_true",
+                   help="fog the images alone (OUT/<level>/<key>.png + sidecar JSON) even when the dataset has "
+                        "labels; by default a labelled dataset is written in the render's layout (images/, "
+                        "labels/ YOLO, meta/, coco/, splits/, data/*.yaml, dataset.json with its own classes)")
+    g.add_argument("--min-pixels", type=int, default=0,
+                   help="annotations with fewer pixels become ignore regions (default 0: kept as annotated)")
+    g.add_argument("--train-fraction", type=float, default=None,
+                   help="share of frames in the train split (hash of the frame name; default 0.8, or the "
+                        "run's with --finalize-only)")
+    g.add_argument("--split-by", choices=("frame", "folder"), default=None,
+                   help="train/val split by hash of each frame's name, or of its input folder so one sequence "
+                        "never sits on both sides (Waymo: the segment; Cityscapes: the city); default frame, or "
+                        "the run's with --finalize-only")
+    g.add_argument("--finalize-only", action="store_true",
+                   help="only write the dataset-wide files (COCO, splits, data YAMLs, dataset.json, contact "
+                        "sheet) of OUT, e.g. after the shards of an array job (--shard runs do not)")
+
+
 def add_parsers(sub) -> None:
     fog = sub.add_parser("fog", help="fog a dataset at several densities",
                          formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    src = fog.add_argument_group("input (one of)").add_mutually_exclusive_group(required=True)
+    src = fog.add_argument_group("input (one of; none with --finalize-only)").add_mutually_exclusive_group()
     src.add_argument("--input", help="folder of images (paired with --depth by name)")
     src.add_argument("--cityscapes", help="Cityscapes root (leftImg8bit/, disparity/, camera/)")
     src.add_argument("--waymo", help="Waymo v1 .tfrecord file or folder, or a Waymo v2 parquet root")
@@ -82,6 +104,7 @@ def add_parsers(sub) -> None:
                           "the check runs at ≈ 100-200 MB/s without a compiled CRC32C module, GB/s with google-crc32c)")
     _add_fog_options(fog)
     _add_batch_options(fog)
+    _add_label_options(fog)
 
     fog.set_defaults(run=cmd_fog)
 
@@ -128,7 +151,8 @@ def _samples(args):
     if args.cityscapes:
         from fogsim.readers.cityscapes import cityscapes_samples
 
-        return cityscapes_samples(args.cityscapes, args.split)
+        return cityscapes_samples(args.cityscapes, args.split, labels=False if getattr(args, "no_labels", False)
+                                  else None)
     from fogsim.readers.waymo import waymo_samples
 
     cameras = tuple(c.strip().upper() for c in args.cameras.split(",") if c.strip())
@@ -195,7 +219,7 @@ def _with_depth_from(samples, depth_from: str | None, out: str | None = None, ho
     return [replace(s, depth=spec) for s in samples]
 
 
-def _job(args, out: str):
+def _job(args, out: str, classes: tuple[str, ...] = ()):
     from fogsim.fog.batch import FogJob
     from fogsim.fog.model import Kernel
     from fogsim.fog.levels import parse_levels
@@ -224,8 +248,23 @@ def _job(args, out: str):
 
     if fill not in fill_methods():
         raise ValueError(f"--fill must be one of {', '.join(fill_methods())}, got {fill!r}")
+    inputs = _inputs(args)
+    min_pixels = getattr(args, "min_pixels", 0)
+    if min_pixels < 0:
+        raise ValueError(f"--min-pixels must be ≥ 0, got {min_pixels}")
+    if classes:
+        inputs["train_fraction"] = _train_fraction(args)
+        inputs["split_by"] = getattr(args, "split_by", None) or "frame"
     return FogJob(levels, out, airlight, args.space, kernel, fill, args.heterogeneity,
-                  args.heterogeneity_scale, args.seed, getattr(args, "image_format", "png"), _inputs(args))
+                  args.heterogeneity_scale, args.seed, getattr(args, "image_format", "png"), inputs,
+                  labels=bool(classes), classes=tuple(classes), min_pixels=min_pixels)
+
+
+def _train_fraction(args, default: float = 0.8) -> float:
+    value = default if getattr(args, "train_fraction", None) is None else args.train_fraction
+    if not 0 < value < 1:
+        raise ValueError(f"--train-fraction must be in (0, 1), got {value}")
+    return value
 
 
 def _inputs(args) -> dict:
@@ -250,24 +289,74 @@ def environment() -> dict:
 
 
 def cmd_fog(args) -> int:
-    from fogsim.fog.batch import run
-    from fogsim.runs import check_output, parse_shard, select_shard
+    from dataclasses import replace
 
+    from fogsim.fog.batch import check_labelled, dataset_classes, run
+    from fogsim.runs import check_output, is_sharded, parse_shard, select_shard
+
+    if args.finalize_only:
+        return _finalize_only(args)
+    if not (args.input or args.cityscapes or args.waymo):
+        raise ValueError("give one of --input, --cityscapes, --waymo (or --finalize-only --out OUT)")
     if args.workers < 1:
         raise ValueError("--workers must be ≥ 1")
     _check_depth_from(args)
     check_output(args.out, {f"--{k.replace('_', '-')}": getattr(args, k)
                             for k in ("input", "depth", "cityscapes", "waymo", "depth_dir", "intrinsics")}
                  | {"--depth-from": _depth_from_path(args.depth_from)})
-    job = _job(args, args.out)
+    everything = _with_depth_from(_samples(args), args.depth_from, args.out, args.lidar_holdout, args.seed)
+    if args.no_labels:
+        everything = [replace(s, labels=None) if s.labels is not None else s for s in everything]
+    labelled = any(s.labels is not None for s in everything)
+    if labelled:
+        check_labelled(everything, getattr(args, "image_format", "png"))  # every shard: one frame name rule
+    job = _job(args, args.out, dataset_classes(everything) if labelled else ())
     shard = parse_shard(args.shard)
-    samples = select_shard(_with_depth_from(_samples(args), args.depth_from, args.out, args.lidar_holdout,
-                                            args.seed), shard)
+    samples = select_shard(everything, shard)
     summary = run(samples, job, args.workers, not args.no_resume, not args.quiet, environment())
     print(summary.line(job))
     for source, error in summary.failed:
         print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
+    if labelled and is_sharded(shard):
+        print(f"fogsim: shard {shard[0]}/{shard[1]} done; when every shard has finished, write the dataset "
+              f"files with: fogsim fog --finalize-only --out {args.out}")
+    elif labelled:
+        if not job.layout.done_frames():
+            print(f"fogsim: error: {args.out}: no frame was fogged, so there is no dataset to finalize",
+                  file=sys.stderr)
+            return EXIT_FAILED
+        _finalize(args.out, job.inputs["train_fraction"], job.inputs["split_by"])
     return EXIT_FAILED if summary.failed else EXIT_OK
+
+
+def _finalize(out: str, train_fraction: float, split_by: str = "frame") -> None:
+    from fogsim.fog.batch import finalize_dataset
+
+    summary = finalize_dataset(out, train_fraction, split_by)
+    counts = ", ".join(f"{c} {n}" for c, n in summary["counts"].items())
+    print(f"dataset: {summary['frames']} frames ({summary['split']['train']} train / {summary['split']['val']} "
+          f"val), objects kept: {counts} → {out}/dataset.json")
+
+
+def _finalize_only(args) -> int:
+    from fogsim.fileio import read_json
+    from fogsim.fog.batch import RUN_FILE
+
+    given = [f"--{k}" for k in ("input", "cityscapes", "waymo", "shard") if getattr(args, k, None)]
+    if given:
+        raise ValueError(f"--finalize-only takes --out (and --train-fraction, --split-by) only, not "
+                         f"{', '.join(given)}")
+    run_file = Path(args.out) / RUN_FILE
+    if not run_file.is_file():
+        raise InputError(args.out, f"no {RUN_FILE} here: not a fogsim fog output to finalize")
+    labels = (read_json(run_file).get("parameters") or {}).get("labels")
+    if not isinstance(labels, dict):
+        raise InputError(run_file, "this run wrote images without labels (--no-labels): there is no "
+                                   "dataset to finalize")
+    inputs = read_json(run_file)["parameters"].get("inputs") or {}
+    _finalize(args.out, _train_fraction(args, inputs.get("train_fraction", 0.8)),
+              args.split_by or inputs.get("split_by", "frame"))
+    return EXIT_OK
 
 
 def cmd_demo(args) -> int:

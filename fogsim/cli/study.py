@@ -11,6 +11,8 @@ Paper scale on a GPU (8,100 train / 4,800 val frames, 640 px, 100 epochs, YOLOv1
     fogsim study --out study --dataset ds --model yolo12m.yaml \\
         --imgsz 640 --epochs 100 --batch 16 --nbs 64 --shard i/6   (array job of 6: one model each)
     fogsim study --out study --dataset ds … --report-only
+On a fogged real dataset (fogsim fog --cityscapes/--waymo writes one), with a sim-to-real row:
+    fogsim study --out study --dataset cityscapes_fog --sim-dataset ds    (class map: fogsim-to-cityscapes)
 
 Resumable: finished models and prediction files are skipped, an interrupted training resumes
 from its last.pt. Needs the 'detect' extra. Exit 0 done, 1 failed, 2 bad input.
@@ -34,7 +36,11 @@ def add_parsers(sub) -> None:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, help="study folder (resumed when it exists)")
     src = p.add_argument_group("dataset")
-    src.add_argument("--dataset", help="an existing fogsim dataset (default: OUT/dataset)")
+    src.add_argument("--dataset", help="an existing fogsim dataset, rendered or fogged real data (default: "
+                                       "OUT/dataset); its classes come from its dataset.json")
+    src.add_argument("--sim-dataset", metavar="RENDERED",
+                     help="a rendered dataset: train its models too (OUT/sim_to_real/study) and add rows 'sim <model>' "
+                          "evaluating them on --dataset's levels, through the class map")
     src.add_argument("--render", type=int, metavar="FRAMES",
                      help="render (or complete) this many frames into the dataset first")
     src.add_argument("--preset", default="default", help="render preset (with --render)")
@@ -63,6 +69,13 @@ def add_parsers(sub) -> None:
     ev.add_argument("--max-distance", type=float, default=100.0, help="objects farther (m) are ignored")
     ev.add_argument("--visible-only", action="store_true", help="also score mAP@50 and the distance bins "
                     "with invisible objects (contrast < 5 %%) ignored; recall is reported both ways always")
+    ev.add_argument("--unknown-distance", choices=("ignore", "count"), default="ignore",
+                    help="objects of unknown distance (no laser label, no valid disparity): ignore regions, or "
+                         "ground truth counted by the distance cut; the report gives both counts")
+    ev.add_argument("--class-map", metavar="NAME|JSON",
+                    help="evaluate through a class map: fogsim-to-waymo, fogsim-to-cityscapes, a JSON file or "
+                         "JSON text {\"map\": {src: dst or null}, \"classes\": [...]}; with --sim-dataset it maps the "
+                         "rendered classes to the real ones (default: the built-in whose class lists match)")
     ev.add_argument("--shard", help="i/N: train and predict models i, i+N, … only (array jobs)")
     what = ev.add_mutually_exclusive_group()
     what.add_argument("--report-only", action="store_true", help="only evaluate and write OUT/report")
@@ -80,6 +93,9 @@ def check_args(args) -> None:
     bad = [name for name, v in positive.items() if v is not None and not v > 0]
     if bad:
         raise ValueError(f"{', '.join(bad)} must be positive")
+    if args.render and args.sim_dataset:
+        raise ValueError("--render renders the study's own dataset: render the --sim-dataset first "
+                         "(fogsim render), then pass both")
     if args.render and args.shard:
         raise ValueError("--render with --shard would make every array task render the same dataset: "
                          "render first (fogsim render --shard), then train with --dataset")
@@ -105,7 +121,10 @@ def cmd_study(args) -> int:
     from fogsim.detection.yolo import TrainConfig
     from fogsim.runs import check_output, parse_shard
 
-    check_output(args.out, {"--dataset": args.dataset}, allow_inside_out=("--dataset",))  # read through a view
+    from fogsim.detection.class_map import load_class_map
+
+    check_output(args.out, {"--dataset": args.dataset, "--sim-dataset": args.sim_dataset},
+                 allow_inside_out=("--dataset", "--sim-dataset"))  # read through a view
     out = Path(args.out)
     dataset = Path(args.dataset) if args.dataset else out / "dataset"
     cfg = TrainConfig(model=args.model, epochs=args.epochs, mixed_epochs=args.mixed_epochs, imgsz=args.imgsz,
@@ -115,7 +134,9 @@ def cmd_study(args) -> int:
     shard = parse_shard(args.shard)
     if args.render:
         render(dataset, args)
-    study = Study(dataset, out, cfg)
+    class_map = load_class_map(args.class_map) if args.class_map else None
+    study = Study(dataset, out, cfg, unknown_distance=args.unknown_distance, class_map=class_map,
+                  sim_dataset=args.sim_dataset)
     if not args.report_only:
         study.run_models(shard, progress=not args.quiet)
     if args.no_report:

@@ -20,6 +20,8 @@ Two names mean "every fog level at once", one per side, and both are part of the
 * :data:`MIXED_MODEL` = ``"mixed"``: the detector a study trains on every level
   (``runs/mixed``, ``predictions/mixed`` under the study folder, the ``mixed`` report row).
 
+Frame names of fogged real samples: :func:`frame_from_key` (``/`` → ``__``).
+
 Writing is :mod:`fogsim.dataset.writer`'s, reading :mod:`fogsim.dataset.reader`'s; both take
 their paths from :class:`DatasetLayout`.
 """
@@ -27,9 +29,42 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from fogsim.errors import InputError
+
 MIXED_SPLIT = "all"     # split lists and data file mixing every level (a dataset path)
 MIXED_MODEL = "mixed"   # the detector trained on every level at once (a study name, not a dataset path)
 PARTS = ("train", "val")
+
+
+#: how a sample key (a relative POSIX path, e.g. Waymo ``ctx/ts_CAM``) becomes a flat frame name
+FRAME_SEPARATOR = "__"
+
+
+def frame_from_key(key: str) -> str:
+    """The frame name of a fogged sample in the dataset layout: its key with every ``/`` replaced
+    by ``__`` (Waymo ``ctx/ts_CAM`` → ``ctx__ts_CAM``; Cityscapes
+    ``leftImg8bit/val/frankfurt/frankfurt_000000_000294_leftImg8bit`` →
+    ``leftImg8bit__val__frankfurt__frankfurt_000000_000294_leftImg8bit``). Frame names are flat
+    because split lists are read back by file stem (:func:`fogsim.dataset.reader.read_split`).
+    Two keys that map to one name (``a/b`` and ``a__b``) are refused by :func:`frames_from_keys`."""
+    if not key or key.startswith("/") or any(p in ("", ".", "..") for p in key.split("/")):
+        raise ValueError(f"sample key {key!r} is not a relative path")
+    return key.replace("/", FRAME_SEPARATOR)
+
+
+def frames_from_keys(keys, sources=None) -> list[str]:
+    """:func:`frame_from_key` of every key; raises :class:`InputError` naming both samples when
+    two keys give one frame name (``sources``: what to name, default the keys)."""
+    sources = list(keys) if sources is None else list(sources)
+    frames, seen = [], {}
+    for key, source in zip(keys, sources):
+        frame = frame_from_key(key)
+        if frame in seen:
+            raise InputError(source, f"its frame name {frame!r} is also that of {seen[frame]} "
+                                     f"('/' becomes {FRAME_SEPARATOR!r}): their outputs would overwrite each other")
+        seen[frame] = source
+        frames.append(frame)
+    return frames
 
 
 class DatasetLayout:

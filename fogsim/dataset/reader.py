@@ -29,7 +29,8 @@ def dataset_levels(dataset: str | Path | DatasetLayout) -> list[str]:
     manifest = layout.manifest()
     if not manifest.is_file():
         raise InputError(layout.root, "not a fogsim dataset (no dataset.json): render one with "
-                                      "scripts/render_batch.py or pass --render")
+                                      "scripts/render_batch.py or pass --render, or fog a labelled dataset "
+                                      "with fogsim fog (after sharded runs: fogsim fog --finalize-only)")
     data = read_json(manifest)
     records = data.get("levels") if isinstance(data, dict) else None
     if not isinstance(records, list) or not all(isinstance(lv, dict) and isinstance(lv.get("key"), str)
@@ -42,6 +43,19 @@ def dataset_levels(dataset: str | Path | DatasetLayout) -> list[str]:
     if len(set(levels)) != len(levels) or any(not _safe_key(k) for k in levels):
         raise InputError(manifest, f"malformed fog level keys {levels} (unique names without '/' or '..')")
     return levels
+
+
+def dataset_classes(dataset: str | Path | DatasetLayout) -> list[str]:
+    """The dataset's own class list (``dataset.json``'s ``classes``; YOLO id = index, COCO id =
+    index + 1): fogsim's renderer classes for renders, e.g. Cityscapes' 8 for a fogged Cityscapes."""
+    layout = as_layout(dataset)
+    dataset_levels(layout)  # a manifest that exists and is well formed
+    classes = read_json(layout.manifest()).get("classes")
+    if not isinstance(classes, list) or not classes or not all(isinstance(c, str) and c for c in classes) \
+            or len(set(classes)) != len(classes):
+        raise InputError(layout.manifest(), "malformed fogsim dataset manifest: 'classes' must be a list of "
+                                            "distinct class names (rewrite it with --finalize-only)")
+    return classes
 
 
 def _safe_key(key: str) -> bool:

@@ -51,25 +51,35 @@ def frame_split(frame: str, train_fraction: float = 0.8, seed: int = 0) -> str:
     return "train" if split_key(frame, seed) < round(1000 * train_fraction) else "val"
 
 
-def split_frames(frames: list[str], train_fraction: float = 0.8, seed: int = 0) -> tuple[list, list]:
-    """Deterministic (train, val) frame lists by hash of name (see the module docstring)."""
+def split_frames(frames: list[str], train_fraction: float = 0.8, seed: int = 0,
+                 groups: dict[str, str] | None = None) -> tuple[list, list]:
+    """Deterministic (train, val) frame lists by hash of name (see the module docstring).
+
+    ``groups`` (frame → group name, e.g. a Waymo segment or a Cityscapes city): the hash is of
+    the frame's group instead, so the frames of one group (near-duplicates of one sequence)
+    never sit on both sides; the empty-split rule then moves a whole group. With fewer than two
+    groups the frames are split by their own names."""
     if len(frames) == 1:
         return list(frames), list(frames)
     cut = round(1000 * train_fraction)
-    key = {f: split_key(f, seed) for f in frames}
+    if groups is not None and len({groups[f] for f in frames}) < 2:
+        groups = None
+    name = {f: groups[f] if groups is not None else f for f in frames}
+    key = {f: split_key(name[f], seed) for f in frames}
     train = sorted(f for f in frames if key[f] < cut)
     val = sorted(f for f in frames if key[f] >= cut)
-    if frames and not val:  # never leave a split empty: the frame nearest the cut changes sides
-        moved = max(train, key=lambda f: (key[f], f))
-        train, val = [f for f in train if f != moved], [moved]
+    if frames and not val:  # never leave a split empty: the frame (group) nearest the cut changes sides
+        moved = name[max(train, key=lambda f: (key[f], name[f]))]
+        train, val = [f for f in train if name[f] != moved], [f for f in train if name[f] == moved]
     elif frames and not train:
-        moved = min(val, key=lambda f: (key[f], f))
-        train, val = [moved], [f for f in val if f != moved]
+        moved = name[min(val, key=lambda f: (key[f], name[f]))]
+        train, val = [f for f in val if name[f] == moved], [f for f in val if name[f] != moved]
     return train, val
 
 
-def coco_dataset(metas: list[dict], level: FogLevel, layout: DatasetLayout) -> dict:
-    """COCO detection JSON of one level; image ids follow the sorted frame order from 1."""
+def coco_dataset(metas: list[dict], level: FogLevel, layout: DatasetLayout, classes=LABELLED) -> dict:
+    """COCO detection JSON of one level; image ids follow the sorted frame order from 1;
+    categories named by ``classes`` (the dataset's own list; renders: fogsim's LABELLED)."""
     images, annotations = [], []
     for image_id, meta in enumerate(metas, start=1):
         path = layout.relative(layout.image(level.key, meta["frame"]))
@@ -82,29 +92,36 @@ def coco_dataset(metas: list[dict], level: FogLevel, layout: DatasetLayout) -> d
                      "area": "visible (instance mask) pixel count",
                      "category_id": "YOLO class id + 1"},
             "licenses": [], "images": images, "annotations": annotations,
-            "categories": coco_categories()}
+            "categories": coco_categories(classes)}
 
 
-def data_yaml(root: Path, train: str, val: str, description: str) -> str:
-    """An Ultralytics data file: image lists ``train`` and ``val`` relative to ``root``."""
+def data_yaml(root: Path, train: str, val: str, description: str, classes=LABELLED) -> str:
+    """An Ultralytics data file: image lists ``train`` and ``val`` relative to ``root``, class
+    names ``classes`` (YOLO id = index)."""
     lines = [f"# {description}", f"path: {json.dumps(str(root.resolve()))}",
              f"train: {json.dumps(train)}", f"val: {json.dumps(val)}", "names:"]
-    lines += [f"  {i}: {json.dumps(n)}" for i, n in enumerate(LABELLED)]
+    lines += [f"  {i}: {json.dumps(n)}" for i, n in enumerate(classes)]
     return "\n".join(lines) + "\n"
 
 
-def _write_lists(layout: DatasetLayout, name: str, split: dict[str, list[Path]], description: str) -> None:
+def _write_lists(layout: DatasetLayout, name: str, split: dict[str, list[Path]], description: str,
+                 classes=LABELLED) -> None:
     """The split lists of ``name`` (a level key or MIXED_SPLIT) and its data file."""
     for part, paths in split.items():
         text = "".join(f"{p.resolve()}\n" for p in paths)
         atomic_write_bytes(layout.split_file(name, part), text.encode())
     lists = [layout.relative(layout.split_file(name, part)) for part in PARTS]
-    atomic_write_bytes(layout.data_yaml(name), data_yaml(layout.root, *lists, description).encode())
+    atomic_write_bytes(layout.data_yaml(name), data_yaml(layout.root, *lists, description, classes).encode())
 
 
 def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: float = 0.8,
-             seed: int = 0) -> dict:
-    """Write every dataset-level file from the committed frames; returns ``dataset.json``'s content."""
+             seed: int = 0, classes=LABELLED, split_group=None) -> dict:
+    """Write every dataset-level file from the committed frames; returns ``dataset.json``'s content.
+
+    ``classes``: the dataset's own class list (YOLO ids index it, COCO ids are index + 1; it is
+    ``dataset.json``'s ``classes``). Renders keep the default, fogsim's LABELLED.
+    ``split_group``: None (split by frame name), or ``(description, meta → group name)`` to keep
+    each group's frames on one side (:func:`split_frames`)."""
     levels = list(levels)
     if any(lv.key == MIXED_SPLIT for lv in levels):
         raise ValueError(f"fog level key {MIXED_SPLIT!r} is reserved for the mixed-level split")
@@ -112,27 +129,34 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
     if not frames:
         raise ValueError(f"{layout.root}: no finished frames (meta/*.json) to finalize")
     metas = read_metas(layout, frames)
-    train, val = split_frames(frames, train_fraction, seed)
+    groups = None if split_group is None else {f: split_group[1](m) for f, m in zip(frames, metas)}
+    train, val = split_frames(frames, train_fraction, seed, groups)
     mixed = {part: [] for part in PARTS}
     for lv in levels:
-        write_json(layout.coco(lv.key), coco_dataset(metas, lv, layout))
+        write_json(layout.coco(lv.key), coco_dataset(metas, lv, layout, classes))
         split = {"train": [layout.image(lv.key, f) for f in train],
                  "val": [layout.image(lv.key, f) for f in val]}
-        _write_lists(layout, lv.key, split, f"fogsim dataset, fog level {lv.key}: beta = {lv.beta:g} 1/m")
+        _write_lists(layout, lv.key, split, f"fogsim dataset, fog level {lv.key}: beta = {lv.beta:g} 1/m", classes)
         for part in mixed:
             mixed[part] += split[part]
-    _write_lists(layout, MIXED_SPLIT, mixed, "fogsim dataset, every fog level mixed")
-    summary = dict(manifest) | _summary(metas, levels, train, val, train_fraction, seed)
+    _write_lists(layout, MIXED_SPLIT, mixed, "fogsim dataset, every fog level mixed", classes)
+    summary = dict(manifest) | _summary(metas, levels, train, val, train_fraction, seed, classes)
+    if groups is not None and len(set(groups.values())) > 1:
+        cut = round(1000 * train_fraction)
+        summary["split"]["rule"] = (f"crc32('{seed}/<group>') % 1000 < {cut} → train, group = "
+                                    f"{split_group[0]}")
+        summary["split"]["groups"] = len(set(groups.values()))
     write_json(layout.manifest(), summary)
     write_image(layout.contact_sheet(), contact_sheet(layout, levels, frames))
     return summary
 
 
-def _summary(metas: list[dict], levels, train: list, val: list, train_fraction: float, seed: int) -> dict:
+def _summary(metas: list[dict], levels, train: list, val: list, train_fraction: float, seed: int,
+             classes=LABELLED) -> dict:
     records = [r for m in metas for r in m["objects"]]
     kept = Counter(r["class"] for r in records if r["kept"])
-    return {"frames": len(metas), "classes": list(LABELLED), "levels": [lv.to_dict() for lv in levels],
-            "counts": {c: kept.get(c, 0) for c in LABELLED},
+    return {"frames": len(metas), "classes": list(classes), "levels": [lv.to_dict() for lv in levels],
+            "counts": {c: kept.get(c, 0) for c in classes},
             "filtered": dict(Counter(r["reason"] for r in records if not r["kept"])),
             "split": {"train": len(train), "val": len(val), "train_fraction": train_fraction,
                       "rule": f"crc32('{seed}/<frame>') % 1000 < {round(1000 * train_fraction)} → train"}}

@@ -39,13 +39,25 @@ from fogsim.boxes import box_convert, coco_category, yolo_to_xywh
 BINS = ((0.0, 25.0), (25.0, 50.0), (50.0, 100.0))
 
 
-def mark_far_ignored(gt: dict, max_distance_m: float) -> dict:
-    """A copy of a COCO dict whose annotations beyond ``max_distance_m`` are ``iscrowd = 1``
-    (annotations without ``distance_m``, e.g. from another tool, are kept)."""
+#: what the distance cut does with an object whose ``distance_m`` is None (unknown, e.g. a far
+#: Waymo box without a laser label or a Cityscapes instance without valid disparity):
+#: ``ignore`` it (an ignore region, as a far object) or ``count`` it as ground truth
+UNKNOWN_DISTANCE = ("ignore", "count")
+
+
+def ignore_policy(gt: dict, max_distance_m: float, unknown_distance: str = "count") -> dict:
+    """A copy of a COCO dict with the evaluation's ignore regions marked ``iscrowd = 1``: the
+    dataset's own (filtered objects, groups), objects beyond ``max_distance_m``, and — with
+    ``unknown_distance="ignore"`` — objects whose ``distance_m`` is None. Annotations without a
+    ``distance_m`` key at all (e.g. from another tool) are always counted. New ignore rules (a
+    visibility cut …) belong here, beside these."""
+    if unknown_distance not in UNKNOWN_DISTANCE:
+        raise ValueError(f"unknown_distance must be one of {', '.join(UNKNOWN_DISTANCE)}, got {unknown_distance!r}")
     gt = copy.deepcopy(gt)
     for a in gt["annotations"]:
         d = a.get("distance_m")
-        a["iscrowd"] = int(bool(a.get("iscrowd")) or (d is not None and d > max_distance_m))
+        unknown = "distance_m" in a and d is None and unknown_distance == "ignore"
+        a["iscrowd"] = int(bool(a.get("iscrowd")) or (d is not None and d > max_distance_m) or unknown)
     return gt
 
 
@@ -56,6 +68,27 @@ def mark_invisible_ignored(gt: dict) -> dict:
     for a in gt["annotations"]:
         a["iscrowd"] = int(bool(a.get("iscrowd")) or a.get("visible") is False)
     return gt
+
+
+def mark_far_ignored(gt: dict, max_distance_m: float) -> dict:
+    """A copy of a COCO dict whose annotations beyond ``max_distance_m`` are ``iscrowd = 1``
+    (annotations with an unknown or no ``distance_m`` are kept): :func:`ignore_policy` with
+    ``unknown_distance="count"``."""
+    return ignore_policy(gt, max_distance_m, "count")
+
+
+def distance_coverage(gt: dict, max_distance_m: float) -> dict:
+    """How many ground-truth objects (not the dataset's own ignore regions) each unknown-distance
+    policy evaluates: ``within`` (known distance ≤ max), ``beyond`` (ignored by both),
+    ``unknown`` (distance None), ``no_distance`` (no ``distance_m`` key: always counted);
+    ``ignore`` = within + no_distance, ``count`` = that + unknown."""
+    real = [a for a in gt["annotations"] if not a.get("iscrowd")]
+    within = sum(a.get("distance_m") is not None and a["distance_m"] <= max_distance_m for a in real)
+    beyond = sum(a.get("distance_m") is not None and a["distance_m"] > max_distance_m for a in real)
+    unknown = sum("distance_m" in a and a["distance_m"] is None for a in real)
+    absent = sum("distance_m" not in a for a in real)
+    return {"objects": len(real), "within": within, "beyond": beyond, "unknown": unknown, "no_distance": absent,
+            "ignore": within + absent, "count": within + absent + unknown, "max_distance_m": max_distance_m}
 
 
 def yolo_predictions(folder: str | Path, gt: dict) -> list[dict]:
@@ -202,10 +235,11 @@ def ultralytics_pr(curves: dict) -> tuple[float, float, float]:
 
 
 def evaluate(gt: dict, dets: list[dict], max_distance_m: float = 100.0, conf: float = 0.25,
-             bins=BINS, visible_only: bool = False) -> dict:
-    """All metrics of one (model, level) cell; ``gt`` is a fogsim COCO dict, ``dets`` COCO results.
+             bins=BINS, unknown_distance: str = "count", visible_only: bool = False) -> dict:
+    """All metrics of one (model, level) cell; ``gt`` is a fogsim COCO dict, ``dets`` COCO results;
+    ignore regions by :func:`ignore_policy` (``unknown_distance``: ``count`` or ``ignore``);
     ``visible_only``: invisible objects are ignored too (see the module docstring)."""
-    gt = mark_far_ignored(gt, max_distance_m)
+    gt = ignore_policy(gt, max_distance_m, unknown_distance)
     counted = sum(not a["iscrowd"] for a in gt["annotations"])
     if visible_only:
         gt = mark_invisible_ignored(gt)
@@ -225,7 +259,8 @@ def evaluate(gt: dict, dets: list[dict], max_distance_m: float = 100.0, conf: fl
             "ultralytics_P": P, "ultralytics_R": R, "ultralytics_conf": at,
             "recall_by_distance": by_bin, "objects": len(real),
             "ignored": len(gt["annotations"]) - len(real), "max_distance_m": max_distance_m,
-            "visible_only": visible_only, "ignored_invisible": counted - len(real)}
+            "unknown_distance": unknown_distance, "visible_only": visible_only,
+            "ignored_invisible": counted - len(real)}
 
 
 def evaluate_files(gt_json: str | Path, predictions: str | Path, **kw) -> dict:

@@ -19,6 +19,21 @@ Layout under OUT::
 
 Every unit (a model's training, one prediction file) is skipped when done, so an interrupted
 study resumes; ``shard=(i, N)`` takes models i, i+N, … for a scheduler's array job.
+
+Classes are the dataset's own (``dataset.json``): fogsim's 8 for renders, Waymo's or
+Cityscapes' for fogged real data. ``class_map`` (:mod:`fogsim.detection.class_map`) evaluates
+every row in another class list (e.g. a render in Waymo's classes, to set it beside a Waymo
+study). ``unknown_distance`` (``ignore``/``count``) decides objects whose distance is unknown
+(:func:`fogsim.detection.coco_eval.ignore_policy`); the report states how many objects each
+policy evaluates.
+
+**Sim-to-real** (``sim_dataset``, a rendered dataset): its models (one per level + mixed) are
+trained by a study of its own under ``OUT/sim_to_real/study`` and run on this (real) dataset's
+validation images (``OUT/sim_to_real/predictions/<model>/<level>.json``); their detections go
+through the class map sim → real (given, or the identity for equal class lists, or the built-in
+whose lists match: ``fogsim-to-waymo``, ``fogsim-to-cityscapes``) and appear as rows
+``sim <model>``. Then every row is evaluated on the real classes the map reaches, so the rows
+are comparable (Cityscapes' train, motorcycle, bicycle have no fogsim source).
 """
 from __future__ import annotations
 
@@ -33,11 +48,13 @@ from tqdm import tqdm
 
 from fogsim.detection.table import cross_density, heatmap, markdown, write_report
 from fogsim.dataset.layout import MIXED_MODEL, DatasetLayout
-from fogsim.dataset.reader import dataset_levels, missing_files, read_split, val_ground_truth
+from fogsim.dataset.reader import dataset_classes, dataset_levels, missing_files, read_split, val_ground_truth
+from fogsim.detection.class_map import (BUILTIN, ClassMap, identity, map_detections, map_ground_truth,
+                                        restriction)
 from fogsim.detection.yolo import TrainConfig, check_model, predict, train, training_view
 from fogsim.runs import claim_output
 from fogsim.errors import InputError
-from fogsim.detection.coco_eval import BINS
+from fogsim.detection.coco_eval import BINS, UNKNOWN_DISTANCE, distance_coverage
 from fogsim.detection.level_estimation import LevelEstimator, confusion, image_features, route
 from fogsim.fileio import atomic_write_bytes, read_image, read_json, write_image, write_json
 
@@ -49,10 +66,28 @@ class Study:
     """Paths and parameters of one study under ``out`` on ``dataset``. ``cfg`` is needed to
     train; the report reads the training parameters the study was run with from ``study.json``."""
 
-    def __init__(self, dataset: str | Path, out: str | Path, cfg: TrainConfig | None = None):
+    def __init__(self, dataset: str | Path, out: str | Path, cfg: TrainConfig | None = None, *,
+                 unknown_distance: str = "ignore", class_map: ClassMap | None = None,
+                 sim_dataset: str | Path | None = None):
         self.dataset, self.out, self.cfg = Path(dataset).resolve(), Path(out).resolve(), cfg
         self.layout = DatasetLayout(self.dataset)
         self.levels = dataset_levels(self.layout)
+        self.classes = dataset_classes(self.layout)
+        if unknown_distance not in UNKNOWN_DISTANCE:
+            raise ValueError(f"--unknown-distance must be one of {', '.join(UNKNOWN_DISTANCE)}, "
+                             f"got {unknown_distance!r}")
+        self.unknown_distance = unknown_distance
+        self.sim = None if sim_dataset is None else Study(sim_dataset, self.out / "sim_to_real" / "study", cfg)
+        if self.sim is not None:
+            if self.sim.dataset == self.dataset:
+                raise InputError(sim_dataset, "--sim-dataset is the --dataset itself")
+            self.sim_map = sim_class_map(class_map, self.sim.classes, self.classes, self.sim.layout.manifest())
+            self.eval_map = restriction(self.classes, self.sim_map.reached(), "classes reached by " + self.sim_map.name)
+        else:
+            self.sim_map = None
+            if class_map is not None:
+                class_map.check_source(self.classes, str(self.layout.manifest()))
+            self.eval_map = class_map
         clash = [lv for lv in self.levels if lv in (MIXED_MODEL, "oracle") or lv.startswith("routed")]
         if clash:
             raise InputError(self.layout.manifest(), f"fog level keys {clash} clash with the study's "
@@ -62,6 +97,11 @@ class Study:
 
     def prediction(self, model: str, level: str) -> Path:
         return self.out / "predictions" / model / f"{level}.json"
+
+    def sim_prediction(self, model: str, level: str) -> Path:
+        """Detections of the sim study's model ``model`` on this dataset's level ``level``
+        (in the sim dataset's classes, as the model predicts)."""
+        return self.out / "sim_to_real" / "predictions" / model / f"{level}.json"
 
     def _dataset_parameters(self, gts: dict) -> dict:
         """What ties predictions to the dataset: its path, levels and validation images (ids and
@@ -97,13 +137,30 @@ class Study:
         if any(not (self.out / "runs" / m / "fogsim_done.json").is_file() for m in mine):
             check_model(self.cfg.model, self.config_dir)  # before study.json: a typo must not lock OUT
         self.check_parameters(gts)
-        data = training_view(self.dataset, self.out / "yolo", self.levels)
+        data = training_view(self.dataset, self.out / "yolo", self.levels, self.classes)
         for name in tqdm(mine, desc="models", unit="model", disable=not progress):
             if not (self.out / "runs" / name / "fogsim_done.json").is_file():
                 shutil.rmtree(self.out / "predictions" / name, ignore_errors=True)  # from older weights
             best = train(name, data[name], self.out / "runs", self.cfg, self.config_dir)
             for lv in self.levels:
                 path = self.prediction(name, lv)
+                if not path.is_file():
+                    write_json(path, predict(best, gts[lv], self.dataset, self.cfg, self.config_dir))
+        if self.sim is not None:
+            self.run_sim_models(gts, shard, progress)
+
+    def run_sim_models(self, gts: dict, shard: tuple[int, int] = (0, 1), progress: bool = True) -> None:
+        """Train the sim study's models of this shard (on the rendered dataset) and run each on
+        this dataset's validation images of every level (resumable)."""
+        self.sim.run_models(shard, progress)
+        for name in self.sim.models[shard[0]::shard[1]]:
+            run = self.sim.out / "runs" / name
+            stamp = (run / "fogsim_done.json").stat().st_mtime
+            best = run / "weights" / "best.pt"
+            for lv in self.levels:
+                path = self.sim_prediction(name, lv)
+                if path.is_file() and path.stat().st_mtime < stamp:
+                    path.unlink()  # made with weights that were retrained since
                 if not path.is_file():
                     write_json(path, predict(best, gts[lv], self.dataset, self.cfg, self.config_dir))
 
@@ -120,8 +177,32 @@ class Study:
                                          "it; restore it, or rebuild the lists with fogsim render --finalize-only")
 
     def missing_predictions(self) -> list[Path]:
-        return [self.prediction(m, lv) for m in self.models for lv in self.levels
-                if not self.prediction(m, lv).is_file()]
+        paths = [self.prediction(m, lv) for m in self.models for lv in self.levels]
+        if self.sim is not None:
+            paths += [self.sim_prediction(m, lv) for m in self.sim.models for lv in self.levels]
+        return [p for p in paths if not p.is_file()]
+
+    def evaluation_rows(self, gts: dict, preds: dict) -> tuple[dict, dict]:
+        """(ground truth per level, detections per row and level) in the evaluation's classes:
+        the class map's targets (or the dataset's classes, restricted to those the sim map
+        reaches when a sim dataset is given); sim rows are named ``sim <model>``."""
+        rows = dict(preds)
+        if self.eval_map is not None:
+            gts = {lv: map_ground_truth(gt, self.eval_map, self.classes) for lv, gt in gts.items()}
+            rows = {m: {lv: map_detections(d, self.eval_map, self.classes) for lv, d in by.items()}
+                    for m, by in rows.items()}
+        if self.sim is not None:
+            for m in self.sim.models:
+                rows[f"sim {m}"] = {lv: map_detections(read_json(self.sim_prediction(m, lv)), self.sim_map,
+                                                       self.sim.classes) for lv in self.levels}
+        return gts, rows
+
+    def coverage(self, gts: dict, max_distance_m: float) -> dict:
+        """:func:`~fogsim.detection.coco_eval.distance_coverage` of each level's validation ground
+        truth (the same objects at every level), in the evaluation's classes."""
+        if self.eval_map is not None:
+            gts = {lv: map_ground_truth(gt, self.eval_map, self.classes) for lv, gt in gts.items()}
+        return {lv: distance_coverage(gt, max_distance_m) for lv, gt in gts.items()}
 
     def report(self, max_distance_m: float = 100.0, visible_only: bool = False) -> dict:
         """Evaluate every row on every level and write ``OUT/report``; returns the table. Recall is
@@ -140,10 +221,17 @@ class Study:
         for method, (est_true, est_pred, estimates) in self.estimate_levels(gts).items():
             rows[f"routed ({method})"] = route(preds, estimates)
             levels_out[method] = confusion(est_true, est_pred, self.levels)
-        table = cross_density(gts, rows, max_distance_m=max_distance_m, visible_only=visible_only)
+        eval_gts, rows = self.evaluation_rows(gts, rows)
+        table = cross_density(eval_gts, rows, max_distance_m=max_distance_m, unknown_distance=self.unknown_distance,
+                              visible_only=visible_only)
         out = self.out / "report"
         write_report(table, out)
         write_json(out / "fog_level.json", levels_out)
+        coverage = self.coverage(gts, max_distance_m)
+        write_json(out / "distance_policy.json", {
+            "unknown_distance": self.unknown_distance, "max_distance_m": max_distance_m, "per_level": coverage,
+            "class_map": None if self.eval_map is None else self.eval_map.to_dict(),
+            "sim_class_map": None if self.sim_map is None else self.sim_map.to_dict()})
         for method, conf in levels_out.items():
             m = np.array(conf["matrix"], float)
             share = m / np.maximum(m.sum(axis=1, keepdims=True), 1)
@@ -151,12 +239,24 @@ class Study:
                     for i, t in enumerate(self.levels)}
             write_image(out / f"fog_level_{method}.png",
                         heatmap(grid, "share", title=f"fog level, {method}: share (row: true, column: estimated)"))
-        md = self.report_markdown(table, levels_out, max_distance_m, cfg)
+        md = self.report_markdown(table, levels_out, max_distance_m, cfg, coverage)
         if visible_only:  # the headline policy, said where the numbers are
             md = md.replace("farther ones are ignored.", "farther ones, and invisible ones (contrast < 5 %), "
                             "are ignored in map50 and by distance.", 1)
         atomic_write_bytes(out / "report.md", md.encode())
         return table
+
+    def _classes_lines(self) -> list[str]:
+        lines = [f"Classes of the dataset: {', '.join(self.classes)}."]
+        if self.sim is not None:
+            lines.append(f"Sim-to-real rows (`sim <model>`): models trained on the rendered dataset "
+                         f"`{self.sim.dataset}` ({', '.join(self.sim.classes)}), their detections mapped by "
+                         f"`{self.sim_map.name}`; every row is evaluated on the classes it reaches: "
+                         f"{', '.join(self.sim_map.reached())}.")
+        elif self.eval_map is not None:
+            lines.append(f"Evaluated through the class map `{self.eval_map.name}` in the classes "
+                         f"{', '.join(self.eval_map.reached())}.")
+        return lines + [""]
 
     def estimate_levels(self, gts: dict) -> dict:
         """Per estimator: (true levels, estimated levels, ``{level: {image_id: estimated level}}``)
@@ -180,7 +280,8 @@ class Study:
             out[method] = ([v[0] for v in val], predicted, estimates)
         return out
 
-    def report_markdown(self, table: dict, levels_out: dict, max_distance_m: float, cfg: TrainConfig) -> str:
+    def report_markdown(self, table: dict, levels_out: dict, max_distance_m: float, cfg: TrainConfig,
+                        coverage: dict | None = None) -> str:
         n_train = len(read_split(self.layout, self.levels[0], "train"))
         n_val = len(read_split(self.layout, self.levels[0], "val"))
         lines = ["# Cross-density detection study", "",
@@ -193,7 +294,8 @@ class Study:
                  "the visible ones only (recall_visible: invisible objects, contrast < 5 % against their "
                  "surround in that level's image, are ignored); map50 = COCO AP@0.5 "
                  "(pycocotools). Rows: trained on (oracle = each level's own model; routed = the model "
-                 "of the estimated level); columns: validated on.", "", markdown(table),
+                 "of the estimated level); columns: validated on.", "", *self._classes_lines(),
+                 *_coverage_lines(coverage, self.unknown_distance, max_distance_m), markdown(table),
                  "**recall by distance** (every detection; model on its own level, mixed, routed)", "",
                  "| row | level | " + " | ".join(f"{lo:g}–{hi:g} m" for lo, hi in BINS) + " |",
                  "|---" * (len(BINS) + 2) + "|"]
@@ -216,3 +318,36 @@ class Study:
                       for lv, row in zip(self.levels, conf["matrix"])]
             lines.append("")
         return "\n".join(lines)
+
+
+def _coverage_lines(coverage: dict | None, policy: str, max_distance_m: float) -> list[str]:
+    """The objects each unknown-distance policy evaluates (validation ground truth, one level:
+    the boxes are the same at every level)."""
+    if not coverage:
+        return []
+    c = next(iter(coverage.values()))
+    return [f"Distances (validation objects): {c['within']} within {max_distance_m:g} m, {c['beyond']} beyond "
+            f"(ignored), {c['unknown']} of unknown distance"
+            + (f", {c['no_distance']} without a distance field (counted)" if c["no_distance"] else "")
+            + f". `--unknown-distance ignore` evaluates {c['ignore']} objects, `count` {c['count']}; "
+            f"this report: **{policy}**.", ""]
+
+
+def sim_class_map(given: ClassMap | None, sim_classes, real_classes, where) -> ClassMap:
+    """The class map sim → real: ``given`` (checked against both lists), the identity for equal
+    lists, or the built-in map whose source and target lists are these; else an error asking
+    for ``--class-map``."""
+    sim_classes, real_classes = list(sim_classes), list(real_classes)
+    if given is not None:
+        given.check_source(sim_classes, str(where))
+        if list(given.targets) != real_classes:
+            raise InputError(where, f"class map {given.name} maps to {list(given.targets)}, but the real dataset's "
+                                    f"classes are {real_classes}")
+        return given
+    if sim_classes == real_classes:
+        return identity(sim_classes)
+    for cmap in BUILTIN.values():
+        if set(cmap.mapping) == set(sim_classes) and list(cmap.targets) == real_classes:
+            return cmap
+    raise InputError(where, f"the rendered dataset's classes {sim_classes} are not the real dataset's "
+                            f"{real_classes}: give --class-map ({', '.join(BUILTIN)} or a JSON map)")

@@ -26,7 +26,7 @@ from pathlib import Path
 from fogsim.boxes import coco_category, xyxy_to_xywh
 from fogsim.errors import FogsimError, InputError
 from fogsim.dataset.layout import MIXED_MODEL, PARTS, DatasetLayout
-from fogsim.dataset.reader import read_split
+from fogsim.dataset.reader import dataset_classes, read_split
 from fogsim.dataset.writer import data_yaml
 from fogsim.fileio import atomic_write_bytes, write_json
 
@@ -108,9 +108,10 @@ def check_model(model: str, config_dir: str | Path) -> None:
 
 # --- training view -------------------------------------------------------------------------------
 
-def training_view(dataset: Path, view: Path, levels: list[str]) -> dict[str, Path]:
+def training_view(dataset: Path, view: Path, levels: list[str], classes=None) -> dict[str, Path]:
     """The dataset's YOLO layout seen through symlinks under ``view``; returns a data YAML per
-    model (each level, and ``mixed`` over every level).
+    model (each level, and ``mixed`` over every level), class names ``classes`` (default: the
+    dataset's own list, from ``dataset.json``).
 
     ``view/<model>/<part>/<level>/{images,labels}`` link to the dataset's level folders, so
     Ultralytics' label cache (``…/<level>/labels.cache``) is one per model and split: never in
@@ -118,6 +119,7 @@ def training_view(dataset: Path, view: Path, levels: list[str]) -> dict[str, Pat
     """
     dataset, view = dataset.resolve(), view.resolve()
     layout = DatasetLayout(dataset)
+    classes = dataset_classes(layout) if classes is None else classes
     folders = {"images": layout.images_dir, "labels": layout.labels_dir}
     for lv in levels:
         for kind, folder in folders.items():
@@ -136,7 +138,7 @@ def training_view(dataset: Path, view: Path, levels: list[str]) -> dict[str, Pat
             atomic_write_bytes(view / model / f"{part}.txt", ("\n".join(map(str, paths)) + "\n").encode())
         data[model] = view / model / "data.yaml"
         desc = f"fogsim training view of {dataset}: model {model} ({', '.join(members)})"
-        atomic_write_bytes(data[model], data_yaml(view / model, "train.txt", "val.txt", desc).encode())
+        atomic_write_bytes(data[model], data_yaml(view / model, "train.txt", "val.txt", desc, classes).encode())
     return data
 
 

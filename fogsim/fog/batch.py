@@ -1,10 +1,25 @@
 """Fog a dataset at several levels: shards, resume, worker processes, progress, summary.
 
-Output layout: ``OUT/<level key>/<sample key>.png`` and beside it ``<sample key>.json``,
-the sidecar with every parameter that made the image. The sidecar is written last, so it
-marks a finished output: a restarted run skips samples whose sidecars all exist.
-``OUT/fogsim_run.json`` holds the run parameters; a run into an OUT made with other
-parameters is refused rather than mixed.
+Two output layouts:
+
+* **images only** (``FogJob.labels`` False, ``fogsim fog --no-labels``, or a dataset without
+  labels): ``OUT/<level key>/<sample key>.png`` and beside it ``<sample key>.json``, the sidecar
+  with every parameter that made the image. The sidecars are written last, so they mark a
+  finished output: a restarted run skips samples whose sidecars all exist.
+* **labelled dataset** (``FogJob.labels`` True: the samples have :attr:`Sample.labels`): the
+  layout a render writes (:mod:`fogsim.dataset.layout`), frame = :func:`frame_from_key` of the
+  sample key: ``images/<level>/<frame>.png``, ``labels/<level>/<frame>.txt`` (YOLO, kept records
+  only), then ``meta/<frame>.json`` last (it marks the frame done): the sidecar content (levels,
+  airlight, depth source and coverage, camera) plus ``objects`` (every annotation, with
+  ``distance_m`` and ``distance_source``), ``classes`` and ``source``. The dataset-wide files
+  (COCO, split lists, data YAMLs, ``dataset.json``, contact sheet) are written by
+  :func:`finalize_dataset`, once every shard is done. The label reader runs where the image is
+  read (in the worker). Real annotations are kept as annotated; ``min_pixels`` > 0 turns kept
+  records with fewer pixels into ignore regions.
+
+``OUT/fogsim_run.json`` holds the run parameters (labels: ``"labels": {"classes", "min_pixels"}``;
+no ``labels`` key = images only); a run into an OUT made with other parameters is refused
+rather than mixed.
 """
 from __future__ import annotations
 
@@ -19,15 +34,20 @@ from pathlib import Path
 import numpy as np
 
 from fogsim import __version__
-from fogsim.readers.base import Sample
-from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
+from fogsim.dataset.layout import DatasetLayout, frame_from_key, frames_from_keys
+from fogsim.readers.base import Labels, Sample
+from fogsim.fog.depth_input import SetupError, check_aspect, check_sample, sample_distance
 from fogsim.errors import InputError
 from fogsim.runs import claim_output, sample_seed
 from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
-from fogsim.fileio import TO_8BIT, atomic_write_bytes, encode_image, remove_stale_parts, to_8bit, write_json
+from fogsim.fileio import (TO_8BIT, atomic_write_bytes, encode_image, read_json, remove_stale_parts, to_8bit,
+                           write_json)
 from fogsim.fog.levels import FogLevel
+from fogsim.dataset.writer import finalize, write_frame_labels
 
 RUN_FILE = "fogsim_run.json"
+#: a label box may lie this far (pixels) outside the image (rounding) before it is refused
+BOX_TOLERANCE_PX = 1.0
 
 
 @dataclass(frozen=True)
@@ -45,6 +65,9 @@ class FogJob:
     seed: int = 0
     image_format: str = "png"
     inputs: dict = field(default_factory=dict, hash=False)  # what is read and how (see cli._inputs)
+    labels: bool = False          # write the labelled dataset layout (see the module docstring)
+    classes: tuple[str, ...] = ()  # the dataset's own class list (labels only)
+    min_pixels: int = 0           # kept annotations with fewer pixels → ignore regions (labels only)
 
     def parameters(self) -> dict:
         """The run parameters recorded in ``fogsim_run.json`` and compared on resume."""
@@ -61,20 +84,32 @@ class FogJob:
             "seed": self.seed,
             "image_format": self.image_format,
             "inputs": self.inputs,
-        }
+        } | ({"labels": {"classes": list(self.classes), "min_pixels": self.min_pixels}} if self.labels else {})
+
+    @property
+    def layout(self) -> DatasetLayout:
+        return DatasetLayout(self.out)
 
     def paths(self, sample: Sample, level: FogLevel) -> tuple[Path, Path]:
+        """(image, sidecar) of one sample and level; labelled: (image, the frame's meta file)."""
+        if self.labels:
+            frame = frame_from_key(sample.key)
+            return self.layout.image(level.key, frame), self.layout.meta(frame)
         base = Path(self.out) / level.key / sample.key
         return base.with_name(base.name + "." + self.image_format), base.with_name(base.name + ".json")
 
     def done(self, sample: Sample) -> bool:
+        if self.labels:
+            return self.layout.frame_done(frame_from_key(sample.key))
         return all(self.paths(sample, lv)[1].is_file() for lv in self.levels)
 
 
 def fog_sample(job: FogJob, sample: Sample) -> None:
-    """Fog one sample at every level of the job and write images + sidecars."""
+    """Fog one sample at every level of the job and write images + sidecars (labelled: images,
+    YOLO labels, then the frame's meta)."""
     image = sample.read_image()
     h, w = image.shape[:2]
+    records = checked_records(job, sample, w, h) if job.labels else None
     dist = sample_distance(sample, w, h, job.fill, image)
     seed = sample_seed(job.seed, sample.key)
     density = None
@@ -97,7 +132,68 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
         if job.image_format == "jpg":  # JPEG is 8-bit: 16-bit input is scaled, never saturated
             foggy = to_8bit(foggy)
         atomic_write_bytes(img_path, encode_image(foggy, "." + job.image_format))
-        write_json(meta_path, {"level": level.to_dict(), **common})
+        if not job.labels:
+            write_json(meta_path, {"level": level.to_dict(), **common})
+    if job.labels:
+        frame = frame_from_key(sample.key)
+        write_frame_labels(job.layout, frame, job.levels, records, w, h)
+        coverage = None if dist.record.get("hole_fraction") is None else round(1 - dist.record["hole_fraction"], 6)
+        camera = dist.record.get("intrinsics") or (sample.intrinsics.to_dict() if sample.intrinsics else None)
+        write_json(job.layout.meta(frame), {
+            "frame": frame, "width": w, "height": h, "source": sample.source, "classes": list(job.classes),
+            "objects": records, "levels": [lv.to_dict() for lv in job.levels], **common,
+            "depth_coverage": coverage, "camera": camera, "sample": sample.meta or None})
+
+
+def labels_source(sample: Sample) -> str:
+    """What to name for a sample's labels: its reader's ``source`` attribute (the label file),
+    else the sample's source."""
+    return str(getattr(sample.labels, "source", None) or sample.source)
+
+
+def checked_records(job: FogJob, sample: Sample, width: int, height: int) -> list[dict]:
+    """The sample's annotations (its label reader runs here), checked against the job's class
+    list and the image size: boxes more than :data:`BOX_TOLERANCE_PX` outside the image are an
+    :class:`InputError`, boxes within it are clamped. Kept records below ``job.min_pixels``
+    pixels become ignore regions (reason ``"too few pixels"``). Returns copies."""
+    where = labels_source(sample)
+    if sample.labels is None:
+        raise InputError(sample.source, "has no labels, but this run writes a labelled dataset")
+    labels = sample.labels()
+    if not isinstance(labels, Labels):
+        raise InputError(where, f"the label reader returned {type(labels).__name__}, not Labels")
+    if tuple(labels.classes) != tuple(job.classes):
+        raise InputError(where, f"labels of classes {list(labels.classes)}, but the run's class list is "
+                                f"{list(job.classes)}")
+    out = []
+    for n, obj in enumerate(labels.objects):
+        rec = dict(obj)
+        name, cid = rec.get("class"), rec.get("class_id")
+        if name not in job.classes or cid != job.classes.index(name):
+            raise InputError(where, f"annotation {n}: class {name!r} with id {cid!r} is not in the class list "
+                                    f"{list(job.classes)} (the id must be the index)")
+        try:
+            x0, y0, x1, y1 = (float(v) for v in rec["bbox"])
+        except (KeyError, TypeError, ValueError):
+            raise InputError(where, f"annotation {n}: bbox must be [x0, y0, x1, y1], got {rec.get('bbox')!r}") from None
+        tol = BOX_TOLERANCE_PX
+        if not (x0 >= -tol and y0 >= -tol and x1 <= width + tol and y1 <= height + tol and x0 <= x1 and y0 <= y1):
+            raise InputError(where, f"annotation {n}: box {rec['bbox']} lies outside the {width}×{height} image "
+                                    f"{sample.source} (labels and image of other sizes?)")
+        box = [min(max(v, 0), lim) for v, lim in zip(rec["bbox"], (width, height, width, height))]
+        rec["bbox"] = box
+        rec.setdefault("pixels", (box[2] - box[0]) * (box[3] - box[1]))
+        rec["kept"] = bool(rec.get("kept", True))
+        rec.setdefault("reason", None)
+        d = rec.get("distance_m")
+        if d is not None and not (isinstance(d, (int, float)) and np.isfinite(d) and d >= 0):
+            raise InputError(where, f"annotation {n}: distance_m must be a distance in metres or None, got {d!r}")
+        rec.setdefault("distance_m", None)
+        rec.setdefault("distance_source", "unknown")
+        if rec["kept"] and rec["pixels"] < job.min_pixels:
+            rec["kept"], rec["reason"] = False, f"too few pixels (< {job.min_pixels})"
+        out.append(rec)
+    return out
 
 
 def _bit_depth(dtype, image_format: str) -> dict:
@@ -143,7 +239,7 @@ def run(samples: list[Sample], job: FogJob, workers: int = 1, resume: bool = Tru
     from tqdm import tqdm
 
     t0 = time.perf_counter()
-    check_run_wide(samples)  # before the folder is claimed: the corrected rerun must be accepted
+    check_run_wide(samples, job)  # before the folder is claimed: the corrected rerun must be accepted
     Path(job.out).mkdir(parents=True, exist_ok=True)
     check_run_file(job, environment or {})
     remove_stale_parts(job.out)  # a killed run's temporary files
@@ -181,13 +277,16 @@ def run(samples: list[Sample], job: FogJob, workers: int = 1, resume: bool = Tru
     return summary
 
 
-def check_run_wide(samples: list[Sample]) -> None:
+def check_run_wide(samples: list[Sample], job: FogJob | None = None) -> None:
     """Problems of the whole run, raised as :class:`SetupError` (exit 2) before anything is
     written: a sample without depth, planar depth without a camera, and — on the first sample
-    that has intrinsics — intrinsics of another aspect ratio than its image. A bad file is
+    that has intrinsics — intrinsics of another aspect ratio than its image; for a labelled
+    job, a sample without labels and two samples with one frame name. A bad file is
     not a run-wide problem: it is reported for its sample during the run."""
     for sample in samples:
         check_sample(sample)
+    if job is not None and job.labels:
+        check_labelled(samples, job.image_format)
     first = next((s for s in samples if s.intrinsics is not None), None)
     if first is None:
         return
@@ -198,6 +297,73 @@ def check_run_wide(samples: list[Sample]) -> None:
     K = first.intrinsics
     if (K.width, K.height) != (w, h):
         check_aspect(K, w, h, first.source)
+
+
+def check_labelled(samples: list[Sample], image_format: str = "png") -> None:
+    """A labelled run: every sample has labels, frame names are distinct, images are PNG."""
+    if image_format != "png":
+        raise SetupError(samples[0].source if samples else "--format",
+                         "a labelled dataset holds PNG images (images/<level>/<frame>.png): drop --format jpg, "
+                         "or pass --no-labels")
+    unlabelled = [s for s in samples if s.labels is None]
+    if unlabelled:
+        raise SetupError(unlabelled[0].source, f"has no labels while other samples have ({len(unlabelled)} "
+                                               "without): pass --no-labels to fog the images alone")
+    try:
+        frames_from_keys([s.key for s in samples], [s.source for s in samples])
+    except InputError as exc:
+        raise SetupError(exc.source, exc.problem) from None
+
+
+def dataset_classes(samples: list[Sample]) -> tuple[str, ...]:
+    """The class list of a labelled run: the first label reader's ``classes`` attribute, else
+    the ``classes`` of the first sample's :class:`Labels` (read here, once)."""
+    first = next(s for s in samples if s.labels is not None)
+    classes = getattr(first.labels, "classes", None)
+    if classes is None:
+        labels = first.labels()
+        if not isinstance(labels, Labels):
+            raise InputError(labels_source(first), f"the label reader returned {type(labels).__name__}, not Labels")
+        classes = labels.classes
+    classes = tuple(classes)
+    if not classes or len(set(classes)) != len(classes) or not all(isinstance(c, str) and c for c in classes):
+        raise SetupError(labels_source(first), f"a dataset's class list holds distinct names, got {list(classes)}")
+    return classes
+
+
+#: how the train/val split of a fogged dataset groups frames (``fogsim fog --split-by``)
+SPLIT_BY = ("frame", "folder")
+
+
+def key_folder(key: str) -> str:
+    """The folder of a sample key (its parent path: Waymo ``ctx/ts_CAM`` → the segment ``ctx``;
+    Cityscapes ``leftImg8bit/val/<city>/<name>`` → ``leftImg8bit/val/<city>``; "" at the top)."""
+    return key.rpartition("/")[0]
+
+
+def finalize_dataset(out: str | Path, train_fraction: float = 0.8, split_by: str = "frame") -> dict:
+    """Write the dataset-wide files of a labelled ``fogsim fog`` run (COCO per level with the
+    dataset's classes and ``distance_m`` per annotation, split lists, data YAMLs,
+    ``dataset.json``, contact sheet) from its committed frames and ``fogsim_run.json``.
+    The split seed is the run's ``--seed``; ``split_by="folder"`` keeps the frames of one input
+    folder (:func:`key_folder`: a Waymo segment, a Cityscapes city) on one side of the split.
+    Returns ``dataset.json``'s content."""
+    if split_by not in SPLIT_BY:
+        raise ValueError(f"--split-by must be one of {', '.join(SPLIT_BY)}, got {split_by!r}")
+    run_file = Path(out) / RUN_FILE
+    if not run_file.is_file():
+        raise InputError(out, f"no {RUN_FILE} here: not a fogsim fog output to finalize")
+    params = read_json(run_file).get("parameters") or {}
+    if not isinstance(params.get("labels"), dict):
+        raise InputError(run_file, "this run wrote images without labels (--no-labels): there is no "
+                                   "dataset to finalize")
+    levels = [FogLevel(lv["key"], lv["name"], lv["beta"]) for lv in params["levels"]]
+    classes = tuple(params["labels"]["classes"])
+    manifest = {"source": "fogsim fog", "fog": {k: v for k, v in params.items() if k != "inputs"},
+                "inputs": params.get("inputs", {}), "seed": params.get("seed", 0)}
+    group = None if split_by == "frame" else ("the sample key's folder", lambda meta: key_folder(meta["key"]))
+    return finalize(DatasetLayout(out), levels, manifest, train_fraction, seed=params.get("seed", 0),
+                    classes=classes, split_group=group)
 
 
 def _init_worker(parent_pid: int):

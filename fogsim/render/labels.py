@@ -65,18 +65,30 @@ def object_records(mask: np.ndarray, ray_distance: np.ndarray, objects: list[dic
 
 
 # ----------------------------------------------------------------------------- COCO
-def coco_categories() -> list[dict]:
-    """COCO categories in YOLO order."""
-    return [{"id": coco_category(CLASS_ID[name]), "name": name, "supercategory": "street"} for name in LABELLED]
+#: optional per-record fields a COCO annotation carries when the record has them (real datasets'
+#: records: the distance's provenance, Waymo's difficulty and object id, …)
+COCO_EXTRA_FIELDS = ("visible_fraction", "truncation", "distance_source", "difficulty", "object_id")
+
+
+def coco_categories(classes=LABELLED) -> list[dict]:
+    """COCO categories in YOLO order: ``id`` = index in ``classes`` + 1 (renders: fogsim's
+    :data:`~fogsim.scene.classes.LABELLED`; real datasets: their own class list)."""
+    return [{"id": coco_category(i), "name": name, "supercategory": "street"} for i, name in enumerate(classes)]
 
 
 def coco_annotation(record: dict, ann_id: int, image_id: int) -> dict:
     """A COCO annotation; ``area`` is the visible pixel count, not the box area. A record the
-    filters dropped (too few pixels, too occluded) becomes an ignore region, ``iscrowd = 1``
-    with its ``ignore_reason``: a detection on it is neither a hit nor a false alarm, in
-    pycocotools as in :mod:`fogsim.detection.coco_eval` (COCO trainers skip crowd boxes)."""
-    return {"id": ann_id, "image_id": image_id, "category_id": coco_category(record["class_id"]),
-            "bbox": [float(v) for v in xyxy_to_xywh(record["bbox"])],
-            "area": float(record["pixels"]), "iscrowd": int(not record["kept"]),
-            "distance_m": record["distance_m"], "visible_fraction": record["visible_fraction"],
-            "truncation": record["truncation"]} | ({} if record["kept"] else {"ignore_reason": record["reason"]})
+    filters dropped (too few pixels, too occluded), or a real dataset's ignore region (a
+    Cityscapes group), becomes an ignore region, ``iscrowd = 1`` with its ``ignore_reason``:
+    a detection on it is neither a hit nor a false alarm, in pycocotools as in
+    :mod:`fogsim.detection.coco_eval` (COCO trainers skip crowd boxes).
+
+    ``distance_m`` is always present (None = unknown); :data:`COCO_EXTRA_FIELDS` are copied
+    when the record has them (rendered records: ``visible_fraction``, ``truncation``; real
+    ones: ``distance_source``, ``difficulty`` …)."""
+    ann = {"id": ann_id, "image_id": image_id, "category_id": coco_category(record["class_id"]),
+           "bbox": [float(v) for v in xyxy_to_xywh(record["bbox"])],
+           "area": float(record["pixels"]), "iscrowd": int(not record["kept"]),
+           "distance_m": record.get("distance_m")}
+    ann |= {k: record[k] for k in COCO_EXTRA_FIELDS if k in record}
+    return ann | ({} if record["kept"] else {"ignore_reason": record.get("reason")})
