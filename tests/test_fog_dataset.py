@@ -489,3 +489,43 @@ def test_split_by_is_recorded_and_used_by_finalize_only(tree, tmp_path):
         assert len({n.split("__")[1] for n in names}) == 1  # one Cityscapes split on each side
     assert main(["fog", "--finalize-only", "--out", str(out), "--split-by", "frame"]) == 0
     assert "groups" not in read(out / "dataset.json")["split"]
+
+
+def test_real_dataset_objects_get_box_based_visibility_per_level(tmp_path):
+    """A black box on grey at 10 m stays visible in every fog level; the same box at 40 m is
+    beyond the visibility ln(20)/0.12 ≈ 25 m and is flagged invisible there (contrast < 5 %),
+    in the meta and in that level's COCO file; numbers checked against Koschmieder by hand."""
+    from fogsim.colour import srgb_to_linear
+    from fogsim.fileio import write_depth
+
+    img = np.full((48, 64, 3), 128, np.uint8)
+    img[16:32, 24:40] = 0
+    for name, d in (("near", 10.0), ("far", 40.0)):
+        write_image(tmp_path / "images" / f"{name}.png", img)
+        write_depth(tmp_path / "depth" / f"{name}.exr", np.full((48, 64), d, np.float32))
+    samples = folder_samples(tmp_path / "images", tmp_path / "depth", DepthSpec("", kind="ray"))
+    d_of = {"near": 10.0, "far": 40.0}
+    samples = [replace(s, labels=BoxReader((("vehicle", (24, 16, 40, 32), d_of[s.key]),))) for s in samples]
+    out = tmp_path / "out"
+    job = FogJob(tuple(parse_levels("0,0.12")), str(out), labels=True, classes=WAYMO, inputs={"test": 2})
+    assert not run(samples, job, progress=False).failed
+    finalize_dataset(out)
+    layout = DatasetLayout(out)
+
+    def lum(v):  # grey value → linear luminance
+        return float(srgb_to_linear(np.float32(v) / 255))
+
+    for name, d in d_of.items():
+        (obj,) = read(layout.meta(frame_from_key(name)))["objects"]
+        t = np.exp(-0.12 * d)
+        box, ring = round(0 * t + 255 * (1 - t)), round(128 * t + 255 * (1 - t))  # Koschmieder, sRGB blend
+        fog = obj["visibility"]["beta0.12"]
+        assert fog["transmission"] == pytest.approx(t, rel=1e-3)
+        assert fog["contrast"] == pytest.approx(abs(lum(box) - lum(ring)) / lum(ring), abs=2e-3)
+        assert obj["visibility"]["clear"]["contrast"] == pytest.approx(1.0, abs=1e-3)
+        assert obj["visibility"]["clear"]["visible"] is True
+        assert fog["visible"] is (name == "near")
+    coco = read(layout.coco("beta0.12"))
+    by_image = {im["frame"]: im["id"] for im in coco["images"]}
+    vis = {a["image_id"]: a["visible"] for a in coco["annotations"]}
+    assert vis[by_image["near"]] is True and vis[by_image["far"]] is False

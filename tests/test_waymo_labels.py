@@ -89,7 +89,7 @@ def _pyarrow():
 
 
 def _by_id(labels: Labels) -> dict[str, dict]:
-    return {o["id"]: o for o in labels.objects}
+    return {o["object_id"]: o for o in labels.objects}
 
 
 def _range(center, e) -> tuple[float, float]:
@@ -113,8 +113,8 @@ def test_v1_boxes_classes_difficulty(v1_file):
     read = samples[0].labels.read()
     labels = read.labels
     assert isinstance(labels, Labels) and labels.classes == WAYMO_CLASSES == ("vehicle", "pedestrian", "cyclist")
-    assert [o["id"] for o in labels.objects] == ["cam-ped", "cam-car", "cam-cyc", "cam-far", "cam-low", "cam-ped-x",
-                                                 "cam-ped-near"]
+    ids = ["cam-ped", "cam-car", "cam-cyc", "cam-far", "cam-low", "cam-ped-x", "cam-ped-near"]
+    assert [o["object_id"] for o in labels.objects] == ids
     assert read.dropped == {"not a 2D class": 1, "empty after clamping": 1}
     got = _by_id(labels)
     assert [(o["class"], o["class_id"]) for o in labels.objects] == [

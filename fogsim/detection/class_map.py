@@ -32,10 +32,8 @@ from pathlib import Path
 from fogsim.boxes import coco_category
 from fogsim.errors import InputError
 from fogsim.readers.cityscapes_labels import CITYSCAPES_CLASSES
+from fogsim.readers.waymo_labels import WAYMO_CLASSES
 from fogsim.scene.classes import LABELLED
-
-#: Waymo's 2D camera-label classes (real-datasets.md §4), the target of ``fogsim-to-waymo``
-WAYMO_CLASSES = ("vehicle", "pedestrian", "cyclist")
 
 
 @dataclass(frozen=True)

@@ -43,6 +43,7 @@ from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
 from fogsim.fileio import (TO_8BIT, atomic_write_bytes, encode_image, read_json, remove_stale_parts, to_8bit,
                            write_json)
 from fogsim.fog.levels import FogLevel
+from fogsim.fog.visibility import attach_visibility
 from fogsim.dataset.writer import finalize, write_frame_labels
 
 RUN_FILE = "fogsim_run.json"
@@ -126,15 +127,20 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
               **dist.record, "sample_seed": seed if job.heterogeneity else None,
               "heterogeneity": job.parameters()["heterogeneity"], "fogsim_version": __version__,
               "bit_depth": _bit_depth(image.dtype, job.image_format)}
+    images = {}
     for level in job.levels:
         img_path, meta_path = job.paths(sample, level)
         foggy = fogger(level.beta)
         if job.image_format == "jpg":  # JPEG is 8-bit: 16-bit input is scaled, never saturated
             foggy = to_8bit(foggy)
         atomic_write_bytes(img_path, encode_image(foggy, "." + job.image_format))
-        if not job.labels:
+        if job.labels:
+            images[level.key] = foggy
+        else:
             write_json(meta_path, {"level": level.to_dict(), **common})
     if job.labels:
+        # per object and level: transmission, box-based contrast, visible (real data has no masks)
+        attach_visibility(records, image, images, {lv.key: lv.beta for lv in job.levels})
         frame = frame_from_key(sample.key)
         write_frame_labels(job.layout, frame, job.levels, records, w, h)
         coverage = None if dist.record.get("hole_fraction") is None else round(1 - dist.record["hole_fraction"], 6)

@@ -110,7 +110,8 @@ class Labels:
       ``distance_source`` (how it was obtained, e.g. ``"laser box centre (association)"``,
       ``"lidar points in box (near cluster)"``, ``"valid disparity (median)"``, ``"unknown"``),
 
-    plus whatever the dataset adds (``difficulty``, the dataset's object ``id``, …).
+    plus whatever the dataset adds (``difficulty``, the dataset's own ``object_id``, …; these
+    reach the COCO files, see :data:`fogsim.render.labels.COCO_EXTRA_FIELDS`).
     """
 
     classes: tuple[str, ...]

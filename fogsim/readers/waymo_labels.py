@@ -303,7 +303,7 @@ def build_labels(frame: CameraFrameLabels, points: PointsProvider | None = None,
         name = TYPE_CLASS[b.type]
         x0, y0, x1, y1 = box
         objects.append({
-            "id": b.id, "class": name, "class_id": WAYMO_CLASSES.index(name), "bbox": box,
+            "object_id": b.id, "class": name, "class_id": WAYMO_CLASSES.index(name), "bbox": box,
             "pixels": (x1 - x0) * (y1 - y0), "kept": True, "reason": None,
             "truncated": x0 == 0 or y0 == 0 or x1 == frame.width or y1 == frame.height,
             "difficulty": b.difficulty,
@@ -427,6 +427,8 @@ class WaymoV1Labels:
 
     ``camera``: the CameraName enum value; ``points``: optional :data:`PointsProvider` for the
     LiDAR-points fallback distance."""
+
+    classes = WAYMO_CLASSES  # the class list, known without reading (not a field)
 
     path: str
     offset: int
@@ -624,6 +626,8 @@ class WaymoV2Labels:
 
     ``image``: optional picklable image reader, called only to learn the image size when
     ``camera_calibration`` does not give it; ``points``: optional :data:`PointsProvider`."""
+
+    classes = WAYMO_CLASSES  # the class list, known without reading (not a field)
 
     root: str
     file_name: str
