@@ -161,6 +161,14 @@ def test_volumetric_run_keeps_labels_and_changes_images(tmp_path):
     assert meta["render"]["max_bounces"] == 2  # the clear render kept the draft quality
     assert json.loads((b / "meta" / "000000.json").read_text())["fog"]["model"] == "koschmieder"
     assert "fog_render" in meta["timings_s"] and not (a / "linear").exists()
+    # per-object visibility per level, measured in each model's own foggy images
+    kosch = json.loads((b / "meta" / "000000.json").read_text())["objects"]
+    assert meta["objects"] and len(meta["objects"]) == len(kosch)
+    for va, vb in zip((o["visibility"] for o in meta["objects"]), (o["visibility"] for o in kosch)):
+        assert set(va) == {"clear", *LEVELS}
+        assert all(va[lv]["transmission"] == vb[lv]["transmission"] for lv in LEVELS)  # same distance
+    assert any(o["visibility"][lv]["contrast"] != k["visibility"][lv]["contrast"]
+               for o, k in zip(meta["objects"], kosch) for lv in LEVELS)
 
 
 EA_PRESET = {"style": "urban-canyon", "camera": "waymo-front", "resolution": [96, 64], "seed": 3,
