@@ -17,6 +17,7 @@ from fogsim.scene.geometry import material_key, world_parts
 from fogsim.scene.pose import blender_camera_matrix, blender_lens
 
 from fogsim.render.blender.compat import set_mesh_polygons, sky_type_physical
+from fogsim.render.blender.lights import add_lights
 from fogsim.render.blender.materials import make_material
 
 COLLECTION = "fogsim_scene"
@@ -124,6 +125,7 @@ def build(desc: dict, scene=None, meshes: dict | None = None) -> Built:
     scene.collection.children.link(built.collection)
     _camera(built, desc["camera"], scene)
     _lighting(built, desc["lighting"], scene)
+    add_lights(built, desc["lighting"].get("sources", ()))  # night: lamps, vehicle lights (fogsim.scene.lights)
     for obj in desc["objects"]:
         parts = meshes[obj["id"]] if meshes is not None else world_parts(obj)
         slots = sorted({s for _, _, s in parts})
