@@ -58,8 +58,10 @@ TAILLIGHT_LENS = {"color": [0.8, 0.01, 0.005], "emission": 8.0}
 LAMP_CONE_DEG, LAMP_BLEND = 150.0, 0.4
 #: headlights: 35° cone, aimed 2° below the vehicle's heading
 HEADLIGHT_CONE_DEG, HEADLIGHT_BLEND, HEADLIGHT_TILT_DEG = 35.0, 0.35, 2.0
-#: how far a light sits in front of its lens (m): a light inside a closed lens box would be hidden
+#: how far a light's emitter (a sphere or disk of radius_m) stays clear of its lens (m): an
+#: emitter reaching into the lens or lamp-head box would be partly shadowed by it
 LENS_GAP = 0.04
+LAMP_RADIUS, CAR_LIGHT_RADIUS = 0.08, 0.03
 
 
 def night_settings(lighting: dict | None) -> dict | None:
@@ -91,10 +93,10 @@ def street_lamps(pole: dict, power_w: float) -> list[dict]:
     M = np.asarray(pole["transform"], float)
     out = []
     for lo, hi in _slot_boxes(pole["asset"], "street_lamp"):
-        centre = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2] - LENS_GAP - 0.05]
+        centre = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2] - LENS_GAP - LAMP_RADIUS]
         out.append({"kind": "street_lamp", "object_id": pole["id"], "type": "SPOT",
                     "position": _world(M, centre), "direction": [0.0, 0.0, -1.0],
-                    "spot_angle_deg": LAMP_CONE_DEG, "spot_blend": LAMP_BLEND, "radius_m": 0.1,
+                    "spot_angle_deg": LAMP_CONE_DEG, "spot_blend": LAMP_BLEND, "radius_m": LAMP_RADIUS,
                     "power_w": float(power_w), "color": list(LAMP_COLOR)})
     return out
 
@@ -110,14 +112,14 @@ def vehicle_lights(vehicle: dict, headlight_w: float, taillight_w: float) -> lis
     beam = _unit(heading * math.cos(t) - np.array([0.0, 0.0, math.sin(t)]))
     out = []
     for lo, hi in _slot_boxes(vehicle["asset"], "headlight"):
-        p = [(lo[0] + hi[0]) / 2, hi[1] + LENS_GAP, (lo[2] + hi[2]) / 2]
+        p = [(lo[0] + hi[0]) / 2, hi[1] + LENS_GAP + CAR_LIGHT_RADIUS, (lo[2] + hi[2]) / 2]
         out.append({"kind": "headlight", "object_id": vehicle["id"], "type": "SPOT", "position": _world(M, p),
                     "direction": beam, "spot_angle_deg": HEADLIGHT_CONE_DEG, "spot_blend": HEADLIGHT_BLEND,
-                    "radius_m": 0.03, "power_w": float(headlight_w), "color": list(HEADLIGHT_COLOR)})
+                    "radius_m": CAR_LIGHT_RADIUS, "power_w": float(headlight_w), "color": list(HEADLIGHT_COLOR)})
     for lo, hi in _slot_boxes(vehicle["asset"], "taillight"):
-        p = [(lo[0] + hi[0]) / 2, lo[1] - LENS_GAP, (lo[2] + hi[2]) / 2]
+        p = [(lo[0] + hi[0]) / 2, lo[1] - LENS_GAP - CAR_LIGHT_RADIUS, (lo[2] + hi[2]) / 2]
         out.append({"kind": "taillight", "object_id": vehicle["id"], "type": "POINT", "position": _world(M, p),
-                    "radius_m": 0.03, "power_w": float(taillight_w), "color": list(TAILLIGHT_COLOR)})
+                    "radius_m": CAR_LIGHT_RADIUS, "power_w": float(taillight_w), "color": list(TAILLIGHT_COLOR)})
     return out
 
 

@@ -4,9 +4,9 @@ Run by tests/test_night.py: ``python night_lights.py OUT.json`` (bpy module) or
 ``blender -b -P night_lights.py -- OUT.json``. Writes what the test checks as JSON: whether the
 passes are identical, mean brightness, and the brightness the lights add (night − night without
 Light objects, i.e. only the emissive lenses and windows) in the lamp's pool on the road, in the
-headlights' beam on the wall ahead of the car and on a patch of that wall outside the beam.
-(The beam is measured on the wall, not on the road: Cycles 5.0 returns no light from a road lit
-and seen both at grazing angles, where 3.4 does.)
+headlights' beam on the wall ahead of the car and on a patch of that wall outside the beam, and
+how many faces Blender would shade smooth (none: Blender ≥ 4.1 makes added polygons smooth, and
+a smooth road box left the road black under grazing light).
 """
 import copy
 import json
@@ -36,7 +36,7 @@ car = sample_asset("car", rng, lights_on=False)
 LAMP_XY = (5.0 - 1.5 + 0.125, 14.0)  # the pole at x = 5 turned 90° puts its lamp head 1.5 m toward −x
 CAR = (-2.2, 10.0)  # driving away from the camera (heading +y), toward the wall
 WALL_Y = 25.0
-ROAD = (-6.0, 6.0)  # road 61° off the lamp's nadir (1/8 of the pool's irradiance), outside the beams
+ROAD = (-5.0, 9.0)  # road 55° off the lamp's nadir (~1/6 of the pool's irradiance), beside the car
 BEAM, OUTSIDE = (-2.2, WALL_Y, 0.8), (-12.0, WALL_Y, 0.8)  # on the wall: in the beam, 33° off its axis
 day = {"seed": 0, "street": {"lanes": 2, "lane_width": 3.4},
        "camera": {"intrinsics": K.to_dict(), "world_to_camera": w2c.tolist()},
@@ -54,12 +54,13 @@ dark = copy.deepcopy(night)
 dark["lighting"]["sources"] = []
 
 scene = bpy.data.scenes.new("night_test")
-cycles.configure(scene, {"samples": 8, "denoise": False}, seed=1)
+cycles.configure(scene, {"samples": 16, "denoise": False}, seed=1)
 passes = {}
 before = [len(bpy.data.lights), len(bpy.data.objects)]
 for name, desc in (("day", day), ("night", night), ("dark", dark)):
     built = build.build(desc, scene)
     n_lights = sum(o.type == "LIGHT" for o in built.objects)
+    smooth = sum(sum(p.use_smooth for p in m.polygons) for m in built.meshes)
     passes[name] = (cycles.render(scene), n_lights)
     build.clear(built)
 
@@ -79,6 +80,7 @@ added = luma["night"] - luma["dark"]  # what the Light objects add
 d, n = passes["day"][0], passes["night"][0]
 json.dump({"blender": bpy.app.version_string,
            "lights": {k: v for k, (_, v) in passes.items()}, "sources": len(night["lighting"]["sources"]),
+           "smooth_faces": smooth,
            "leftover": [len(bpy.data.lights) - before[0], len(bpy.data.objects) - before[1]],
            "index_equal": bool(np.array_equal(d.index, n.index)),
            "depth_equal": bool(np.array_equal(d.depth, n.depth)),

@@ -46,6 +46,9 @@ def _mesh(name: str, parts, slots: list[str]) -> bpy.types.Mesh:
     mesh.polygons.add(len(faces))
     set_mesh_polygons(mesh, np.arange(0, faces.size, 3, dtype=np.int32), np.full(len(faces), 3, np.int32))
     mesh.polygons.foreach_set("material_index", mat_index)
+    # flat shading: Blender ≥ 4.1 makes added polygons smooth (no "sharp_face" attribute), which
+    # averages normals across every box edge (boxes share their 8 corners) and darkens whole faces
+    mesh.polygons.foreach_set("use_smooth", np.zeros(len(faces), bool))
     mesh.update()
     return mesh
 
