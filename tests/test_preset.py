@@ -90,7 +90,7 @@ def test_integers_are_integers_not_truncated(tmp_path):
 
 def test_validation_keeps_the_bundled_presets_as_written():
     """The checked components equal the files: a dataset rendered before keeps its parameters."""
-    for name in ("default", "suburban", "arterial", "cityscapes-stereo"):
+    for name in ("default", "suburban", "arterial", "cityscapes-stereo", "night"):
         raw = json.loads((presets_dir() / f"{name}.json").read_text())
         cfg = load_render_preset(name)
         assert cfg.style == json.loads((presets_dir() / "styles" / f"{raw['style']}.json").read_text())

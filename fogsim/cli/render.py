@@ -24,7 +24,7 @@ from fogsim.render.preset import MAX_PIXELS
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--preset", help="bundled preset name (default, suburban, arterial, cityscapes-stereo) "
+    p.add_argument("--preset", help="bundled preset name (default, suburban, arterial, cityscapes-stereo, night) "
                                     "or a path to a preset JSON; default: default")
     p.add_argument("--out", required=True, help="dataset folder")
     p.add_argument("--frames", type=int, help="number of frames (overrides the preset)")

@@ -37,7 +37,8 @@ def frame_name(index: int) -> str:
 def describe_frame(config: RenderConfig, index: int) -> dict:
     """The scene description of frame ``index`` (same config and index → same scene)."""
     s = frame_seed(config.seed, index)
-    return sample_scene(np.random.default_rng(s), config.style, config.camera, config.resolution, seed=s)
+    return sample_scene(np.random.default_rng(s), config.style, config.camera, config.resolution, seed=s,
+                        lighting=config.lighting)
 
 
 def check_scene(config: RenderConfig, index: int = 0) -> None:

@@ -26,7 +26,7 @@ from fogsim.fog.levels import FogLevel, parse_levels
 from fogsim.presets import check_component_name, preset_path
 
 KEYS = {"name", "description", "version", "style", "camera", "resolution", "quality", "fog",
-        "fog_model", "labels", "exposure", "frames", "seed", "stereo", "train_fraction"}
+        "fog_model", "labels", "exposure", "frames", "seed", "stereo", "train_fraction", "lighting"}
 
 #: Default bound on the render size, width × height (about 8192 × 4883; the Waymo front camera
 #: is 2.5 MP). A frame's arrays, its fog levels and Cycles' buffers grow with it; raise it with
@@ -56,13 +56,17 @@ class RenderConfig:
     seed: int = 0
     stereo_baseline: float | None = None  # metres; None = no right camera
     train_fraction: float = 0.8  # share of frames in the train split (fogsim.dataset_writer's rule)
+    lighting: dict = field(default_factory=dict)  # checked "lighting" object; {} = day (see check_lighting)
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "source": self.source, "style": self.style, "camera": self.camera,
-                "resolution": list(self.resolution), "quality": self.quality,
-                "levels": [lv.to_dict() for lv in self.levels], "fog_model": self.fog_model,
-                "labels": self.labels, "exposure": self.exposure, "frames": self.frames, "seed": self.seed,
-                "stereo_baseline_m": self.stereo_baseline, "train_fraction": self.train_fraction}
+        d = {"name": self.name, "source": self.source, "style": self.style, "camera": self.camera,
+             "resolution": list(self.resolution), "quality": self.quality,
+             "levels": [lv.to_dict() for lv in self.levels], "fog_model": self.fog_model,
+             "labels": self.labels, "exposure": self.exposure, "frames": self.frames, "seed": self.seed,
+             "stereo_baseline_m": self.stereo_baseline, "train_fraction": self.train_fraction}
+        if self.lighting:  # absent for day, so datasets rendered before lighting existed still resume
+            d["lighting"] = self.lighting
+        return d
 
 
 # ----------------------------------------------------------------------------- value checks
@@ -203,6 +207,27 @@ def check_quality(quality) -> dict:
     })
 
 
+def check_lighting(lighting) -> dict:
+    """The preset's ``lighting``: ``time_of_day`` ("day", the default, or "night") and, for night,
+    overrides of :data:`fogsim.scene.lights.NIGHT` (sky and moon strength, lamp, headlight and
+    tail-light powers in Cycles watts, the lit fraction of each building's windows). Returns {}
+    for day (a day preset is the preset without lighting), else the object as given."""
+    from fogsim.scene.lights import TIMES_OF_DAY
+
+    watts = lambda v, k: _num(v, k, 0, 1e7)  # noqa: E731
+    night_keys = {"sky_strength": lambda v, k: _num(v, k, 0, 10), "moon_strength": lambda v, k: _num(v, k, 0, 10),
+                  "street_lamp_power_w": watts, "headlight_power_w": watts, "taillight_power_w": watts,
+                  "lit_window_fraction": lambda v, k: _range(v, k, lo=0, hi=1)}
+    light = _object(lighting, "lighting", {}, {"time_of_day": lambda v, k: _choice(v, k, TIMES_OF_DAY),
+                                                **night_keys})
+    if light.get("time_of_day", "day") == "day":
+        extra = sorted(set(light) - {"time_of_day"})
+        if extra:
+            raise ValueError(f"lighting keys {extra} apply only to \"time_of_day\": \"night\"")
+        return {}
+    return light
+
+
 COMPONENT_CHECKS = {"styles": check_style, "cameras": check_camera, "quality": check_quality}
 
 
@@ -336,7 +361,7 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
         cfg = RenderConfig(
             name=_str(d.get("name", path.stem), "name"), source=str(path),
             style=style, camera=camera, resolution=res, quality=quality, levels=tuple(lv),
-            fog_model=dict(fog_model), labels=dict(labels),
+            fog_model=dict(fog_model), labels=dict(labels), lighting=check_lighting(d.get("lighting", {})),
             exposure=_num(d.get("exposure", 1.0), "exposure", 0, lo_open=True),
             frames=frames if frames is not None else _int(d.get("frames", 8), "frames", 1),
             seed=seed if seed is not None else _int(d.get("seed", 0), "seed", 0), stereo_baseline=baseline,

@@ -49,6 +49,12 @@ def _parts(spec: dict) -> list[Part]:
     return _BUILDERS[spec["type"]](spec["params"])
 
 
+def asset_parts(spec: dict) -> list[Part]:
+    """The asset's primitives, unmeshed: material slot and local bounding box (lo, hi) of each
+    (e.g. where a vehicle's headlight lenses are, for :mod:`fogsim.scene.lights`)."""
+    return _parts(spec)
+
+
 def build_asset(spec: dict) -> list[tuple[trimesh.Trimesh, str]]:
     """(mesh in the local frame, material slot) pairs, one mesh per slot; deterministic."""
     return merge(_parts(spec))

@@ -3,7 +3,9 @@
 Local frame: metres, origin at the centre of the ground footprint, z up; the street facade is
 the +y face. ``width`` runs along x (along the street once placed), ``depth`` along y. Windows
 sit in openings recessed into the facade (piers and spandrels stand proud of the glass), so
-the facade has real relief. The bounding box is exactly width × depth × height.
+the facade has real relief. The bounding box is exactly width × depth × height. At night
+(:mod:`fogsim.scene.lights`) ``params.lit_windows = {"fraction", "seed"}`` lights a seeded
+fraction of the panes (material ``window_lit``) without changing any triangle.
 """
 from __future__ import annotations
 
@@ -118,7 +120,15 @@ def building_parts(p: dict) -> list[Part]:
         parts += [w for h in holes for w in _window(*h, y_back)]
         z_prev = z1
     parts.append(box(slot, [-W / 2, y_back, z_prev], [W / 2, y_front, top]))
-    return parts
+    return _light_windows(parts, p["lit_windows"]) if "lit_windows" in p else parts
+
+
+def _light_windows(parts: list[Part], lit: dict) -> list[Part]:
+    """Night: a seeded ``lit["fraction"]`` of the window panes become ``window_lit`` (same boxes,
+    so the geometry is unchanged; only the material differs). ``lit["seed"]`` draws which."""
+    rng = np.random.default_rng(lit["seed"])
+    return [q._replace(slot="window_lit") if q.slot == "window" and rng.random() < lit["fraction"] else q
+            for q in parts]
 
 
 SAMPLERS = {"building": sample_building}

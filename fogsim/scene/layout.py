@@ -14,6 +14,7 @@ import numpy as np
 
 from fogsim.camera import Intrinsics
 from fogsim.scene.assets import asset_extent, sample_asset
+from fogsim.scene.lights import apply_night, night_settings
 from fogsim.scene.pose import camera_to_world, transform, world_to_camera
 
 SIDEWALK_HEIGHT = 0.15
@@ -211,8 +212,14 @@ def camera_intrinsics(camera: dict, resolution: tuple[int, int] | None = None) -
 
 
 def sample_scene(rng: np.random.Generator, style: dict, camera: dict,
-                 resolution: tuple[int, int] | None = None, seed: int | None = None) -> dict:
-    """A random street of ``style`` seen from ``camera`` (presets as dicts); JSON-serialisable."""
+                 resolution: tuple[int, int] | None = None, seed: int | None = None,
+                 lighting: dict | None = None) -> dict:
+    """A random street of ``style`` seen from ``camera`` (presets as dicts); JSON-serialisable.
+
+    ``lighting``: the preset's lighting object; ``{"time_of_day": "night"}`` adds street lamps,
+    vehicle lights and lit windows to the same street (:func:`fogsim.scene.lights.apply_night`),
+    day (the default) leaves the description as it always was.
+    """
     n, lw = style["lanes_per_direction"], style["lane_width"]
     pw = style["parking_width"]
     st = {"length": float(style["street_length"]), "lanes": n, "lane_width": lw, "parking_width": pw,
@@ -231,7 +238,7 @@ def sample_scene(rng: np.random.Generator, style: dict, camera: dict,
     position = [st["camera_x"], 0.0, camera["height_m"]]
     c2w = camera_to_world(position, yaw, pitch, roll)
     elevation = _uniform(rng, style["sun_elevation_deg"])
-    return {
+    desc = {
         "version": VERSION, "seed": seed, "style": style["name"], "street": st,
         "camera": {"preset": camera["name"], "intrinsics": K.to_dict(), "position": position,
                    "yaw_deg": yaw, "pitch_deg": pitch, "roll_deg": roll,
@@ -241,3 +248,4 @@ def sample_scene(rng: np.random.Generator, style: dict, camera: dict,
                      "sun_strength": 3.0 + 2.0 * math.sin(math.radians(elevation)), "sky_strength": 0.3},
         "objects": b.objects,
     }
+    return apply_night(desc, lighting, rng) if night_settings(lighting) else desc

@@ -44,6 +44,7 @@ MATERIALS: dict[str, dict] = {
     "facade_concrete": _m((0.4, 0.39, 0.36), 0.85, 0.0, "concrete", 0.6),
     "facade_plaster": _m((0.6, 0.55, 0.45), 0.8, 0.0, "noise", 0.4),
     "window": _m((0.03, 0.04, 0.05), 0.08, 0.0, "windows", 1.5),
+    "window_lit": _m((1.0, 0.62, 0.3), 0.08, 0.0, "windows", 1.5, emission=0.8),  # a lit room at night
     "window_frame": _m((0.7, 0.7, 0.68), 0.5, 0.0, "noise", 0.2),
     "door": _m((0.12, 0.07, 0.04), 0.6, 0.0, "noise", 0.15),
     "roof": _m((0.12, 0.11, 0.1), 0.9, 0.0, "concrete", 0.4),

@@ -17,6 +17,7 @@ from fogsim.scene.geometry import material_key, world_parts
 from fogsim.scene.pose import blender_camera_matrix, blender_lens
 
 from fogsim.render.blender.compat import set_mesh_polygons, sky_type_physical
+from fogsim.render.blender.lights import add_lights
 from fogsim.render.blender.materials import make_material
 
 COLLECTION = "fogsim_scene"
@@ -45,6 +46,9 @@ def _mesh(name: str, parts, slots: list[str]) -> bpy.types.Mesh:
     mesh.polygons.add(len(faces))
     set_mesh_polygons(mesh, np.arange(0, faces.size, 3, dtype=np.int32), np.full(len(faces), 3, np.int32))
     mesh.polygons.foreach_set("material_index", mat_index)
+    # flat shading: Blender ≥ 4.1 makes added polygons smooth (no "sharp_face" attribute), which
+    # averages normals across every box edge (boxes share their 8 corners) and darkens whole faces
+    mesh.polygons.foreach_set("use_smooth", np.zeros(len(faces), bool))
     mesh.update()
     return mesh
 
@@ -124,6 +128,7 @@ def build(desc: dict, scene=None, meshes: dict | None = None) -> Built:
     scene.collection.children.link(built.collection)
     _camera(built, desc["camera"], scene)
     _lighting(built, desc["lighting"], scene)
+    add_lights(built, desc["lighting"].get("sources", ()))  # night: lamps, vehicle lights (fogsim.scene.lights)
     for obj in desc["objects"]:
         parts = meshes[obj["id"]] if meshes is not None else world_parts(obj)
         slots = sorted({s for _, _, s in parts})
