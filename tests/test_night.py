@@ -228,3 +228,32 @@ def test_night_dataset_has_the_day_labels_masks_and_depth(kind, tmp_path):
     assert meta["scene"]["lighting"]["time_of_day"] == "night" and len(meta["scene"]["lighting"]["sources"]) > 10
     run_file = json.loads((out["night"] / "render_run.json").read_text())
     assert run_file["parameters"]["lighting"] == {"time_of_day": "night"}
+
+
+@pytest.mark.blender
+def test_night_in_volumetric_fog_stays_night(tmp_path):
+    """Night + path-traced fog (hybrid medium): the medium's emission follows the frame's sky
+    (0.01 at night), so the foggy night is dark with glowing lamps, not a white day fog; labels
+    and masks are those of the night render without fog."""
+    import subprocess
+    import sys
+
+    from fogsim.fileio import read_image
+    from test_blender import dataset_digest, runner
+
+    runner("bpy")  # skips without the bpy module
+    base = [sys.executable, "-m", "fogsim", "render", "--frames", "1", "--seed", "3", "--resolution", "96x64",
+            "--samples", "8", "--levels", "0,0.06", "--quiet"]
+    out = {}
+    for name, extra in (("night", ["--preset", "night"]),
+                        ("night_fog", ["--preset", "night", "--fog", "volumetric", "--fog-medium", "hybrid"]),
+                        ("day_fog", ["--preset", "default", "--fog", "volumetric", "--fog-medium", "hybrid"])):
+        out[name] = tmp_path / name
+        res = subprocess.run(base + extra + ["--out", str(out[name])], capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0, res.stderr[-3000:]
+    assert dataset_digest(out["night"]) == dataset_digest(out["night_fog"])
+    fog = {n: read_image(out[n] / "images" / "beta0.06" / "000000.png").astype(float) for n in ("night_fog", "day_fog")}
+    assert fog["night_fog"].mean() < 0.4 * fog["day_fog"].mean()
+    assert fog["night_fog"].max() > 3 * np.median(fog["night_fog"])  # the lamps still shine through
+    meta = json.loads((out["night_fog"] / "meta" / "000000.json").read_text())
+    assert meta["fog"]["emission"] == pytest.approx(NIGHT["sky_strength"])

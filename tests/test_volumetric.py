@@ -18,7 +18,7 @@ from fogsim.colour import linear_to_srgb8
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.errors import InputError
 from fogsim.fileio import read_depth_file, read_image, read_rgb_exr, read_uint16_map
-from fogsim.render.preset import load_render_preset, volumetric_settings
+from fogsim.render.preset import frame_volumetric, load_render_preset, volumetric_settings
 from fogsim.fog.physics import interior_mask
 from fogsim.render.volumetric import (auto_exposure, bin_bias, horizon_radiance,
                                       koschmieder_linear)
@@ -46,6 +46,9 @@ def test_defaults_and_overrides():
     assert v["extent_m"] == 400.0  # max(400, 12/β_min) with β_min = 0.03
     v = volumetric_settings(load_render_preset("default", fog_medium="hybrid", levels="clear,0.005"))
     assert v["medium"] == "hybrid" and v["extent_m"] == 1400.0  # 12/0.005 = 2400, capped inside clip_end
+    assert v["emission"] == "sky"  # resolved per frame: the frame's sky strength
+    assert frame_volumetric(v, {"lighting": {"sky_strength": 0.01}})["emission"] == 0.01
+    assert frame_volumetric({**v, "emission": 0.8}, {"lighting": {"sky_strength": 0.01}})["emission"] == 0.8
     with pytest.raises(ValueError, match="--fog must be one of"):
         load_render_preset("default", fog="mie")
     with pytest.raises(ValueError, match="--fog-medium needs --fog volumetric"):
@@ -59,6 +62,7 @@ def test_defaults_and_overrides():
     ({"extent_m": 3000}, "fog_model.volumetric.extent_m must be a number in [10, 1400]"),
     ({"volume_bounces": 6.5}, "fog_model.volumetric.volume_bounces must be an integer"),
     ({"scatter_fraction": 2}, "fog_model.volumetric.scatter_fraction must be a number in [0, 1]"),
+    ({"emission": "moon"}, 'fog_model.volumetric.emission must be "sky" or a number'),
     ({"exposure": "horizon"}, "fog_model.volumetric.exposure must be one of none, auto"),
     ({"keep_linear": 1}, "fog_model.volumetric.keep_linear must be true or false"),
     ({"bounces": 64}, "unknown fog_model.volumetric keys ['bounces']"),

@@ -441,7 +441,7 @@ VOLUMETRIC_DEFAULTS = {
     "phase": "HG",             # "MIE" (Blender 4.3+ only) uses diameter_um instead of g
     "diameter_um": 10.0,
     "scatter_fraction": 0.5,   # hybrid: σ_s = β·w, σ_a = β·(1 − w) with emission σ_a·emission
-    "emission": 1.0,           # hybrid / ea: the airlight radiance L = A, scene-linear (1.0 = white)
+    "emission": "sky",         # hybrid / ea: the radiance L = A, scene-linear; "sky" = the frame's sky strength
     "layer_height_m": 100.0,   # fog layer thickness H above the ground
     "extent_m": None,          # domain half-width R; None = max(400, 12/β_min) capped at 1400 m
     "volume_bounces": 64,
@@ -468,7 +468,8 @@ def volumetric_settings(config: RenderConfig) -> dict | None:
     checks = {
         "medium": lambda v, k: _choice(v, k, FOG_MEDIA), "g": lambda v, k: _num(v, k, -0.99, 0.99),
         "phase": lambda v, k: _choice(v, k, ("HG", "MIE")), "diameter_um": lambda v, k: _num(v, k, 0.01, 50),
-        "scatter_fraction": _prob, "emission": lambda v, k: _num(v, k, 0, 1e6),
+        "scatter_fraction": _prob,
+        "emission": _emission,
         "layer_height_m": lambda v, k: _num(v, k, 1, 1000),
         "extent_m": lambda v, k: None if v is None else _num(v, k, 10, MAX_FOG_EXTENT_M),
         "volume_bounces": lambda v, k: _int(v, k, 1, 1024),
@@ -485,6 +486,24 @@ def volumetric_settings(config: RenderConfig) -> dict | None:
         betas = [lv.beta for lv in config.levels if lv.beta > 0]
         settings["extent_m"] = min(MAX_FOG_EXTENT_M, max(400.0, 12.0 / min(betas))) if betas else 400.0
     return settings
+
+
+def _emission(value, key: str):
+    """``"sky"`` or a scene-linear radiance ≥ 0."""
+    if value == "sky":
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value <= 1e6:
+        raise ValueError(f"{key} must be \"sky\" or a number in [0, 1e6] (scene-linear radiance), got {value!r}")
+    return float(value)
+
+
+def frame_volumetric(settings: dict, desc: dict) -> dict:
+    """The volumetric settings of one frame: ``emission: "sky"`` becomes the frame's sky
+    strength (``desc["lighting"]["sky_strength"]``: 0.3 by day, 0.01 at night), so the
+    emitting part of a hybrid medium follows the scene's light instead of glowing white at night."""
+    if settings.get("emission") != "sky":
+        return settings
+    return {**settings, "emission": float(desc.get("lighting", {}).get("sky_strength", 0.3))}
 
 
 def _check_labels(labels: dict) -> None:

@@ -30,7 +30,7 @@ from fogsim.render.blender import build as scene_build
 from fogsim.render.blender import fog_volume
 from fogsim.render.blender.compat import has_mie_phase
 from fogsim.render.blender.cycles import configure, render, render_combined
-from fogsim.render.preset import volumetric_settings
+from fogsim.render.preset import frame_volumetric, volumetric_settings
 
 RUN_FILE = "render_run.json"
 SCENE_NAME = "fogsim"
@@ -97,7 +97,8 @@ class RenderJob:
             passes = render(self.scene, tmp / f"{name}.left.exr")
             t_clear = time.perf_counter()
             if self.fog is not None:  # one Combined-only render per β > 0, fog layer in place, same seed
-                fog_linear, fog_cycles = self._fog_renders(built, info["seed"], tmp / f"{name}.fog.exr")
+                fog = frame_volumetric(self.fog, desc)
+                fog_linear, fog_cycles = self._fog_renders(built, fog, info["seed"], tmp / f"{name}.fog.exr")
             t_fog = time.perf_counter()
             if self.config.stereo_baseline:  # the right camera of a rectified pair, same scene
                 w2c = right_world_to_camera(desc["camera"]["world_to_camera"], self.config.stereo_baseline)
@@ -112,33 +113,33 @@ class RenderJob:
         if self.fog is not None:
             timings = {"scene": t1 - t0, "bpy_build": t2 - t1, "render": (t_clear - t2) + (t3 - t_fog),
                        "fog_render": t_fog - t_clear}
-            foggy, fog_info = self._fog_images(name, desc, passes, fog_linear, fog_cycles)
+            foggy, fog_info = self._fog_images(name, desc, passes, fog, fog_linear, fog_cycles)
         meta = commit_frame(self.layout, self.config, index, desc, meshes, passes.rgb_linear,
                             passes.depth, passes.index, timings, info, right_linear=right,
                             foggy=foggy, fog_info=fog_info)
         self.done.append(meta)
         return meta
 
-    def _fog_renders(self, built, seed: int, exr_path) -> tuple[dict, dict]:
+    def _fog_renders(self, built, fog: dict, seed: int, exr_path) -> tuple[dict, dict]:
         """Linear Combined renders of every level with β > 0 (level key → H×W×3), and the
         Cycles settings they had; the scene's settings are restored afterwards."""
-        domain = fog_volume.build_domain(built, self.scene, self.fog)
+        domain = fog_volume.build_domain(built, self.scene, fog)
         out = {}
-        with fog_volume.fog_render_settings(self.scene, self.fog, self.config.quality, seed) as used:
+        with fog_volume.fog_render_settings(self.scene, fog, self.config.quality, seed) as used:
             for lv in self.config.levels:
                 if lv.beta > 0:
                     fog_volume.set_density(domain, lv.beta)
                     out[lv.key] = render_combined(self.scene, exr_path)
         return out, dict(used, phase=domain.phase)
 
-    def _fog_images(self, name: str, desc: dict, passes, fog_linear: dict, cycles_used: dict):
+    def _fog_images(self, name: str, desc: dict, passes, fog: dict, fog_linear: dict, cycles_used: dict):
         """8-bit images per level (clear level = the clear render), linear EXRs if asked, meta["fog"]."""
         from fogsim.camera import Intrinsics, planar_to_ray
         from fogsim.fileio import write_rgb_exr
         from fogsim.render.frame import to_srgb8
         from fogsim.render.volumetric import auto_exposure, horizon_radiance
 
-        s, cfg = self.fog, self.config
+        s, cfg = fog, self.config
         ray = planar_to_ray(passes.depth, Intrinsics.from_dict(desc["camera"]["intrinsics"]))
         foggy, factors, horizon, linear = {}, {}, {}, {}
         for lv in cfg.levels:
