@@ -11,7 +11,7 @@ is the only code that imports bpy), ``depth`` (stereo, hole filling, ILA, metric
 ``detection`` (YOLO training, COCO evaluation, the cross-density study) and ``cli``.
 """
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 from fogsim.camera import Intrinsics, StereoCamera, planar_to_ray  # noqa: E402
 from fogsim.fog import (Fogger, FogLevel, Kernel, beta_from_visibility, estimate_airlight, koschmieder,  # noqa: E402
