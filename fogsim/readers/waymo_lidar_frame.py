@@ -1,0 +1,89 @@
+"""The decoded LiDAR data of one Waymo frame (v1 and v2 readers both produce it) and its checks.
+
+Conventions: extrinsics are 4×4 float64 sensor→vehicle (metres); inclinations in radians;
+range images H×W×4 float32 (channel 0 the range in metres along the beam, ≤ 0 = no return);
+camera projections H×W×6 int32 (camera id, x, y, then the second projection); per-cell pose
+range images H×W×6 (roll, pitch, yaw, x, y, z vehicle→world, TOP only); the frame pose 4×4
+vehicle→world. Lidars are identified by the ``LaserName`` enum (:data:`LASER_NAMES`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fogsim.errors import InputError
+
+
+class NoLidar(InputError):
+    """The frame has no LiDAR range images (a test-split or camera-only frame): a per-frame
+    problem, which the label reader treats as "no points" and ``--depth-from lidar`` reports."""
+
+
+#: LaserName.Name enum of dataset.proto
+LASER_NAMES = {"TOP": 1, "FRONT": 2, "SIDE_LEFT": 3, "SIDE_RIGHT": 4, "REAR": 5}
+_LASER_LABEL = {v: k for k, v in LASER_NAMES.items()}
+
+
+def laser_name(laser: int) -> str:
+    return _LASER_LABEL.get(laser, f"laser {laser}")
+
+
+@dataclass(frozen=True)
+class LaserCalibration:
+    """One lidar's calibration: ``extrinsic`` 4×4 lidar→vehicle; inclinations in radians
+    (``beam_inclinations`` ascending as stored, or None for uniform spacing in [min, max])."""
+
+    laser: int
+    extrinsic: np.ndarray
+    inclination_min: float | None = None
+    inclination_max: float | None = None
+    beam_inclinations: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class LaserReturn:
+    """One return of one lidar: range image H×W×4 float32 (0 range, 1 intensity, 2 elongation,
+    3 no-label zone) and camera projection H×W×6 int32 (or None)."""
+
+    range_image: np.ndarray
+    camera_projection: np.ndarray | None
+
+
+@dataclass
+class LidarFrame:
+    """The LiDAR data of one frame. ``returns[laser][n]`` is return n (1 or 2); ``pixel_poses``
+    holds the per-cell pose range images (H×W×6, TOP only); ``cameras`` the camera→vehicle
+    extrinsics (4×4) by camera id; ``pose`` the frame's vehicle→world pose (None if unknown)."""
+
+    source: str
+    returns: dict[int, dict[int, LaserReturn]]
+    calibrations: dict[int, LaserCalibration]
+    cameras: dict[int, np.ndarray] = field(default_factory=dict)
+    pose: np.ndarray | None = None
+    pixel_poses: dict[int, np.ndarray] = field(default_factory=dict)
+
+
+def _matrix4(values, source: str, what: str) -> np.ndarray:
+    m = np.asarray(values, np.float64)
+    if m.size != 16 or not np.isfinite(m).all():
+        raise InputError(source, f"malformed {what}: expected 16 finite values, got {m.size}")
+    return m.reshape(4, 4)
+
+
+def _require_frame_lidar(frame: LidarFrame, what: str) -> LidarFrame:
+    if not frame.returns:
+        raise NoLidar(frame.source, f"frame has no LiDAR range images ({what})")
+    missing = [laser_name(k) for k in frame.returns if k not in frame.calibrations]
+    if missing:
+        raise InputError(frame.source, f"no laser calibration for {', '.join(missing)}")
+    return frame
+
+
+def _check_shapes(image: np.ndarray, proj: np.ndarray | None, pose: np.ndarray | None, where: str) -> None:
+    if image.ndim != 3 or image.shape[2] < 1:
+        raise InputError(where, f"range image has shape {list(image.shape)}, expected [H, W, 4]")
+    for what, m in (("camera projection", proj), ("range image pose", pose)):
+        if m is not None and (m.ndim != 3 or m.shape[:2] != image.shape[:2] or m.shape[2] < 6):
+            raise InputError(where, f"{what} has shape {list(m.shape)}, expected "
+                                    f"[{image.shape[0]}, {image.shape[1]}, 6]")

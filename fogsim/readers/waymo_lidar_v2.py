@@ -1,0 +1,203 @@
+"""Waymo v2: the LiDAR data of one frame from a split folder of parquet tables.
+
+Each table is ``<root>/<tag>/<context>.parquet`` (v2 ``component.py`` names the columns
+below); pyarrow is imported lazily, and only the row groups holding the frame are read.
+Key and value types are cast (int8 or string sensor names, float32 projections → int).
+Units and conventions of the result: :mod:`fogsim.readers.waymo_lidar_frame`.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from fogsim.errors import FogsimError, InputError
+from fogsim.readers.waymo import CAMERA_NAMES
+from fogsim.readers.waymo_lidar_frame import (LASER_NAMES, LaserCalibration, LaserReturn, LidarFrame, NoLidar,
+                                              _check_shapes, _matrix4, _require_frame_lidar, laser_name)
+from fogsim.readers.waymo_lidar_v1 import LASER_RETURNS
+
+# v2 tables and columns (v2/perception/lidar.py, context.py, pose.py; v2/component.py names them)
+V2_CONTEXT, V2_TIME, V2_LASER, V2_CAMERA = ("key.segment_context_name", "key.frame_timestamp_micros",
+                                            "key.laser_name", "key.camera_name")
+V2_TABLES = {"lidar": "[LiDARComponent]", "lidar_camera_projection": "[LiDARCameraProjectionComponent]",
+             "lidar_pose": "[LiDARPoseComponent]"}
+_LCAL = "[LiDARCalibrationComponent]"
+V2_LCAL = {"extrinsic": f"{_LCAL}.extrinsic.transform", "min": f"{_LCAL}.beam_inclination.min",
+           "max": f"{_LCAL}.beam_inclination.max", "values": f"{_LCAL}.beam_inclination.values"}
+V2_CAMERA_EXTRINSIC = "[CameraCalibrationComponent].extrinsic.transform"
+V2_VEHICLE_POSE = "[VehiclePoseComponent].world_from_vehicle.transform"
+
+
+def _parquet():
+    try:
+        import pyarrow.parquet as pq
+    except ImportError as exc:
+        raise FogsimError(f"Waymo v2 needs pyarrow: pip install -e '.[waymo]' ({exc})") from None
+    return pq
+
+
+def _sensor_key(value, source: str, names: dict[str, int] = LASER_NAMES) -> int:
+    """A key.laser_name / key.camera_name value as its enum: ints, numeric strings, or names
+    of ``names`` (:data:`LASER_NAMES` or ``CAMERA_NAMES``; "FRONT" is 2 as a laser, 1 as a camera)."""
+    if isinstance(value, str):
+        v = value.strip().upper()
+        if v.lstrip("-").isdigit():
+            return int(v)
+        if v in names:
+            return names[v]
+        raise InputError(source, f"unknown sensor name {value!r}")
+    if value is None:
+        raise InputError(source, "null sensor key")
+    return int(value)
+
+
+def _v2_rows(file: Path, keys: dict[str, object], columns: list[str], source: str) -> list[dict]:
+    """The rows of ``file`` whose key columns equal ``keys`` (compared after casting), with
+    ``columns``; only the row groups holding them are read."""
+    pq = _parquet()
+    try:
+        pf = pq.ParquetFile(file)
+    except (OSError, ValueError) as exc:
+        raise InputError(file, f"not a readable parquet file ({exc})") from None
+    names = pf.schema_arrow.names
+    missing = [c for c in list(keys) + columns if c not in names]
+    if missing:
+        raise InputError(file, f"missing column(s) {', '.join(missing)} (not a Waymo v2 table?)")
+    key_cols = list(keys)
+    rows = []
+    try:
+        for group in range(pf.num_row_groups):
+            table = pf.read_row_group(group, columns=key_cols)
+            match = np.ones(table.num_rows, bool)
+            for name in key_cols:
+                col = table.column(name).to_pylist()
+                want = keys[name]
+                if isinstance(want, int):
+                    match &= np.array([_as_int(v) == want for v in col], bool)
+                else:
+                    match &= np.array([str(v) == want for v in col], bool)
+            hits = np.flatnonzero(match)
+            if hits.size:
+                data = pf.read_row_group(group, columns=key_cols + columns).take(hits)
+                rows.extend(data.to_pylist())
+    except (OSError, ValueError) as exc:
+        raise InputError(file, f"cannot read ({exc})") from None
+    return rows
+
+
+def _as_int(v) -> int | None:
+    try:
+        return int(v)
+    except (TypeError, ValueError):
+        return None
+
+
+def _v2_matrix(row: dict, prefix: str, dtype, source: str) -> np.ndarray | None:
+    values, shape = row.get(f"{prefix}.values"), row.get(f"{prefix}.shape")
+    if values is None or shape is None:
+        return None
+    a = np.asarray(values, np.float64 if dtype == np.int32 else np.float32)
+    dims = [int(d) for d in shape]
+    if len(dims) != 3 or int(np.prod(dims)) != a.size:
+        raise InputError(source, f"malformed {prefix}: shape {dims} does not hold its {a.size} values")
+    if dtype == np.int32:
+        if not np.isfinite(a).all():
+            raise InputError(source, f"malformed {prefix}: non-finite camera projection values")
+        a = np.rint(a).astype(np.int32)
+    return a.reshape(dims)
+
+
+def _v2_file(root: Path, tag: str, context: str) -> Path:
+    return root / tag / f"{context}.parquet"
+
+
+def read_v2_lidar(root: str | os.PathLike, context: str, timestamp: int, source: str | None = None,
+                  returns: Iterable[int] = (1,)) -> LidarFrame:
+    """The LiDAR data of frame (``context``, ``timestamp`` µs) of a v2 split folder: tables
+    ``lidar``, ``lidar_camera_projection``, ``lidar_calibration`` and optionally
+    ``lidar_pose`` + ``vehicle_pose`` (per-cell compensation, both or neither) and
+    ``camera_calibration`` (camera extrinsics), each ``<root>/<tag>/<context>.parquet``.
+    Key and value types are cast (int8 or string sensor names, float32 projections → int)."""
+    root = Path(root)
+    source = source or f"{root} {context}@{timestamp}"
+    returns = sorted(set(returns))
+    if any(n not in LASER_RETURNS for n in returns):
+        raise ValueError(f"lidar returns are 1 or 2, not {returns}")
+    lidar_file = _v2_file(root, "lidar", context)
+    if not lidar_file.is_file():
+        raise NoLidar(source, f"frame has no LiDAR range images ({lidar_file} not found)")
+    frame_keys = {V2_CONTEXT: context, V2_TIME: int(timestamp)}
+
+    def ret_cols(tag: str, ns) -> list[str]:
+        return [f"{V2_TABLES[tag]}.range_image_return{n}.{p}" for n in ns for p in ("values", "shape")]
+
+    rows = _v2_rows(lidar_file, frame_keys, [V2_LASER] + ret_cols("lidar", returns), source)
+    if not rows:
+        raise NoLidar(source, f"frame has no LiDAR range images (no rows in {lidar_file})")
+    images: dict[int, dict[int, np.ndarray]] = {}
+    for row in rows:
+        laser = _sensor_key(row[V2_LASER], f"{lidar_file} {source}")
+        for n in returns:
+            m = _v2_matrix(row, f"{V2_TABLES['lidar']}.range_image_return{n}", np.float32, f"{lidar_file} {source}")
+            if m is not None:
+                images.setdefault(laser, {})[n] = m
+    projections: dict[int, dict[int, np.ndarray]] = {}
+    proj_file = _v2_file(root, "lidar_camera_projection", context)
+    if proj_file.is_file():
+        for row in _v2_rows(proj_file, frame_keys, [V2_LASER] + ret_cols("lidar_camera_projection", returns),
+                            source):
+            laser = _sensor_key(row[V2_LASER], f"{proj_file} {source}")
+            for n in returns:
+                m = _v2_matrix(row, f"{V2_TABLES['lidar_camera_projection']}.range_image_return{n}", np.int32,
+                               f"{proj_file} {source}")
+                if m is not None:
+                    projections.setdefault(laser, {})[n] = m
+    poses = {}
+    pose_file = _v2_file(root, "lidar_pose", context)
+    if pose_file.is_file():
+        for row in _v2_rows(pose_file, frame_keys, [V2_LASER] + ret_cols("lidar_pose", [1]), source):
+            laser = _sensor_key(row[V2_LASER], f"{pose_file} {source}")
+            m = _v2_matrix(row, f"{V2_TABLES['lidar_pose']}.range_image_return1", np.float32, f"{pose_file} {source}")
+            if m is not None:
+                poses[laser] = m
+    frame_pose = None
+    vp_file = _v2_file(root, "vehicle_pose", context)
+    if vp_file.is_file():
+        vp = _v2_rows(vp_file, frame_keys, [V2_VEHICLE_POSE], source)
+        if vp:
+            frame_pose = _matrix4(vp[0][V2_VEHICLE_POSE] or [], f"{vp_file} {source}", "vehicle pose")
+    if poses and frame_pose is None:
+        raise InputError(source, f"{pose_file} has per-cell lidar poses but {vp_file} has no pose "
+                                 "for this frame (needed to compensate them)")
+    calibrations = {}
+    cal_file = _v2_file(root, "lidar_calibration", context)
+    if not cal_file.is_file():
+        raise InputError(source, f"no laser calibrations ({cal_file} not found)")
+    for row in _v2_rows(cal_file, {V2_CONTEXT: context}, [V2_LASER] + list(V2_LCAL.values()), source):
+        where = f"{cal_file} {source}"
+        laser = _sensor_key(row[V2_LASER], where)
+        values = row[V2_LCAL["values"]]
+        calibrations[laser] = LaserCalibration(
+            laser, _matrix4(row[V2_LCAL["extrinsic"]] or [], where, f"extrinsic of {laser_name(laser)}"),
+            None if row[V2_LCAL["min"]] is None else float(row[V2_LCAL["min"]]),
+            None if row[V2_LCAL["max"]] is None else float(row[V2_LCAL["max"]]),
+            np.asarray(values, np.float64) if values else None)
+    cameras = {}
+    cam_file = _v2_file(root, "camera_calibration", context)
+    if cam_file.is_file():
+        for row in _v2_rows(cam_file, {V2_CONTEXT: context}, [V2_CAMERA, V2_CAMERA_EXTRINSIC], source):
+            where = f"{cam_file} {source}"
+            cam = _sensor_key(row[V2_CAMERA], where, CAMERA_NAMES)
+            cameras[cam] = _matrix4(row[V2_CAMERA_EXTRINSIC] or [], where, f"extrinsic of camera {cam}")
+    out = {}
+    for laser, by_return in images.items():
+        for n, image in by_return.items():
+            proj = projections.get(laser, {}).get(n)
+            _check_shapes(image, proj, poses.get(laser), f"{source} {laser_name(laser)} return {n}")
+            out.setdefault(laser, {})[n] = LaserReturn(image, proj)
+    frame = LidarFrame(source, out, calibrations, cameras, frame_pose,
+                       {k: v for k, v in poses.items() if k in out})
+    return _require_frame_lidar(frame, f"no range image of return {'/'.join(map(str, returns))} in {lidar_file}")

@@ -1,0 +1,166 @@
+"""Waymo ``MatrixFloat`` / ``MatrixInt32`` protos (WOD ``dataset.proto``) ↔ numpy arrays.
+
+A matrix message is ``data`` (field 1: packed little-endian float32, or int32 varints) and
+``shape`` (field 2: a ``MatrixShape`` whose ``dims``, field 1, are varints), usually
+zlib-compressed as the v1 ``*_compressed`` range-image fields store it. Varints are decoded
+vectorised with numpy (no per-value Python loop); negative int32 values are 10-byte
+sign-extended varints (two's complement). Malformed input → :class:`fogsim.errors.InputError`
+naming ``source``.
+
+Public API: :func:`decode_matrix`, :func:`encode_matrix` (its inverse, for fixtures and the benchmark).
+"""
+from __future__ import annotations
+
+import struct
+import zlib
+
+import numpy as np
+
+from fogsim.errors import InputError
+from fogsim.readers import protobuf_wire as pw
+
+#: field numbers of MatrixFloat / MatrixInt32 (data, shape) and MatrixShape (dims)
+MATRIX_DATA, MATRIX_SHAPE, SHAPE_DIMS = 1, 2, 1
+
+
+def _varint_spans(buf: np.ndarray, source: str) -> tuple[np.ndarray, np.ndarray]:
+    """Start offset and byte length of every varint in a packed run (a byte < 0x80 ends one)."""
+    ends = np.flatnonzero(buf < 0x80)
+    if ends.size == 0 or ends[-1] != buf.size - 1:
+        raise InputError(source, "malformed matrix (truncated varint)")
+    starts = np.empty_like(ends)
+    starts[0], starts[1:] = 0, ends[:-1] + 1
+    return starts, ends - starts + 1
+
+
+def _varints(buf: np.ndarray, source: str) -> np.ndarray:
+    """Decode a packed run of base-128 varints (uint8 array) into int64 (two's complement)."""
+    if buf.size == 0:
+        return np.zeros(0, np.int64)
+    if not (buf & 0x80).any():
+        return buf.astype(np.int64)
+    starts, lengths = _varint_spans(buf, source)
+    if lengths.max() > 10:
+        raise InputError(source, "malformed matrix (overlong varint)")
+    values = (buf[starts] & 0x7F).astype(np.uint64)
+    longer = np.flatnonzero(lengths > 1)  # byte k of the values longer than k, k = 1 … 9
+    for k in range(1, int(lengths.max())):
+        values[longer] |= (buf[starts[longer] + k] & 0x7F).astype(np.uint64) << np.uint64(7 * k)
+        longer = longer[lengths[longer] > k + 1]
+    return values.view(np.int64)
+
+
+def _varints_int32(buf: np.ndarray, source: str) -> np.ndarray:
+    """Packed int32 varints → int32, faster than :func:`_varints`: a valid int32 is 1–5 bytes
+    (0 … 2³¹−1) or exactly 10 (negative, sign-extended to 64 bits), and its 32 bits are the low
+    bits of its first 5 bytes; anything else (6–9 bytes, a 5-byte value ≥ 2³¹, a 10-byte one
+    that is not a sign-extended int32) is refused as out of the int32 range."""
+    if buf.size == 0 or not (buf & 0x80).any():
+        return buf.astype(np.int32)
+    starts, lengths = _varint_spans(buf, source)
+    values = (buf[starts] & 0x7F).astype(np.uint32)
+    longer = np.flatnonzero(lengths > 1)
+    for k in range(1, 5):
+        if not longer.size:
+            break
+        values[longer] |= (buf[starts[longer] + k] & 0x7F).astype(np.uint32) << np.uint32(7 * k)
+        longer = longer[lengths[longer] > k + 1]
+    five, ten = np.flatnonzero(lengths == 5), np.flatnonzero(lengths == 10)
+    ok = ((lengths <= 5) | (lengths == 10)).all() and not (buf[starts[five] + 4] & 0x78).any()
+    if ok and ten.size:
+        tail = buf[starts[ten, None] + np.arange(4, 10)]
+        # byte 4: continuation + bits 31–34 set (0xF8); bytes 5–8: 0xFF; byte 9: 0x01
+        ok = bool(((tail[:, 0] & 0xF8) == 0xF8).all() and (tail[:, 1:5] == 0xFF).all() and (tail[:, 5] == 1).all())
+    if not ok:
+        raise InputError(source, "malformed MatrixInt32 (value out of the int32 range)")
+    return values.view(np.int32)
+
+
+def _ints(values: list, source: str) -> np.ndarray:
+    """A repeated int field's entries (packed blobs and/or unpacked varints) as int64."""
+    out = []
+    for v in values:
+        if isinstance(v, memoryview):
+            out.append(_varints(np.frombuffer(v, np.uint8), source))
+        elif isinstance(v, int):
+            out.append(np.array([v], np.uint64).view(np.int64))
+        else:
+            raise InputError(source, "malformed matrix (integer field with a fixed-size wire type)")
+    return np.concatenate(out) if out else np.zeros(0, np.int64)
+
+
+def decode_matrix(data: bytes, kind: str, source: str, compressed: bool = True) -> np.ndarray:
+    """A serialized ``MatrixFloat`` (``kind="float"``) or ``MatrixInt32`` (``"int32"``) as an array.
+
+    ``data`` is zlib-compressed unless ``compressed`` is false. MatrixFloat data is packed
+    little-endian float32 (unpacked fixed32 entries are accepted too); MatrixInt32 data is
+    varints, packed or not, negative values as 10-byte sign-extended varints. ``shape.dims``
+    may be packed or unpacked. Returns float32 or int32 of that shape (read-only for floats).
+    Corrupt zlib, malformed protobuf or a size/shape mismatch → :class:`InputError` (``source``).
+    """
+    if compressed:
+        try:
+            data = zlib.decompress(data)
+        except zlib.error as exc:
+            raise InputError(source, f"corrupt zlib data ({exc})") from None
+    fields = pw.decode_fields(data, source)
+    shape = pw.submessage(fields, MATRIX_SHAPE, source)
+    dims = tuple(int(d) for d in _ints(shape.get(SHAPE_DIMS, []), source))
+    entries = fields.get(MATRIX_DATA, [])
+    if kind == "float":
+        chunks = []
+        for v in entries:
+            if isinstance(v, int) or (isinstance(v, bytes) and len(v) != 4) or len(v) % 4:
+                raise InputError(source, "malformed MatrixFloat (data is not float32)")
+            chunks.append(np.frombuffer(v, "<f4"))
+        values = np.concatenate(chunks).astype(np.float32, copy=False) if chunks else np.zeros(0, np.float32)
+    elif kind == "int32":
+        if len(entries) == 1 and isinstance(entries[0], memoryview):  # packed: the usual case
+            values = _varints_int32(np.frombuffer(entries[0], np.uint8), source)
+        else:
+            wide = _ints(entries, source)
+            if wide.size and (wide.min() < -(1 << 31) or wide.max() >= 1 << 31):
+                raise InputError(source, "malformed MatrixInt32 (value out of the int32 range)")
+            values = wide.astype(np.int32)
+    else:
+        raise ValueError(f"matrix kind must be 'float' or 'int32', not {kind!r}")
+    if not dims or any(d < 0 for d in dims) or int(np.prod(dims)) != values.size:
+        raise InputError(source, f"malformed matrix: shape {list(dims)} does not hold its "
+                                 f"{values.size} values")
+    return values.reshape(dims)
+
+
+def _encode_varints(values: np.ndarray) -> bytes:
+    """Packed varints of int64 ``values`` (negative → 10-byte two's complement), vectorised."""
+    v = np.asarray(values, np.int64).ravel().view(np.uint64)
+    nbytes = np.ones(v.size, np.int64)
+    for k in range(1, 10):
+        nbytes += v >= np.uint64(1) << np.uint64(7 * k)
+    k = np.arange(10, dtype=np.uint64)
+    out = ((v[:, None] >> (k * np.uint64(7))) & np.uint64(0x7F)).astype(np.uint8)
+    out[np.arange(10)[None, :] < (nbytes[:, None] - 1)] |= 0x80
+    return out[np.arange(10)[None, :] < nbytes[:, None]].tobytes()
+
+
+def encode_matrix(array: np.ndarray, *, packed_shape: bool = True, packed_data: bool = True,
+                  compress: bool = True) -> bytes:
+    """Serialize ``array`` as MatrixFloat (float dtypes, as float32) or MatrixInt32 (integer
+    dtypes), optionally zlib-compressed: the inverse of :func:`decode_matrix`, for fixtures and
+    the benchmark. ``packed_shape`` / ``packed_data`` choose the two legal encodings of the
+    repeated fields (unpacked float data = one fixed32 entry per value)."""
+    a = np.asarray(array)
+    dims = np.array(a.shape, np.int64)
+    if packed_shape:
+        shape = pw.bytes_field(SHAPE_DIMS, _encode_varints(dims))
+    else:
+        shape = b"".join(pw.varint_field(SHAPE_DIMS, int(d)) for d in dims)
+    if np.issubdtype(a.dtype, np.floating):
+        flat = a.astype("<f4").ravel()
+        data = (pw.bytes_field(MATRIX_DATA, flat.tobytes()) if packed_data else
+                b"".join(b"\x0d" + struct.pack("<f", x) for x in flat))  # tag 1, wire type 5
+    else:
+        flat = a.astype(np.int64).ravel()
+        data = (pw.bytes_field(MATRIX_DATA, _encode_varints(flat)) if packed_data else
+                b"".join(pw.varint_field(MATRIX_DATA, int(x)) for x in flat))
+    message = data + pw.bytes_field(MATRIX_SHAPE, shape)
+    return zlib.compress(message, 6) if compress else message
