@@ -1,6 +1,6 @@
 """Time of day and the light sources of a night street (pure Python, no bpy).
 
-A preset's ``lighting`` (checked by :func:`fogsim.render.preset.check_lighting`) picks the time
+A preset's ``lighting`` (checked by :func:`check_lighting`) picks the time
 of day. ``"day"`` (the default) leaves the scene description exactly as the layout made it: sun
 and sky, no light sources. ``"night"`` turns it into a night street by :func:`apply_night`, after
 every object is placed, so a night frame has the very same objects, poses and geometry as the
@@ -33,6 +33,8 @@ import math
 
 import numpy as np
 
+from fogsim.presets.checks import choice, json_object, number, pair
+
 TIMES_OF_DAY = ("day", "night")
 VEHICLE_CLASSES = ("car", "van", "truck", "bus")
 
@@ -62,6 +64,26 @@ HEADLIGHT_CONE_DEG, HEADLIGHT_BLEND, HEADLIGHT_TILT_DEG = 35.0, 0.35, 2.0
 #: emitter reaching into the lens or lamp-head box would be partly shadowed by it
 LENS_GAP = 0.04
 LAMP_RADIUS, CAR_LIGHT_RADIUS = 0.08, 0.03
+
+
+def check_lighting(lighting) -> dict:
+    """The preset's ``lighting``: ``time_of_day`` ("day", the default, or "night") and, for night,
+    overrides of :data:`NIGHT` (sky and moon strength, lamp, headlight and tail-light powers in
+    Cycles watts, the lit fraction of each building's windows). Returns {} for day (a day preset
+    is the preset without lighting), else the object as given. ValueError names the key."""
+    watts = lambda v, k: number(v, k, 0, 1e7)  # noqa: E731
+    night_keys = {"sky_strength": lambda v, k: number(v, k, 0, 10), "moon_strength": lambda v, k: number(v, k, 0, 10),
+                  "street_lamp_power_w": watts, "headlight_power_w": watts, "taillight_power_w": watts,
+                  "lit_window_fraction": lambda v, k: pair(v, k, lo=0, hi=1)}
+    assert set(night_keys) == set(NIGHT)
+    light = json_object(lighting, "lighting", {}, {"time_of_day": lambda v, k: choice(v, k, TIMES_OF_DAY),
+                                                   **night_keys})
+    if light.get("time_of_day", "day") == "day":
+        extra = sorted(set(light) - {"time_of_day"})
+        if extra:
+            raise ValueError(f"lighting keys {extra} apply only to \"time_of_day\": \"night\"")
+        return {}
+    return light
 
 
 def night_settings(lighting: dict | None) -> dict | None:
