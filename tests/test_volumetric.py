@@ -20,12 +20,37 @@ from fogsim.errors import InputError
 from fogsim.fileio import read_depth_file, read_image, read_rgb_exr, read_uint16_map
 from fogsim.render.preset import frame_volumetric, load_render_preset, volumetric_settings
 from fogsim.fog.physics import interior_mask
-from fogsim.render.volumetric import (auto_exposure, bin_bias, horizon_radiance,
-                                      koschmieder_linear)
+from fogsim.fog.model import koschmieder
+from fogsim.render.volumetric import auto_exposure, horizon_radiance
 
 from test_blender import KINDS, ROOT, SCRIPTS, dataset_digest, run, runner
 
 LEVELS = ["beta0.03", "beta0.06", "beta0.09", "beta0.12"]
+
+
+# the law the camera-only emission–absorption medium must reproduce, and its per-bin bias
+def koschmieder_linear(clear_linear: np.ndarray, ray: np.ndarray, beta: float, airlight: float) -> np.ndarray:
+    """Koschmieder's law on a scene-linear image: I·t + A·(1 − t), t = e^(−βℓ) (ℓ: ray distance, m;
+    +inf = sky, t = 0). ``airlight`` A is scene-linear (1.0 = white), at most 1."""
+    # a float image blended in its own values ("srgb" = no transfer applied): linear light here
+    return koschmieder(np.asarray(clear_linear, dtype=np.float32), ray, beta, airlight=255.0 * airlight,
+                       space="srgb")
+
+
+def bin_bias(diff: np.ndarray, ray: np.ndarray, mask: np.ndarray,
+             edges=(0.0, 10.0, 20.0, 40.0, 80.0, 160.0, math.inf)) -> list[dict]:
+    """Mean of ``diff`` (H×W or H×W×3) per ray-distance bin over ``mask``; sky (+inf) is its own bin."""
+    d = diff.mean(axis=-1) if diff.ndim == 3 else diff
+    out = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        sel = mask & (ray >= lo) & (ray < hi)
+        if sel.any():
+            out.append({"from_m": lo, "to_m": hi, "pixels": int(sel.sum()), "bias": float(d[sel].mean())})
+    sky = mask & np.isinf(ray)
+    if sky.any():
+        out.append({"from_m": math.inf, "to_m": math.inf, "pixels": int(sky.sum()), "bias": float(d[sky].mean())})
+    return out
+
 
 
 def preset_file(tmp_path, fog_model: dict, **extra) -> str:

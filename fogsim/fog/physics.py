@@ -17,7 +17,7 @@ seeds (linear, float). The method is that of ``shared/notes/path-traced-fog.md``
   pixels (ℓ = inf, index 0) in the lowest :data:`HORIZON_FRACTION` of the sky by image row
   (the sky nearest the horizon line; for a level camera the horizon itself). No sky → no
   normalisation (None). ``far`` scales it instead so that the median luminance of the pixels
-  beyond the visibility (exp(−βℓ) < :data:`FAR_TRANSMISSION`, sky included: where Koschmieder
+  beyond the visibility V = ln(20)/β (:func:`far_luminance`, sky included: where Koschmieder
   is all airlight) becomes A — in a street canyon, where the lowest sky lies at the end of the
   street and the far field is seen at higher elevations, the two differ.
 * **Interior mask**: a pixel counts only when all 8 neighbours have the same object index and
@@ -49,13 +49,14 @@ import numpy as np
 
 from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.colour import linear_to_srgb, linear_to_srgb8, luminance, srgb_to_linear
+from fogsim.fog.levels import visibility_from_beta
 from fogsim.fog.model import PAPER_KERNEL, Fogger, Kernel
+from fogsim.fog.visibility import transmission_at
 
 #: distance bins in metres: [lo, hi)
 BINS = ((0.0, 10.0), (10.0, 20.0), (20.0, 40.0), (40.0, 80.0), (80.0, math.inf))
 HORIZON_FRACTION = 0.1
 #: the "far" exposure: pixels with exp(−βℓ) below this (beyond the visibility ln 20 / β; sky included)
-FAR_TRANSMISSION = 0.05
 EXPOSURES = ("raw", "normalised", "far")
 DEPTH_TOLERANCE = 0.05
 MIN_CONTRAST = 1e-3
@@ -111,6 +112,13 @@ def interior_mask(distance: np.ndarray, mask: np.ndarray, tolerance: float = DEP
                 close = np.where(inf | n_inf, inf & n_inf, np.abs(nd - d) <= tolerance * d)
             ok &= (nm == mask) & close
     return ok
+
+
+def far_luminance(image_linear: np.ndarray, distance: np.ndarray, beta: float) -> float | None:
+    """Median linear luminance of the pixels beyond the visibility V = ln(20)/β (ray distance in
+    metres, sky included): the airlight a fogged render shows; None when no pixel is that far."""
+    far = distance >= visibility_from_beta(beta)
+    return float(np.median(luminance(image_linear)[far])) if far.any() else None
 
 
 def horizon_radiance(image: np.ndarray, distance: np.ndarray, mask: np.ndarray,
@@ -227,8 +235,7 @@ class Comparison:
                 exposures["normalised"] = 1.0 / hz["luminance"]
             fmean = 0.5 * (f1 + f2)
             y_pt = luminance(fmean)
-            far = ray >= math.log(1.0 / FAR_TRANSMISSION) / beta
-            y_far = float(np.median(y_pt[far])) if far.any() else 0.0
+            y_far = far_luminance(fmean, ray, beta) or 0.0
             if y_far > 0:
                 exposures["far"] = 1.0 / y_far
             self._far.setdefault(beta, []).append(y_far if y_far > 0 else None)
@@ -252,7 +259,7 @@ class Comparison:
                 self._objects.setdefault(beta, []).append({
                     "frame": name, "id": i, "class": (classes or {}).get(i), "pixels": int(px.sum()),
                     "distance_m": None if math.isnan(d) else d,
-                    "transmission": None if math.isnan(d) else math.exp(-beta * d),
+                    "transmission": None if math.isnan(d) else transmission_at(d, beta),
                     "contrast_clear": c0, "contrast_pt": c_pt, "contrast_k": c_k, "ratio_pt_k": ratio})
             if len(self.panels) < self.max_panels:
                 panel_rows.append(self._panel_row(beta, clear_linear, fmean, exposures, kimgs, inner))
