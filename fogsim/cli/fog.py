@@ -291,7 +291,8 @@ def environment() -> dict:
 def cmd_fog(args) -> int:
     from dataclasses import replace
 
-    from fogsim.fog.batch import check_labelled, dataset_classes, run
+    from fogsim.fog.batch import run
+    from fogsim.fog.labelled import check_labelled, sample_classes
     from fogsim.runs import check_output, is_sharded, parse_shard, select_shard
 
     if args.finalize_only:
@@ -310,7 +311,7 @@ def cmd_fog(args) -> int:
     labelled = any(s.labels is not None for s in everything)
     if labelled:
         check_labelled(everything, getattr(args, "image_format", "png"))  # every shard: one frame name rule
-    job = _job(args, args.out, dataset_classes(everything) if labelled else ())
+    job = _job(args, args.out, sample_classes(everything) if labelled else ())
     shard = parse_shard(args.shard)
     samples = select_shard(everything, shard)
     summary = run(samples, job, args.workers, not args.no_resume, not args.quiet, environment())

@@ -14,8 +14,9 @@ Two output layouts:
   ``distance_m`` and ``distance_source``), ``classes`` and ``source``. The dataset-wide files
   (COCO, split lists, data YAMLs, ``dataset.json``, contact sheet) are written by
   :func:`finalize_dataset`, once every shard is done. The label reader runs where the image is
-  read (in the worker). Real annotations are kept as annotated; ``min_pixels`` > 0 turns kept
-  records with fewer pixels into ignore regions.
+  read (in the worker); its annotations are checked by :mod:`fogsim.fog.labelled`. Real
+  annotations are kept as annotated; ``min_pixels`` > 0 turns kept records with fewer pixels
+  into ignore regions.
 
 ``OUT/fogsim_run.json`` holds the run parameters (labels: ``"labels": {"classes", "min_pixels"}``;
 no ``labels`` key = images only); a run into an OUT made with other parameters is refused
@@ -34,21 +35,21 @@ from pathlib import Path
 import numpy as np
 
 from fogsim import __version__
-from fogsim.dataset.layout import DatasetLayout, frame_from_key, frames_from_keys
-from fogsim.readers.base import Labels, Sample
-from fogsim.fog.depth_input import SetupError, check_aspect, check_sample, sample_distance
+from fogsim.dataset.layout import DatasetLayout, frame_from_key
+from fogsim.readers.base import Sample
+from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
 from fogsim.errors import InputError
 from fogsim.runs import claim_output, sample_seed
 from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
 from fogsim.fileio import (TO_8BIT, atomic_write_bytes, encode_image, read_json, remove_stale_parts, to_8bit,
                            write_json)
 from fogsim.fog.levels import FogLevel
+from fogsim.fog.labelled import check_labelled, checked_records
 from fogsim.fog.visibility import attach_visibility
 from fogsim.dataset.writer import finalize, write_frame_labels
 
 RUN_FILE = "fogsim_run.json"
 #: a label box may lie this far (pixels) outside the image (rounding) before it is refused
-BOX_TOLERANCE_PX = 1.0
 
 
 @dataclass(frozen=True)
@@ -149,57 +150,6 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
             "frame": frame, "width": w, "height": h, "source": sample.source, "classes": list(job.classes),
             "objects": records, "levels": [lv.to_dict() for lv in job.levels], **common,
             "depth_coverage": coverage, "camera": camera, "sample": sample.meta or None})
-
-
-def labels_source(sample: Sample) -> str:
-    """What to name for a sample's labels: its reader's ``source`` attribute (the label file),
-    else the sample's source."""
-    return str(getattr(sample.labels, "source", None) or sample.source)
-
-
-def checked_records(job: FogJob, sample: Sample, width: int, height: int) -> list[dict]:
-    """The sample's annotations (its label reader runs here), checked against the job's class
-    list and the image size: boxes more than :data:`BOX_TOLERANCE_PX` outside the image are an
-    :class:`InputError`, boxes within it are clamped. Kept records below ``job.min_pixels``
-    pixels become ignore regions (reason ``"too few pixels"``). Returns copies."""
-    where = labels_source(sample)
-    if sample.labels is None:
-        raise InputError(sample.source, "has no labels, but this run writes a labelled dataset")
-    labels = sample.labels()
-    if not isinstance(labels, Labels):
-        raise InputError(where, f"the label reader returned {type(labels).__name__}, not Labels")
-    if tuple(labels.classes) != tuple(job.classes):
-        raise InputError(where, f"labels of classes {list(labels.classes)}, but the run's class list is "
-                                f"{list(job.classes)}")
-    out = []
-    for n, obj in enumerate(labels.objects):
-        rec = dict(obj)
-        name, cid = rec.get("class"), rec.get("class_id")
-        if name not in job.classes or cid != job.classes.index(name):
-            raise InputError(where, f"annotation {n}: class {name!r} with id {cid!r} is not in the class list "
-                                    f"{list(job.classes)} (the id must be the index)")
-        try:
-            x0, y0, x1, y1 = (float(v) for v in rec["bbox"])
-        except (KeyError, TypeError, ValueError):
-            raise InputError(where, f"annotation {n}: bbox must be [x0, y0, x1, y1], got {rec.get('bbox')!r}") from None
-        tol = BOX_TOLERANCE_PX
-        if not (x0 >= -tol and y0 >= -tol and x1 <= width + tol and y1 <= height + tol and x0 <= x1 and y0 <= y1):
-            raise InputError(where, f"annotation {n}: box {rec['bbox']} lies outside the {width}×{height} image "
-                                    f"{sample.source} (labels and image of other sizes?)")
-        box = [min(max(v, 0), lim) for v, lim in zip(rec["bbox"], (width, height, width, height))]
-        rec["bbox"] = box
-        rec.setdefault("pixels", (box[2] - box[0]) * (box[3] - box[1]))
-        rec["kept"] = bool(rec.get("kept", True))
-        rec.setdefault("reason", None)
-        d = rec.get("distance_m")
-        if d is not None and not (isinstance(d, (int, float)) and np.isfinite(d) and d >= 0):
-            raise InputError(where, f"annotation {n}: distance_m must be a distance in metres or None, got {d!r}")
-        rec.setdefault("distance_m", None)
-        rec.setdefault("distance_source", "unknown")
-        if rec["kept"] and rec["pixels"] < job.min_pixels:
-            rec["kept"], rec["reason"] = False, f"too few pixels (< {job.min_pixels})"
-        out.append(rec)
-    return out
 
 
 def _bit_depth(dtype, image_format: str) -> dict:
@@ -303,38 +253,6 @@ def check_run_wide(samples: list[Sample], job: FogJob | None = None) -> None:
     K = first.intrinsics
     if (K.width, K.height) != (w, h):
         check_aspect(K, w, h, first.source)
-
-
-def check_labelled(samples: list[Sample], image_format: str = "png") -> None:
-    """A labelled run: every sample has labels, frame names are distinct, images are PNG."""
-    if image_format != "png":
-        raise SetupError(samples[0].source if samples else "--format",
-                         "a labelled dataset holds PNG images (images/<level>/<frame>.png): drop --format jpg, "
-                         "or pass --no-labels")
-    unlabelled = [s for s in samples if s.labels is None]
-    if unlabelled:
-        raise SetupError(unlabelled[0].source, f"has no labels while other samples have ({len(unlabelled)} "
-                                               "without): pass --no-labels to fog the images alone")
-    try:
-        frames_from_keys([s.key for s in samples], [s.source for s in samples])
-    except InputError as exc:
-        raise SetupError(exc.source, exc.problem) from None
-
-
-def dataset_classes(samples: list[Sample]) -> tuple[str, ...]:
-    """The class list of a labelled run: the first label reader's ``classes`` attribute, else
-    the ``classes`` of the first sample's :class:`Labels` (read here, once)."""
-    first = next(s for s in samples if s.labels is not None)
-    classes = getattr(first.labels, "classes", None)
-    if classes is None:
-        labels = first.labels()
-        if not isinstance(labels, Labels):
-            raise InputError(labels_source(first), f"the label reader returned {type(labels).__name__}, not Labels")
-        classes = labels.classes
-    classes = tuple(classes)
-    if not classes or len(set(classes)) != len(classes) or not all(isinstance(c, str) and c for c in classes):
-        raise SetupError(labels_source(first), f"a dataset's class list holds distinct names, got {list(classes)}")
-    return classes
 
 
 #: how the train/val split of a fogged dataset groups frames (``fogsim fog --split-by``)
