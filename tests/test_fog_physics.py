@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from fogsim.fog.physics import (BIN_NAMES, Comparison, Model, horizon_radiance, interior_mask, koschmieder_linear,
-                                markdown, noisy_render, write_report)
+                                noisy_render)
+from fogsim.fog.physics_report import markdown, write_report
 
 H, W, SKY = 100, 90, 15
 BETA = 0.06

@@ -36,14 +36,13 @@ seeds (linear, float). The method is that of ``shared/notes/path-traced-fog.md``
   exactly; ``ratio`` = C_PT / C_K per model (None where |C_K| < 1e-3).
 
 Frames accumulate (:class:`Comparison`): sums per bin over all frames, each frame normalised
-by its own horizon. :meth:`Comparison.result` → a JSON-ready dict; :func:`markdown` and
-:func:`write_report` turn it into a table, PNG panels (:mod:`fogsim.viz`) and files.
+by its own horizon. :meth:`Comparison.result` → a JSON-ready dict; :mod:`fogsim.fog.physics_report`
+(``markdown``, ``write_report``) turns it into a table, PNG panels (:mod:`fogsim.viz`) and files.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -311,7 +310,6 @@ class Comparison:
 
 #: objects in the per-β summary: those that keep at least this transmission (some contrast to measure)
 SUMMARY_MIN_TRANSMISSION = 0.05
-TABLE_MIN_TRANSMISSION = 0.01
 
 
 def _object_summary(objects: list[dict], names: list[str]) -> dict:
@@ -344,72 +342,11 @@ def signed_map(x: np.ndarray, scale: float) -> np.ndarray:
     return (out * 255 + 0.5).astype(np.uint8)
 
 
-# ----------------------------------------------------------------------------- report
-def _f(v, fmt: str = "{:+.3f}") -> str:
-    return "—" if v is None else fmt.format(v)
-
-
-def markdown(result: dict, model_names: tuple[str, ...] | None = None) -> str:
-    """The table of :meth:`Comparison.result`: per β and model, noise-free RMS raw and normalised
-    (non-sky interior pixels) and the normalised bias per distance bin; then per-object contrast."""
-    names = model_names or tuple(result["models"])
-    frac = result.get("interior_fraction")
-    lines = [f"Koschmieder against path-traced fog, {len(result['frames'])} frame(s); linear light, A = white = 1; "
-             f"noise-free RMS from two seeds on interior pixels ({_f(frac, '{:.0%}')} of pixels); "
-             "normalised = path-traced image scaled so the horizon is A (bias columns: normalised); "
-             "far-normalised = scaled so the median beyond the visibility is A.", "",
-             "| β (1/m) | A_h | sky / A_h | model | RMS raw | RMS normalised | RMS far-normalised | "
-             + " | ".join(f"bias {b}" for b in BIN_NAMES) + " | object contrast PT/K (median, n) |",
-             "|---" * (8 + len(BIN_NAMES)) + "|"]
-    for key, pb in result["per_beta"].items():
-        hz = pb["horizon"]
-        for name in names:
-            m = pb["models"].get(name, {})
-            raw, norm = m.get("raw", {}), m.get("normalised", {})
-            biases = [_f(norm.get(b, {}).get("bias")) for b in BIN_NAMES]
-            summ = pb.get("objects_summary", {}).get(name, {})
-            objs = f"{_f(summ.get('median_ratio_pt_k'), '{:.2f}')} ({summ.get('objects', 0)})"
-            lines.append(f"| {key} | {_f(hz['luminance_mean'], '{:.3f}')} | {_f(hz['mean_sky_over_horizon'], '{:.2f}')}"
-                         f" | {name} | {_f(raw.get('all', {}).get('rms'), '{:.3f}')} "
-                         f"| {_f(norm.get('all', {}).get('rms'), '{:.3f}')} "
-                         f"| {_f(m.get('far', {}).get('all', {}).get('rms'), '{:.3f}')} | "
-                         + " | ".join(biases) + f" | {objs} |")
-    lines += ["", "Per object (interior pixels): contrast against the airlight, C = 1 − Y/A; "
-              "C_K/C0 = t for linear Koschmieder; PT/K = C_PT / C_K (the summary column above: median over "
-              f"objects with t ≥ {SUMMARY_MIN_TRANSMISSION:g}); rows with t < {TABLE_MIN_TRANSMISSION:g} are "
-              "in the JSON only.", "",
-              "| β | frame | object | class | d (m) | t = e^(−βd) | C0 | C_PT / C0 | "
-              + " | ".join(f"PT/K {n}" for n in names) + " |", "|---" * (8 + len(names)) + "|"]
-    for key, pb in result["per_beta"].items():
-        for o in pb["objects"]:
-            if (o["transmission"] or 0) < TABLE_MIN_TRANSMISSION:
-                continue
-            rel = None if o["contrast_pt"] is None or abs(o["contrast_clear"]) < MIN_CONTRAST \
-                else o["contrast_pt"] / o["contrast_clear"]
-            lines.append(f"| {key} | {o['frame']} | {o['id']} | {o['class'] or '—'} | {_f(o['distance_m'], '{:.1f}')} "
-                         f"| {_f(o['transmission'], '{:.3f}')} | {o['contrast_clear']:.3f} | {_f(rel, '{:.3f}')} | "
-                         + " | ".join(_f(o["ratio_pt_k"].get(n), "{:.2f}") for n in names) + " |")
-    return "\n".join(lines) + "\n"
-
-
-def write_report(comparison: Comparison, out: str | Path) -> dict:
-    """``fog_physics.json``, ``fog_physics.md`` and ``panels_<frame>.png`` under ``out``; returns the result."""
-    from fogsim.fileio import atomic_write_bytes, write_image, write_json
-
-    out = Path(out)
-    result = comparison.result()
-    write_json(out / "fog_physics.json", result)
-    atomic_write_bytes(out / "fog_physics.md", markdown(result).encode())
-    for frame, panel in comparison.panels.items():
-        write_image(out / f"panels_{frame}.png", panel)
-    return result
-
-
 def noisy_render(image: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
     """``image`` plus independent Gaussian noise of std ``sigma`` (relative to the value, as Monte
     Carlo noise is), float32 — a stand-in path-traced render for tests and dry runs."""
     return (image * (1.0 + rng.normal(0.0, sigma, image.shape))).astype(np.float32)
 
 
-__all__ = ["BINS", "BIN_NAMES", "Comparison", "Model", "default_models", "horizon_radiance", "interior_mask",
-           "koschmieder_linear", "markdown", "noisy_render", "signed_map", "write_report"]
+__all__ = ["BINS", "BIN_NAMES", "Comparison", "Model", "default_models", "far_luminance", "horizon_radiance",
+           "interior_mask", "koschmieder_linear", "noisy_render", "signed_map"]
