@@ -15,7 +15,7 @@ from fogsim.errors import describe, exit_code
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from fogsim.cli import bench, depth, fog, ila, render, study
+    from fogsim.cli import bench, demo, depth, fog, ila, render, study
 
     parser = argparse.ArgumentParser(prog="fogsim", description="Labeled images in fog: render street scenes, "
                                      "fog rendered and real datasets, train and evaluate detectors per fog level.")
@@ -23,6 +23,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     render.add_parsers(sub)
     fog.add_parsers(sub)
+    demo.add_parsers(sub)
     ila.add_parsers(sub)
     depth.add_parsers(sub)
     study.add_parsers(sub)
