@@ -346,7 +346,7 @@ def _waymo_file(tmp_path):
     image): the first with its range images, the second without LiDAR."""
     import waymo_lidar_fixtures as fx
     from fogsim.fileio import encode_image
-    from fogsim.readers.tfrecord import write_tfrecord
+    from fogsim.readers.waymo.tfrecord import write_tfrecord
 
     scene = fx.wall_scene()
     image = encode_image(np.full((fx.IMAGE_H, fx.IMAGE_W, 3), 60, np.uint8), ".png")

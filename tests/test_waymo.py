@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from fogsim.camera import Intrinsics
-from fogsim.readers import protobuf_wire as pw
-from fogsim.readers import tfrecord
+from fogsim.readers.waymo import protobuf_wire as pw
+from fogsim.readers.waymo import tfrecord
 from fogsim.readers.base import DepthSpec
-from fogsim.readers.tfrecord import (crc32c_python, index_tfrecord, masked_crc32c, read_record,
+from fogsim.readers.waymo.tfrecord import (crc32c_python, index_tfrecord, masked_crc32c, read_record,
                                       write_tfrecord)
 from fogsim.readers.waymo import waymo_v1_samples, waymo_v2_samples
-from fogsim.errors import FogsimError, InputError
+from fogsim.errors import InputError, MissingDependency, exit_code
 from fogsim.fileio import encode_image
 
 CONTEXT = "1005081002024129653_5313_150_5333_150"
@@ -314,8 +314,21 @@ def test_v2_errors(tmp_path, monkeypatch):
     (tmp_path / "camera_image").mkdir()
     (tmp_path / "camera_image" / "x.parquet").write_bytes(b"not parquet")
     monkeypatch.setitem(sys.modules, "pyarrow.parquet", None)  # as if pyarrow were missing
-    with pytest.raises(FogsimError, match=r"pip install -e '\.\[waymo\]'"):
+    with pytest.raises(MissingDependency, match=r"pip install -e '\.\[waymo\]'") as err:
         waymo_v2_samples(tmp_path)
+    assert exit_code(err.value) == 2  # a setup error, not a failed run
+
+
+def test_v2_without_pyarrow_exits_2_through_the_cli(tmp_path, monkeypatch, capsys):
+    from fogsim.cli import main
+
+    split = tmp_path / "training"
+    (split / "camera_image").mkdir(parents=True)
+    (split / "camera_image" / "x.parquet").write_bytes(b"not parquet")
+    monkeypatch.setitem(sys.modules, "pyarrow.parquet", None)
+    assert main(["fog", "--waymo", str(split), "--levels", "0.06", "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "'waymo' extra" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
 
 
 # ----------------------------------------------------------------------------- through the CLI

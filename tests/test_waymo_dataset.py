@@ -12,9 +12,9 @@ from waymo_fixtures import Box2D, camera_label, camera_labels_message
 from fogsim.cli import main
 from fogsim.dataset.layout import DatasetLayout, frame_from_key
 from fogsim.fileio import encode_image, write_depth
-from fogsim.readers import protobuf_wire as pw
-from fogsim.readers.tfrecord import write_tfrecord
-from fogsim.readers.waymo_labels import WAYMO_CLASSES
+from fogsim.readers.waymo import protobuf_wire as pw
+from fogsim.readers.waymo.tfrecord import write_tfrecord
+from fogsim.readers.waymo.labels import WAYMO_CLASSES
 
 STAMPS = (1_000_000, 2_000_000)
 LEVELS = ("clear", "beta0.06")

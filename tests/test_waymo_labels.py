@@ -9,13 +9,17 @@ import numpy as np
 import pytest
 
 from fogsim.errors import InputError
-from fogsim.readers import protobuf_wire as pw
+from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.base import Labels
-from fogsim.readers.tfrecord import index_tfrecord, write_tfrecord
+from fogsim.readers.waymo.tfrecord import index_tfrecord, write_tfrecord
 from fogsim.readers.waymo import waymo_samples, waymo_v1_samples, waymo_v2_samples
-from fogsim.readers.waymo_labels import (SOURCE_ASSOCIATION, SOURCE_MATCH, SOURCE_POINTS, SOURCE_UNKNOWN,
-                                         WAYMO_CLASSES, Box2D as ReaderBox, WaymoV1Labels, WaymoV2Labels,
-                                         camera_enum, camera_label_id, distance_from_points, match_projected, pixel_box)
+from fogsim.readers.waymo.address import V1Record, V2Frame
+from fogsim.readers.waymo.label_distance import distance_from_points, match_projected, pixel_box
+from fogsim.readers.waymo.labels import (SOURCE_ASSOCIATION, SOURCE_MATCH, SOURCE_POINTS, SOURCE_UNKNOWN, WAYMO_CLASSES,
+                                         camera_label_id)
+from fogsim.readers.waymo.labels import Box2D as ReaderBox
+from fogsim.readers.waymo.labels_v1 import WaymoV1Labels
+from fogsim.readers.waymo.labels_v2 import WaymoV2Labels, camera_enum
 from waymo_fixtures import (TYPE_CYCLIST, TYPE_PEDESTRIAN, TYPE_SIGN, TYPE_VEHICLE, Box2D, Box3D, Camera,
                             LabelFrame, StaticPoints, camera_labels_message, extrinsic, frame_message,
                             label_message, write_v1, write_v2)
@@ -182,8 +186,7 @@ def test_fallback_from_lidar_points(v1_file):
             return super().__call__(camera)
 
     sample = waymo_v1_samples(v1_file)[0]
-    reader = WaymoV1Labels(sample.labels.path, sample.labels.offset, sample.labels.length, FRONT,
-                           sample.source, points=Counting(POINTS.by_camera))
+    reader = WaymoV1Labels(sample.labels.record, FRONT, sample.source, points=Counting(POINTS.by_camera))
     got = _by_id(reader())
     assert got["cam-far"]["distance_m"] == 52.35 and got["cam-far"]["distance_source"] == SOURCE_POINTS
     assert got["cam-far"]["planar_depth_m"] is None and got["cam-far"]["laser_id"] is None
@@ -191,11 +194,10 @@ def test_fallback_from_lidar_points(v1_file):
     assert got["cam-ped"]["distance_source"] == SOURCE_ASSOCIATION  # laser boxes come first
     assert Counting.calls == ["FRONT"]  # fetched once per read
     no_points = StaticPoints((("FRONT_LEFT", (), ()),))
-    assert _by_id(WaymoV1Labels(reader.path, reader.offset, reader.length, FRONT, "x", points=no_points)())[
+    assert _by_id(WaymoV1Labels(reader.record, FRONT, "x", points=no_points)())[
         "cam-far"]["distance_source"] == SOURCE_UNKNOWN
-    assert pickle.loads(pickle.dumps(WaymoV1Labels(reader.path, reader.offset, reader.length, FRONT, "x",
-                                                   points=POINTS)))() == \
-        WaymoV1Labels(reader.path, reader.offset, reader.length, FRONT, "x", points=POINTS)()
+    assert pickle.loads(pickle.dumps(WaymoV1Labels(reader.record, FRONT, "x", points=POINTS)))() == \
+        WaymoV1Labels(reader.record, FRONT, "x", points=POINTS)()
 
 
 def test_distance_from_points_near_cluster():
@@ -281,7 +283,7 @@ def test_labels_missing_is_said_clearly(tmp_path):
     assert second.labels() == Labels(WAYMO_CLASSES, []) and "labels_missing" not in second.meta
     offset, length = index_tfrecord(path)[0]
     with pytest.raises(InputError, match="no camera_labels entry for FRONT") as err:
-        WaymoV1Labels(str(path), offset, length, FRONT, f"{path}#record 0 FRONT")()
+        WaymoV1Labels(V1Record(str(path), offset, length), FRONT, f"{path}#record 0 FRONT")()
     assert err.value.source == f"{path}#record 0 FRONT"
     unlabelled = waymo_samples(path, labels=False)
     assert all(s.labels is None and "labels_missing" not in s.meta for s in unlabelled)
@@ -296,7 +298,7 @@ def test_v2_without_camera_box_has_no_labels(tmp_path):
     assert sample.labels is None and sample.meta["labels_missing"].startswith(f"{expected}: not found")
     assert sample.meta["extrinsic"] == E_FRONT.tolist()
     with pytest.raises(InputError, match="no 2D camera labels") as err:
-        WaymoV2Labels(str(root), f"{CONTEXT}.parquet", CONTEXT, T0, FRONT, sample.source)()
+        WaymoV2Labels(V2Frame(str(root), CONTEXT, T0), f"{CONTEXT}.parquet", FRONT, sample.source)()
     assert err.value.source == str(expected)
 
 
@@ -356,7 +358,8 @@ def test_v1_box_without_laser_label_gets_its_distance_from_the_frames_lidar(tmp_
     import waymo_lidar_fixtures as lfx
     from waymo_fixtures import Box2D, camera_label, camera_labels_message
 
-    from fogsim.readers import waymo_lidar as wl
+    from fogsim.readers.waymo.lidar_geometry import camera_points
+    from fogsim.readers.waymo.lidar_v1 import parse_v1_lidar
     from fogsim.fileio import encode_image
     from fogsim.readers.waymo import waymo_samples
 
@@ -369,7 +372,7 @@ def test_v1_box_without_laser_label_gets_its_distance_from_the_frames_lidar(tmp_
                           + pw.bytes_field(8, camera_labels_message(1, [camera_label(box)]))])
     with_lidar, without = waymo_samples(path, ("FRONT",))
     (obj,) = with_lidar.labels().objects
-    pts = wl.camera_points(wl.parse_v1_lidar(frame, "fixture"), "FRONT")
+    pts = camera_points(parse_v1_lidar(frame, "fixture"), "FRONT")
     x0, y0, x1, y1 = obj["bbox"]
     inside = (pts.uv[:, 0] >= x0) & (pts.uv[:, 0] < x1) & (pts.uv[:, 1] >= y0) & (pts.uv[:, 1] < y1)
     assert inside.sum() >= 5

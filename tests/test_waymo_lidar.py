@@ -5,20 +5,29 @@ from __future__ import annotations
 
 import math
 import pickle
+import sys
 import zlib
 
 import numpy as np
 import pytest
 
 import waymo_lidar_fixtures as fx
-from fogsim.errors import InputError
-from fogsim.readers import protobuf_wire as pw
-from fogsim.readers import waymo_lidar as wl
-from fogsim.readers.tfrecord import index_tfrecord, write_tfrecord
+from fogsim.errors import InputError, MissingDependency
+from fogsim.readers.waymo import protobuf_wire as pw
+from fogsim.readers.waymo.address import V2Frame
+from fogsim.readers.waymo.lidar import LidarPoints, lidar_points_for_sample
+from fogsim.readers.waymo.lidar_frame import LaserCalibration, LidarFrame
+from fogsim.readers.waymo.lidar_geometry import (beam_inclinations, camera_points, camera_ray_depth,
+                                                 filter_bleed_through, range_image_to_points, sparse_ray_depth)
+from fogsim.readers.waymo.lidar_v1 import parse_v1_lidar, read_v1_lidar
+from fogsim.readers.waymo.lidar_v2 import read_v2_lidar
+from fogsim.readers.waymo.matrix import (decode_matrix, decode_varints, decode_varints_int32, encode_matrix,
+                                         encode_varints)
+from fogsim.readers.waymo.tfrecord import index_tfrecord, write_tfrecord
 
 
-def _frame(scene: fx.Scene, returns=(1,)) -> wl.LidarFrame:
-    return wl.parse_v1_lidar(fx.frame_msg(scene), "fixture#record 0", returns)
+def _frame(scene: fx.Scene, returns=(1,)) -> LidarFrame:
+    return parse_v1_lidar(fx.frame_msg(scene), "fixture#record 0", returns)
 
 
 def _v1_file(tmp_path, scenes, **kw):
@@ -31,14 +40,14 @@ def _v1_file(tmp_path, scenes, **kw):
 @pytest.mark.parametrize("packed_shape", [True, False])
 def test_matrix_float_packed_and_unpacked_shape(packed_shape):
     a = np.random.default_rng(0).normal(size=(3, 5, 4)).astype(np.float32)
-    for blob in (fx.compressed(a, packed_shape), wl.encode_matrix(a, packed_shape=packed_shape)):
-        out = wl.decode_matrix(blob, "float", "m")
+    for blob in (fx.compressed(a, packed_shape), encode_matrix(a, packed_shape=packed_shape)):
+        out = decode_matrix(blob, "float", "m")
         assert out.dtype == np.float32 and out.shape == (3, 5, 4)
         np.testing.assert_array_equal(out, a)
     # unpacked float data: one fixed32 entry per value, written by hand
     shape = pw.bytes_field(1, b"".join(pw.encode_varint(d) for d in (2, 1, 1)))
     msg = b"\x0d" + fx.float32_bits(1.5) + b"\x0d" + fx.float32_bits(-2.25) + pw.bytes_field(2, shape)
-    np.testing.assert_array_equal(wl.decode_matrix(msg, "float", "m", compressed=False).ravel(), [1.5, -2.25])
+    np.testing.assert_array_equal(decode_matrix(msg, "float", "m", compressed=False).ravel(), [1.5, -2.25])
 
 
 @pytest.mark.parametrize("packed_shape", [True, False])
@@ -47,12 +56,12 @@ def test_matrix_int32_negative_varints(packed_shape):
     raw = fx.matrix_message(a, packed_shape)
     assert pw.encode_varint(-1) == b"\xff" * 9 + b"\x01"  # a 10-byte varint …
     assert pw.encode_varint(-1) in raw  # … is what the fixture holds
-    out = wl.decode_matrix(zlib.compress(raw), "int32", "proj")
+    out = decode_matrix(zlib.compress(raw), "int32", "proj")
     assert out.dtype == np.int32
     np.testing.assert_array_equal(out, a)
-    np.testing.assert_array_equal(wl.decode_matrix(wl.encode_matrix(a), "int32", "proj"), a)
+    np.testing.assert_array_equal(decode_matrix(encode_matrix(a), "int32", "proj"), a)
     # unpacked data entries decode too
-    assert (wl.decode_matrix(wl.encode_matrix(a, packed_data=False, packed_shape=packed_shape), "int32", "p")
+    assert (decode_matrix(encode_matrix(a, packed_data=False, packed_shape=packed_shape), "int32", "p")
             == a).all()
 
 
@@ -60,58 +69,58 @@ def test_vectorised_varints_match_protobuf_wire():
     values = np.random.default_rng(1).integers(-(2**31), 2**31, 5000).astype(np.int64)
     values[:10] = [0, 1, 127, 128, 16383, 16384, -1, -128, 2**31 - 1, -(2**31)]
     blob = b"".join(pw.encode_varint(int(v)) for v in values)
-    np.testing.assert_array_equal(wl._varints(np.frombuffer(blob, np.uint8), "x"), values)
-    np.testing.assert_array_equal(wl._varints_int32(np.frombuffer(blob, np.uint8), "x"), values)
-    assert wl._encode_varints(values) == blob
+    np.testing.assert_array_equal(decode_varints(np.frombuffer(blob, np.uint8), "x"), values)
+    np.testing.assert_array_equal(decode_varints_int32(np.frombuffer(blob, np.uint8), "x"), values)
+    assert encode_varints(values) == blob
 
 
 @pytest.mark.parametrize("value", [2**31, 2**32 + 5, -(2**31) - 1, 2**63 - 1])
 def test_int32_varints_out_of_range_are_refused(value):
     blob = pw.encode_varint(3) + pw.encode_varint(value)
     with pytest.raises(InputError, match="int32 range"):
-        wl._varints_int32(np.frombuffer(blob, np.uint8), "x")
+        decode_varints_int32(np.frombuffer(blob, np.uint8), "x")
 
 
 def test_matrix_errors_name_the_source():
     a = np.zeros((2, 3, 4), np.float32)
     blob = fx.compressed(a)
     with pytest.raises(InputError, match="seg#record 3 TOP.*corrupt zlib"):
-        wl.decode_matrix(blob[:-5] + b"xxxxx", "float", "seg#record 3 TOP")
+        decode_matrix(blob[:-5] + b"xxxxx", "float", "seg#record 3 TOP")
     bad_shape = pw.bytes_field(1, a.tobytes()) + pw.bytes_field(2, pw.bytes_field(1, bytes([2, 3, 5])))
     with pytest.raises(InputError, match="shape \\[2, 3, 5\\] does not hold its 24"):
-        wl.decode_matrix(zlib.compress(bad_shape), "float", "m")
+        decode_matrix(zlib.compress(bad_shape), "float", "m")
     truncated = pw.bytes_field(1, b"\x05\xff") + pw.bytes_field(2, pw.bytes_field(1, bytes([2, 1, 1])))
     with pytest.raises(InputError, match="truncated varint"):
-        wl.decode_matrix(truncated, "int32", "m", compressed=False)
+        decode_matrix(truncated, "int32", "m", compressed=False)
     too_big = pw.bytes_field(1, pw.encode_varint(2**40)) + pw.bytes_field(2, pw.bytes_field(1, bytes([1, 1, 1])))
     with pytest.raises(InputError, match="int32 range"):
-        wl.decode_matrix(too_big, "int32", "m", compressed=False)
+        decode_matrix(too_big, "int32", "m", compressed=False)
 
 
 # ----------------------------------------------------------------------------- geometry
 def test_inclinations_uniform_and_per_beam_are_reversed():
-    cal = wl.LaserCalibration(2, np.eye(4), -0.4, 0.4)
-    incl = wl.beam_inclinations(cal, 4)
+    cal = LaserCalibration(2, np.eye(4), -0.4, 0.4)
+    incl = beam_inclinations(cal, 4)
     np.testing.assert_allclose(incl, [0.3, 0.1, -0.1, -0.3])  # min + (k+0.5)/H·(max−min), reversed
-    beams = wl.LaserCalibration(1, np.eye(4), -1, 1, np.array([-0.3, -0.1, 0.02]))
-    np.testing.assert_allclose(wl.beam_inclinations(beams, 3), [0.02, -0.1, -0.3])
+    beams = LaserCalibration(1, np.eye(4), -1, 1, np.array([-0.3, -0.1, 0.02]))
+    np.testing.assert_allclose(beam_inclinations(beams, 3), [0.02, -0.1, -0.3])
     with pytest.raises(ValueError, match="3 beam inclinations but its range image has 4 rows"):
-        wl.beam_inclinations(beams, 4)
+        beam_inclinations(beams, 4)
 
 
 def test_middle_column_points_along_vehicle_x_whatever_the_mounting_yaw():
     E = fx.transform(fx.rz(math.radians(35)), [1.0, 0.0, 2.0])
-    cal = wl.LaserCalibration(1, E, 0.0, 0.0)
+    cal = LaserCalibration(1, E, 0.0, 0.0)
     ri = np.ones((1, 4, 1), np.float32)  # inclination 0, range 1
-    p = wl.range_image_to_points(ri, cal)[0] - E[:3, 3]
+    p = range_image_to_points(ri, cal)[0] - E[:3, 3]
     # columns j = 0..3 → vehicle azimuth ((W − j − 0.5)/W·2 − 1)·π: 3π/4, π/4, −π/4, −3π/4
     np.testing.assert_allclose(np.degrees(np.arctan2(p[:, 1], p[:, 0])), [135, 45, -45, -135], atol=1e-9)
 
 
 def test_range_image_points_are_the_wall():
     laser = fx.wall_laser(beams=None)
-    cal = wl.LaserCalibration(1, laser.extrinsic, laser.incl_min, laser.incl_max)
-    p = wl.range_image_to_points(laser.range_image, cal)
+    cal = LaserCalibration(1, laser.extrinsic, laser.incl_min, laser.incl_max)
+    p = range_image_to_points(laser.range_image, cal)
     valid = laser.range_image[..., 0] > 0
     assert valid.sum() > 100
     np.testing.assert_allclose(p[valid, 0], fx.WALL_X, atol=1e-4)
@@ -124,7 +133,7 @@ def test_per_beam_inclinations_from_the_frame():
     frame = _frame(scene)
     np.testing.assert_allclose(frame.calibrations[1].beam_inclinations, beams)
     la = scene.lasers[0]
-    p = wl.range_image_to_points(frame.returns[1][1].range_image, frame.calibrations[1])
+    p = range_image_to_points(frame.returns[1][1].range_image, frame.calibrations[1])
     valid = la.range_image[..., 0] > 0
     np.testing.assert_allclose(p[valid], la.points[valid], atol=1e-4)
 
@@ -132,7 +141,7 @@ def test_per_beam_inclinations_from_the_frame():
 def test_camera_ray_distance_is_from_the_camera_centre():
     scene = fx.wall_scene()
     cam, la = scene.cameras[0], scene.lasers[0]
-    pts = wl.camera_points(_frame(scene), "FRONT")
+    pts = camera_points(_frame(scene), "FRONT")
     u, v, ok = fx.project(la.points, cam)
     seen = ok & (la.range_image[..., 0] > 0)
     assert len(pts.ray) == seen.sum() > 50
@@ -147,7 +156,7 @@ def test_camera_ray_distance_is_from_the_camera_centre():
                                + ((pts.uv[:, 1] + 0.5 - cam.cv) / cam.f) ** 2)
     np.testing.assert_allclose(planar, fx.WALL_X - cam.extrinsic[0, 3], rtol=5e-3)
     # the sparse map: each pixel is the nearest point landing on it
-    depth = wl.sparse_ray_depth(pts.uv, pts.ray, cam.width, cam.height)
+    depth = sparse_ray_depth(pts.uv, pts.ray, cam.width, cam.height)
     expect = np.zeros((cam.height, cam.width), np.float32)
     for (x, y), r in zip(np.floor(np.stack([u[seen], v[seen]], -1)).astype(int), truth):
         expect[y, x] = r if expect[y, x] == 0 else min(expect[y, x], r)
@@ -162,7 +171,7 @@ def test_second_projection_slot_and_yawed_camera():
     scene = fx.wall_scene(cameras=[front, left])
     la = scene.lasers[0]
     assert ((la.projection[..., 0] == 1) & (la.projection[..., 3] == 2)).any()  # cells seen by both
-    pts = wl.camera_points(_frame(scene), fx.FRONT_LEFT)
+    pts = camera_points(_frame(scene), fx.FRONT_LEFT)
     u, v, ok = fx.project(la.points, left)
     seen = ok & (la.range_image[..., 0] > 0)
     assert len(pts.ray) == seen.sum()
@@ -176,7 +185,7 @@ def test_invalid_ranges_are_dropped_even_with_a_projection():
     hit = np.argwhere(la.projection[..., 0] == 1)[:5]
     la.range_image[hit[:, 0], hit[:, 1], 0] = [-1, 0, -1, 0, -1]
     n = ((la.projection[..., 0] == 1) & (la.range_image[..., 0] > 0)).sum()
-    assert len(wl.camera_points(_frame(scene), 1).ray) == n
+    assert len(camera_points(_frame(scene), 1).ray) == n
 
 
 def test_per_cell_pose_compensation_yaw_shift():
@@ -194,26 +203,26 @@ def test_per_cell_pose_compensation_yaw_shift():
     la.pose = pose
     frame = _frame(scene)
     assert 1 in frame.pixel_poses
-    p = wl.range_image_to_points(frame.returns[1][1].range_image, frame.calibrations[1],
+    p = range_image_to_points(frame.returns[1][1].range_image, frame.calibrations[1],
                                  frame.pixel_poses[1], frame.pose)
     valid = la.range_image[..., 0] > 0
     i, j = np.nonzero(valid)
     expect = np.stack([fx.rz(delta[jj]) @ la.points[ii, jj] + [0.01 * jj, 0, 0] for ii, jj in zip(i, j)])
     np.testing.assert_allclose(p[valid], expect, atol=2e-3)  # float32 pose (world coordinates ≈ 100 m)
     # and the ray distances are those of the compensated points
-    pts = wl.camera_points(frame, "front")
-    assert not np.allclose(pts.ray, wl.camera_points(_frame(fx.wall_scene()), "front").ray, atol=1e-2)
+    pts = camera_points(frame, "front")
+    assert not np.allclose(pts.ray, camera_points(_frame(fx.wall_scene()), "front").ray, atol=1e-2)
 
 
 def test_pose_rotation_order_roll_pitch_yaw():
     roll, pitch, yaw, t = 0.1, -0.2, 0.7, np.array([3.0, -1.0, 0.5])
     pose = np.array([[[roll, pitch, yaw, *t]]], np.float64)
-    cal = wl.LaserCalibration(1, np.eye(4), 0.3, 0.3)
-    p0 = wl.range_image_to_points(np.full((1, 1, 1), 10.0), cal)[0, 0]
-    p = wl.range_image_to_points(np.full((1, 1, 1), 10.0), cal, pose, np.eye(4))[0, 0]
+    cal = LaserCalibration(1, np.eye(4), 0.3, 0.3)
+    p0 = range_image_to_points(np.full((1, 1, 1), 10.0), cal)[0, 0]
+    p = range_image_to_points(np.full((1, 1, 1), 10.0), cal, pose, np.eye(4))[0, 0]
     np.testing.assert_allclose(p, fx.rz(yaw) @ fx.ry(pitch) @ fx.rx(roll) @ p0 + t, atol=1e-9)
     with pytest.raises(ValueError, match="no pose"):
-        wl.range_image_to_points(np.full((1, 1, 1), 10.0), cal, pose, None)
+        range_image_to_points(np.full((1, 1, 1), 10.0), cal, pose, None)
 
 
 def test_all_lidars_and_second_return():
@@ -227,13 +236,13 @@ def test_all_lidars_and_second_return():
     la.range_image2[..., 0] = np.where(la.range_image[..., 0] > 0, la.range_image[..., 0] + 1.0, -1)
     la.projection2 = la.projection
     frame = _frame(scene, returns=(1, 2))
-    first = wl.camera_points(frame, "FRONT")
+    first = camera_points(frame, "FRONT")
     assert set(np.unique(first.lidar)) == {1, 3}
     n_side = (first.lidar == 3).sum()
     assert n_side == ((side.projection[..., 0] == 1) & (side.range_image[..., 0] > 0)).sum() > 0
-    both = wl.camera_points(frame, "FRONT", returns=(1, 2))
+    both = camera_points(frame, "FRONT", returns=(1, 2))
     assert len(both.ray) == len(first.ray) + (first.lidar == 1).sum()
-    second = wl.camera_points(frame, "FRONT", returns=(2,))
+    second = camera_points(frame, "FRONT", returns=(2,))
     assert (second.ray > first.ray[first.lidar == 1].min()).all()
 
 
@@ -241,7 +250,7 @@ def test_all_lidars_and_second_return():
 def test_min_pooling_two_points_one_pixel():
     uv = np.array([[3.2, 4.7], [3.9, 4.1], [0.0, 0.0], [10.0, 2.0], [-0.5, 1.0], [2.0, 5.0]])
     ray = np.array([10.0, 8.0, 4.0, 3.0, 2.0, np.nan])
-    d = wl.sparse_ray_depth(uv, ray, 10, 6)
+    d = sparse_ray_depth(uv, ray, 10, 6)
     assert d.shape == (6, 10) and d.dtype == np.float32
     assert d[4, 3] == 8.0 and d[0, 0] == 4.0
     assert (d > 0).sum() == 2  # u = 10 and u = −0.5 are outside, NaN is ignored
@@ -254,19 +263,19 @@ def test_bleed_filter_drops_far_point_among_near_ones():
     d[12, 15] = 5.4  # within 10 % of the near ones: kept
     d[30, 40] = 30.0  # isolated far point: kept
     d[30, 44] = 31.0  # and its far neighbour, within 10 %
-    out, dropped = wl.filter_bleed_through(d, window=7, margin=0.10)
+    out, dropped = filter_bleed_through(d, window=7, margin=0.10)
     assert dropped == 1 and out[11, 13] == 0
     assert out[30, 40] == 30.0 and out[30, 44] == 31.0 and out[12, 15] == np.float32(5.4)
     assert ((out > 0) == ((d > 0) & ~((np.arange(40)[:, None] == 11) & (np.arange(60) == 13)))).all()
     # a window too small to reach the near neighbours keeps it
-    assert wl.filter_bleed_through(d, window=1)[1] == 0
+    assert filter_bleed_through(d, window=1)[1] == 0
     with pytest.raises(ValueError, match="odd"):
-        wl.filter_bleed_through(d, window=4)
+        filter_bleed_through(d, window=4)
 
 
 def test_camera_ray_depth_wall_has_no_bleed():
     scene = fx.wall_scene()
-    depth, dropped = wl.camera_ray_depth(_frame(scene), "FRONT", fx.IMAGE_W, fx.IMAGE_H)
+    depth, dropped = camera_ray_depth(_frame(scene), "FRONT", fx.IMAGE_W, fx.IMAGE_H)
     assert dropped == 0 and (depth > 0).sum() > 50
 
 
@@ -275,10 +284,10 @@ def test_v1_file_points_provider_is_picklable_and_matches(tmp_path):
     scene = fx.wall_scene()
     path = _v1_file(tmp_path, [scene], packed_shape=False)
     (offset, length), = index_tfrecord(path)
-    provider = wl.LidarPoints.v1(path, offset, length, f"{path}#record 0")
+    provider = LidarPoints.v1(path, offset, length, f"{path}#record 0")
     provider = pickle.loads(pickle.dumps(provider))
     uv, ray = provider("FRONT")
-    ref = wl.camera_points(_frame(scene), 1)
+    ref = camera_points(_frame(scene), 1)
     np.testing.assert_array_equal(uv, ref.uv)
     np.testing.assert_array_equal(ray, ref.ray)
     assert provider.frame() is provider.frame()  # decoded once for several cameras
@@ -292,15 +301,15 @@ def test_lidar_points_for_v1_sample(tmp_path):
     image = encode_image(np.zeros((fx.IMAGE_H, fx.IMAGE_W, 3), np.uint8), ".png")
     path = _v1_file(tmp_path, [scene], image=image)
     sample, = waymo_v1_samples(path, ["FRONT"])
-    uv, ray = wl.lidar_points_for_sample(sample)("FRONT")
-    np.testing.assert_array_equal(ray, wl.camera_points(_frame(scene), 1).ray)
+    uv, ray = lidar_points_for_sample(sample)("FRONT")
+    np.testing.assert_array_equal(ray, camera_points(_frame(scene), 1).ray)
 
 
 def test_frame_without_lidar_is_a_clear_error(tmp_path):
     path = _v1_file(tmp_path, [fx.wall_scene()], with_lasers=False)
     (offset, length), = index_tfrecord(path)
     with pytest.raises(InputError, match=r"#record 0: frame has no LiDAR range images \("):
-        wl.LidarPoints.v1(path, offset, length, f"{path}#record 0")("FRONT")
+        LidarPoints.v1(path, offset, length, f"{path}#record 0")("FRONT")
 
 
 def test_corrupt_zlib_in_a_record_names_the_record(tmp_path):
@@ -315,18 +324,18 @@ def test_corrupt_zlib_in_a_record_names_the_record(tmp_path):
     (offset, length), = index_tfrecord(path)
     with pytest.raises(InputError, match=r"seg\.tfrecord#record 0 TOP return 1 range_image_compressed: "
                                          r"corrupt zlib"):
-        wl.read_v1_lidar(path, offset, length, f"{path}#record 0")
+        read_v1_lidar(path, offset, length, f"{path}#record 0")
 
 
 def test_missing_camera_calibration_and_projection(tmp_path):
     scene = fx.wall_scene()
     with pytest.raises(InputError, match="no calibration .*FRONT_LEFT"):
-        wl.camera_points(_frame(scene), "FRONT_LEFT")
+        camera_points(_frame(scene), "FRONT_LEFT")
     scene.lasers[0].projection = None
     with pytest.raises(InputError, match="no LiDAR camera projections"):
-        wl.camera_points(_frame(scene), "FRONT")
+        camera_points(_frame(scene), "FRONT")
     with pytest.raises(ValueError, match="unknown Waymo camera"):
-        wl.camera_points(_frame(scene), "NOSE")
+        camera_points(_frame(scene), "NOSE")
 
 
 # ----------------------------------------------------------------------------- v2
@@ -349,12 +358,12 @@ def test_v2_tables_give_the_v1_points(tmp_path):
     pytest.importorskip("pyarrow")
     scene = _posed_scene()
     fx.write_v2(tmp_path, scene, camera_key_as_string=True, pose_as_float32=True)
-    v2 = wl.LidarPoints.v2(tmp_path, fx.CONTEXT, fx.TIMESTAMP)
+    v2 = LidarPoints.v2(tmp_path, fx.CONTEXT, fx.TIMESTAMP)
     v2 = pickle.loads(pickle.dumps(v2))
     frame = v2.frame()
     assert sorted(frame.returns) == [1, 3] and list(frame.pixel_poses) == [1]
     assert frame.calibrations[3].beam_inclinations is None
-    got, ref = v2.points("FRONT"), wl.camera_points(_frame(scene), "FRONT")
+    got, ref = v2.points("FRONT"), camera_points(_frame(scene), "FRONT")
     np.testing.assert_array_equal(got.uv, ref.uv)
     np.testing.assert_array_equal(got.lidar, ref.lidar)
     np.testing.assert_allclose(got.ray, ref.ray, atol=1e-3)  # the v2 vehicle pose is float32
@@ -372,12 +381,20 @@ def test_v2_selects_the_frame_by_its_keys(tmp_path):
     t = pq.read_table(file)
     other = t.set_column(1, "key.frame_timestamp_micros", pa.array([fx.TIMESTAMP + 100000], pa.int64()))
     pq.write_table(pa.concat_tables([other, t]), file)
-    pts = wl.read_v2_lidar(tmp_path, fx.CONTEXT, fx.TIMESTAMP)
+    pts = read_v2_lidar(tmp_path, fx.CONTEXT, fx.TIMESTAMP)
     np.testing.assert_array_equal(pts.returns[1][1].range_image, scene.lasers[0].range_image)
     with pytest.raises(InputError, match="frame has no LiDAR range images \\(no rows in"):
-        wl.read_v2_lidar(tmp_path, fx.CONTEXT, fx.TIMESTAMP + 1)
+        read_v2_lidar(tmp_path, fx.CONTEXT, fx.TIMESTAMP + 1)
     with pytest.raises(InputError, match="frame has no LiDAR range images \\(.*not found"):
-        wl.read_v2_lidar(tmp_path, "other_context", fx.TIMESTAMP)
+        read_v2_lidar(tmp_path, "other_context", fx.TIMESTAMP)
+
+
+def test_v2_lidar_without_pyarrow_is_a_missing_dependency(tmp_path, monkeypatch):
+    pytest.importorskip("pyarrow")
+    fx.write_v2(tmp_path, fx.wall_scene())
+    monkeypatch.setitem(sys.modules, "pyarrow.parquet", None)  # as if pyarrow were missing
+    with pytest.raises(MissingDependency, match="'waymo' extra"):
+        read_v2_lidar(tmp_path, fx.CONTEXT, fx.TIMESTAMP)
 
 
 def test_v2_lidar_pose_without_vehicle_pose_is_refused(tmp_path):
@@ -385,7 +402,7 @@ def test_v2_lidar_pose_without_vehicle_pose_is_refused(tmp_path):
     fx.write_v2(tmp_path, _posed_scene())
     (tmp_path / "vehicle_pose" / f"{fx.CONTEXT}.parquet").unlink()
     with pytest.raises(InputError, match="per-cell lidar poses"):
-        wl.read_v2_lidar(tmp_path, fx.CONTEXT, fx.TIMESTAMP)
+        read_v2_lidar(tmp_path, fx.CONTEXT, fx.TIMESTAMP)
 
 
 def test_lidar_points_for_v2_sample(tmp_path):
@@ -405,10 +422,10 @@ def test_lidar_points_for_v2_sample(tmp_path):
                              "[CameraImageComponent].image": pa.array([image], pa.binary())}),
                    tmp_path / "camera_image" / f"{fx.CONTEXT}.parquet")
     sample, = waymo_v2_samples(tmp_path, ["FRONT"])
-    provider = wl.lidar_points_for_sample(sample)
-    assert provider.kind == "v2" and provider.timestamp == fx.TIMESTAMP
+    provider = lidar_points_for_sample(sample)
+    assert provider.where == V2Frame(str(tmp_path), fx.CONTEXT, fx.TIMESTAMP)
     uv, ray = provider("FRONT")
-    np.testing.assert_allclose(ray, wl.camera_points(_frame(scene), 1).ray, atol=1e-3)
+    np.testing.assert_allclose(ray, camera_points(_frame(scene), 1).ray, atol=1e-3)
 
 
 @pytest.mark.slow

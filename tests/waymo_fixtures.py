@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.fileio import encode_image
-from fogsim.readers import protobuf_wire as pw
-from fogsim.readers.tfrecord import write_tfrecord
+from fogsim.readers.waymo import protobuf_wire as pw
+from fogsim.readers.waymo.tfrecord import write_tfrecord
 
 CAMERA_NAMES = {1: "FRONT", 2: "FRONT_LEFT", 3: "FRONT_RIGHT", 4: "SIDE_LEFT", 5: "SIDE_RIGHT"}
 TYPE_VEHICLE, TYPE_PEDESTRIAN, TYPE_SIGN, TYPE_CYCLIST = 1, 2, 3, 4

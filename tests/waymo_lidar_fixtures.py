@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fogsim.readers import protobuf_wire as pw
+from fogsim.readers.waymo import protobuf_wire as pw
 
 CONTEXT = "10017090168044687777_6380_000_6400_000"
 TIMESTAMP = 1550083467346370

@@ -72,7 +72,8 @@ def _waymo_decode(path: str | None):
     """A callable decoding + projecting the FRONT LiDAR points of one frame (the first frame of
     ``path``, or :func:`fogsim.readers.waymo_lidar_bench.build_frame`'s synthetic frame of real
     sizes: TOP 64×2650 + four 200×600), and what it decodes."""
-    from fogsim.readers import waymo_lidar as wl
+    from fogsim.readers.waymo.lidar_geometry import camera_points
+    from fogsim.readers.waymo.lidar_v1 import parse_v1_lidar
 
     if path:
         from fogsim.depth.lidar_source import waymo_points_source
@@ -84,7 +85,7 @@ def _waymo_decode(path: str | None):
     frame = build_frame()
 
     def decode():
-        pts = wl.camera_points(wl.parse_v1_lidar(frame, "bench"), "FRONT")
+        pts = camera_points(parse_v1_lidar(frame, "bench"), "FRONT")
         return sparse_image(pts.uv, pts.ray, 1920, 1280)
 
     return decode, f"synthetic v1 frame of real sizes ({len(frame) / 1e6:.1f} MB)"

@@ -19,7 +19,7 @@ scores it. Both are written atomically.
 A points source is any picklable zero-argument callable returning ``(uv N×2 float px,
 ray N float32 m)`` for the sample's camera; it raises :class:`~fogsim.errors.InputError`
 naming the frame when the frame has no LiDAR (the sample then fails, the run goes on).
-For Waymo, :func:`waymo_points_source` wraps the decoder ``fogsim.readers.waymo_lidar``.
+For Waymo, :func:`waymo_points_source` wraps the decoder ``fogsim.readers.waymo.lidar``.
 """
 from __future__ import annotations
 
@@ -185,9 +185,9 @@ def read_holdout(path) -> Holdout:
 # ----------------------------------------------------------------------------- Waymo wiring
 def waymo_points_source(sample) -> PointsSource:
     """The points source of a Waymo sample: its frame's
-    :class:`fogsim.readers.waymo_lidar.LidarPoints` (v1 record or v2 split folder and key),
+    :class:`fogsim.readers.waymo.lidar.LidarPoints` (v1 record or v2 split folder and key),
     called with the sample's camera name."""
-    from fogsim.readers.waymo_lidar import lidar_points_for_sample
+    from fogsim.readers.waymo.lidar import lidar_points_for_sample
 
     return partial(lidar_points_for_sample(sample), sample.meta.get("camera", "FRONT"))
 

@@ -32,7 +32,7 @@ from pathlib import Path
 from fogsim.boxes import coco_category
 from fogsim.errors import InputError
 from fogsim.readers.cityscapes_labels import CITYSCAPES_CLASSES
-from fogsim.readers.waymo_labels import WAYMO_CLASSES
+from fogsim.readers.waymo.labels import WAYMO_CLASSES
 from fogsim.scene.classes import LABELLED
 
 

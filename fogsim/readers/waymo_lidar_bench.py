@@ -3,7 +3,7 @@ real sizes: TOP 64×2650 (range image, camera projection, per-cell pose) and fou
 lidars 200×600, with the calibration of a real frame (TOP at (1.43, 0, 2.18) m, FRONT camera
 at (1.54, −0.02, 2.12) m, f = 2044 px). The record is built once; each repeat times
 
-  decode    :func:`fogsim.readers.waymo_lidar.parse_v1_lidar` of the serialized Frame
+  decode    :func:`fogsim.readers.waymo.lidar_v1.parse_v1_lidar` of the serialized Frame
             (protobuf split, zlib, MatrixFloat / MatrixInt32 with vectorised varints)
   project   :func:`camera_points` (all lidars, FRONT) + :func:`sparse_ray_depth` +
             :func:`filter_bleed_through` (7 px, 10 %)
@@ -25,8 +25,12 @@ import zlib
 
 import numpy as np
 
-from fogsim.readers import protobuf_wire as pw
-from fogsim.readers import waymo_lidar as wl
+from fogsim.readers.waymo import protobuf_wire as pw
+from fogsim.readers.waymo.lidar_frame import LaserCalibration
+from fogsim.readers.waymo.lidar_geometry import (beam_inclinations, camera_points, filter_bleed_through,
+                                                 range_image_to_points, sparse_ray_depth)
+from fogsim.readers.waymo.lidar_v1 import FRAME_LASERS, RI_POSE, RI_PROJECTION, RI_RANGE, parse_v1_lidar
+from fogsim.readers.waymo.matrix import MATRIX_DATA, decode_matrix, encode_matrix
 
 WIDTH, HEIGHT, FOCAL = 1920, 1280, 2044.0
 TOP_SHAPE, SHORT_SHAPE = (64, 2650), (200, 600)
@@ -42,10 +46,10 @@ def _transform_msg(m: np.ndarray) -> bytes:
     return b"".join(pw.double_field(1, float(v)) for v in m.ravel())
 
 
-def _scene_ranges(cal: wl.LaserCalibration, shape, rng, max_range: float) -> np.ndarray:
+def _scene_ranges(cal: LaserCalibration, shape, rng, max_range: float) -> np.ndarray:
     """Ranges of a plausible street: ground below the lidar, walls at 8–60 m, 8 % dropouts."""
     h, w = shape
-    incl = wl.beam_inclinations(cal, h)[:, None]
+    incl = beam_inclinations(cal, h)[:, None]
     mount = cal.extrinsic[2, 3]
     with np.errstate(divide="ignore"):
         ground = np.where(incl < 0, mount / np.maximum(-np.sin(incl), 1e-6), np.inf)
@@ -83,12 +87,12 @@ def build_frame(seed: int = 0) -> bytes:
     top[:3, 3] = [1.43, 0.0, 2.18]
     top = top @ _rz(math.radians(-0.8))
     beams = np.linspace(math.radians(-17.55), math.radians(2.5), 64)
-    lasers = [(1, wl.LaserCalibration(1, top, beams[0], beams[-1], beams), TOP_SHAPE, 75.0)]
+    lasers = [(1, LaserCalibration(1, top, beams[0], beams[-1], beams), TOP_SHAPE, 75.0)]
     for name, (x, y, yaw) in zip((2, 3, 4, 5), ((4.07, 0, 0), (3.24, 1.02, 1.57), (3.24, -1.02, -1.57),
                                               (-1.15, 0, 3.14))):
         ext = _rz(yaw)
         ext[:3, 3] = [x, y, 0.9]
-        lasers.append((name, wl.LaserCalibration(name, ext, -math.pi / 2, math.radians(30)), SHORT_SHAPE, 20.0))
+        lasers.append((name, LaserCalibration(name, ext, -math.pi / 2, math.radians(30)), SHORT_SHAPE, 20.0))
     ctx = pw.bytes_field(1, "bench_context") + pw.bytes_field(2, pw.varint_field(1, 1) + pw.bytes_field(
         3, _transform_msg(camera)) + pw.varint_field(4, WIDTH) + pw.varint_field(5, HEIGHT))
     body = b""
@@ -100,31 +104,31 @@ def build_frame(seed: int = 0) -> bytes:
         ctx += pw.bytes_field(3, calib + pw.bytes_field(5, _transform_msg(cal.extrinsic)))
         r = _scene_ranges(cal, shape, rng, max_range)
         ri = np.stack([r, rng.random(shape), rng.random(shape) * 0.1, np.zeros(shape)], -1).astype(np.float32)
-        points = wl.range_image_to_points(ri, cal)
-        msg = (pw.bytes_field(2, wl.encode_matrix(ri))
-               + pw.bytes_field(3, wl.encode_matrix(_projection(points, r > 0, camera, rng))))
+        points = range_image_to_points(ri, cal)
+        msg = (pw.bytes_field(2, encode_matrix(ri))
+               + pw.bytes_field(3, encode_matrix(_projection(points, r > 0, camera, rng))))
         if name == 1:
             cell = np.zeros(shape + (6,), np.float32)
             cell[..., 0:2] = rng.normal(0, 1e-3, shape + (2,))
             cell[..., 2] = 0.8 + np.linspace(-0.004, 0.004, shape[1])
             cell[..., 3:] = pose[:3, 3] + rng.normal(0, 0.05, shape + (3,))
-            msg += pw.bytes_field(4, wl.encode_matrix(cell))
+            msg += pw.bytes_field(4, encode_matrix(cell))
         body += pw.bytes_field(5, pw.varint_field(1, name) + pw.bytes_field(2, msg))
     return pw.bytes_field(1, ctx) + pw.varint_field(2, 1) + pw.bytes_field(3, _transform_msg(pose)) + body
 
 
 def _compressed_blobs(frame: bytes) -> list[bytes]:
     out = []
-    for laser in pw.submessages(pw.decode_fields(frame), wl.FRAME_LASERS):
+    for laser in pw.submessages(pw.decode_fields(frame), FRAME_LASERS):
         ri = pw.submessage(laser, 2)
-        out += [pw.blob(ri, n) for n in (wl.RI_RANGE, wl.RI_PROJECTION, wl.RI_POSE) if n in ri]
+        out += [pw.blob(ri, n) for n in (RI_RANGE, RI_PROJECTION, RI_POSE) if n in ri]
     return out
 
 
 def _python_varints(blob: bytes) -> list[int]:
     """MatrixInt32 data decoded value by value with protobuf_wire (the straightforward way)."""
     fields = pw.decode_fields(zlib.decompress(blob))
-    data = memoryview(bytes(fields[wl.MATRIX_DATA][0]))
+    data = memoryview(bytes(fields[MATRIX_DATA][0]))
     out, pos = [], 0
     while pos < len(data):
         value, pos = pw._read_varint(data, pos, "bench")
@@ -152,15 +156,15 @@ def bench_decode(repeat: int = 5) -> dict:
     for i in range(repeat):
         box = {}
         times["zlib"].append(_ms(lambda: [zlib.decompress(b) for b in blobs]))
-        times["decode"].append(_ms(lambda: box.setdefault("frame", wl.parse_v1_lidar(frame_bytes, "bench"))))
+        times["decode"].append(_ms(lambda: box.setdefault("frame", parse_v1_lidar(frame_bytes, "bench"))))
 
         def project():
-            pts = wl.camera_points(box["frame"], "FRONT")
-            depth = wl.sparse_ray_depth(pts.uv, pts.ray, WIDTH, HEIGHT)
+            pts = camera_points(box["frame"], "FRONT")
+            depth = sparse_ray_depth(pts.uv, pts.ray, WIDTH, HEIGHT)
             result.update(points=len(pts.ray), pixels=int((depth > 0).sum()),
-                          dropped=wl.filter_bleed_through(depth)[1])
+                          dropped=filter_bleed_through(depth)[1])
         times["project"].append(_ms(project))
-        times["vector_varints"].append(_ms(lambda: wl.decode_matrix(top_projection, "int32", "bench")))
+        times["vector_varints"].append(_ms(lambda: decode_matrix(top_projection, "int32", "bench")))
         if i < min(repeat, 3):
             times["python_varints"].append(_ms(lambda: _python_varints(top_projection)))
     med = {f"{k}_ms": statistics.median(v) for k, v in times.items()}

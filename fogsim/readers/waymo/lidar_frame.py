@@ -4,7 +4,8 @@ Conventions: extrinsics are 4×4 float64 sensor→vehicle (metres); inclinations
 range images H×W×4 float32 (channel 0 the range in metres along the beam, ≤ 0 = no return);
 camera projections H×W×6 int32 (camera id, x, y, then the second projection); per-cell pose
 range images H×W×6 (roll, pitch, yaw, x, y, z vehicle→world, TOP only); the frame pose 4×4
-vehicle→world. Lidars are identified by the ``LaserName`` enum (:data:`LASER_NAMES`).
+vehicle→world. Lidars are identified by the ``LaserName`` enum
+(:data:`fogsim.readers.waymo.sensors.LASER_NAMES`).
 """
 from __future__ import annotations
 
@@ -13,20 +14,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsim.errors import InputError
+from fogsim.readers.waymo.sensors import laser_name
 
 
 class NoLidar(InputError):
     """The frame has no LiDAR range images (a test-split or camera-only frame): a per-frame
     problem, which the label reader treats as "no points" and ``--depth-from lidar`` reports."""
-
-
-#: LaserName.Name enum of dataset.proto
-LASER_NAMES = {"TOP": 1, "FRONT": 2, "SIDE_LEFT": 3, "SIDE_RIGHT": 4, "REAR": 5}
-_LASER_LABEL = {v: k for k, v in LASER_NAMES.items()}
-
-
-def laser_name(laser: int) -> str:
-    return _LASER_LABEL.get(laser, f"laser {laser}")
 
 
 @dataclass(frozen=True)
@@ -64,14 +57,17 @@ class LidarFrame:
     pixel_poses: dict[int, np.ndarray] = field(default_factory=dict)
 
 
-def _matrix4(values, source: str, what: str) -> np.ndarray:
+def matrix4(values, source: str, what: str) -> np.ndarray:
+    """A 4×4 float64 transform from 16 row-major values; refused (naming ``what``) unless all are finite."""
     m = np.asarray(values, np.float64)
     if m.size != 16 or not np.isfinite(m).all():
         raise InputError(source, f"malformed {what}: expected 16 finite values, got {m.size}")
     return m.reshape(4, 4)
 
 
-def _require_frame_lidar(frame: LidarFrame, what: str) -> LidarFrame:
+def require_lidar(frame: LidarFrame, what: str) -> LidarFrame:
+    """``frame`` when it has range images and a calibration for each of their lidars; else
+    :class:`NoLidar` (``what`` says what was looked for) or an :class:`InputError`."""
     if not frame.returns:
         raise NoLidar(frame.source, f"frame has no LiDAR range images ({what})")
     missing = [laser_name(k) for k in frame.returns if k not in frame.calibrations]
@@ -80,7 +76,8 @@ def _require_frame_lidar(frame: LidarFrame, what: str) -> LidarFrame:
     return frame
 
 
-def _check_shapes(image: np.ndarray, proj: np.ndarray | None, pose: np.ndarray | None, where: str) -> None:
+def check_shapes(image: np.ndarray, proj: np.ndarray | None, pose: np.ndarray | None, where: str) -> None:
+    """Refuse a range image that is not H×W×C, or a camera projection / cell pose not H×W×6 of its size."""
     if image.ndim != 3 or image.shape[2] < 1:
         raise InputError(where, f"range image has shape {list(image.shape)}, expected [H, W, 4]")
     for what, m in (("camera projection", proj), ("range image pose", pose)):

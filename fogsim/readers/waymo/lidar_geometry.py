@@ -1,7 +1,6 @@
 """Waymo LiDAR geometry: range image → vehicle-frame points → per-camera ray distances.
 
-The geometry is that of WOD ``utils/range_image_utils.py`` / ``frame_utils.py`` (see
-``shared/notes/real-datasets.md`` §2):
+The geometry is that of WOD ``utils/range_image_utils.py`` / ``frame_utils.py``:
 
 * **Rows → inclination.** ``beam_inclinations`` when given, else uniform
   ``incl_k = min + (k + 0.5)/H · (max − min)``; then reversed, so row 0 is the highest beam.
@@ -36,10 +35,8 @@ import numpy as np
 
 from fogsim.camera import sparse_image
 from fogsim.errors import InputError
-from fogsim.readers.waymo import CAMERA_NAMES, camera_ids
-from fogsim.readers.waymo_lidar_frame import LaserCalibration, LidarFrame, _require_frame_lidar, laser_name
-
-_CAMERA_LABEL = {v: k for k, v in CAMERA_NAMES.items()}
+from fogsim.readers.waymo.lidar_frame import LaserCalibration, LidarFrame, require_lidar
+from fogsim.readers.waymo.sensors import CAMERA_BY_ID, camera_ids, laser_name
 
 
 def beam_inclinations(calibration: LaserCalibration, height: int) -> np.ndarray:
@@ -111,7 +108,7 @@ def range_image_to_points(range_image: np.ndarray, calibration: LaserCalibration
 class CameraPoints(NamedTuple):
     """The lidar points seen by one camera: ``uv`` N×2 float32 pixel coordinates (Waymo's
     convention, 0 = left/top edge of the first pixel), ``ray`` N float32 ray distance from the
-    camera centre (metres), ``lidar`` N int8 laser ids (:data:`LASER_NAMES`)."""
+    camera centre (metres), ``lidar`` N int8 laser ids (:data:`~.sensors.LASER_NAMES`)."""
 
     uv: np.ndarray
     ray: np.ndarray
@@ -132,8 +129,8 @@ def camera_points(frame: LidarFrame, camera: int | str, returns: Iterable[int] =
     vehicle frame (= ‖inv(E_cam)·p_vehicle‖). Raises InputError when the frame has no range
     images, no camera projections, or no calibration for the camera."""
     cam, returns = _camera_id(camera), tuple(returns)
-    cam_label = _CAMERA_LABEL.get(cam, f"camera {cam}")
-    _require_frame_lidar(frame, "no laser data")
+    cam_label = CAMERA_BY_ID.get(cam, f"camera {cam}")
+    require_lidar(frame, "no laser data")
     if cam not in frame.cameras:
         raise InputError(frame.source, f"no calibration (extrinsic) for camera {cam_label}: the "
                                        "ray distance needs its position")

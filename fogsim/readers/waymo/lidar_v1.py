@@ -2,8 +2,8 @@
 
 The record is parsed with :mod:`.protobuf_wire` using the field numbers of WOD
 ``dataset.proto`` below; its "compressed" range images, camera projections and per-cell
-poses are zlib'd matrices (:func:`fogsim.readers.waymo_matrix.decode_matrix`). Units and
-conventions of the result: :mod:`fogsim.readers.waymo_lidar_frame`.
+poses are zlib'd matrices (:func:`fogsim.readers.waymo.matrix.decode_matrix`). Units and
+conventions of the result: :mod:`fogsim.readers.waymo.lidar_frame`.
 """
 from __future__ import annotations
 
@@ -13,11 +13,12 @@ from typing import Iterable
 import numpy as np
 
 from fogsim.errors import InputError
-from fogsim.readers import protobuf_wire as pw
-from fogsim.readers.tfrecord import read_record
-from fogsim.readers.waymo_lidar_frame import (LaserCalibration, LaserReturn, LidarFrame, _check_shapes, _matrix4,
-                                              _require_frame_lidar, laser_name)
-from fogsim.readers.waymo_matrix import decode_matrix
+from fogsim.readers.waymo import protobuf_wire as pw
+from fogsim.readers.waymo.lidar_frame import (LaserCalibration, LaserReturn, LidarFrame, check_shapes, matrix4,
+                                              require_lidar)
+from fogsim.readers.waymo.matrix import decode_matrix
+from fogsim.readers.waymo.sensors import laser_name
+from fogsim.readers.waymo.tfrecord import read_record
 
 # v1 field numbers (dataset.proto)
 FRAME_CONTEXT, FRAME_POSE, FRAME_LASERS = 1, 3, 5
@@ -32,7 +33,7 @@ TRANSFORM = 1
 def _transform(message: pw.Fields, number: int, source: str, what: str) -> np.ndarray | None:
     sub = pw.submessage(message, number, source)
     values = pw.doubles(sub, TRANSFORM, source)
-    return _matrix4(values, source, what) if values else None
+    return matrix4(values, source, what) if values else None
 
 
 def _single_double(fields: pw.Fields, number: int, source: str) -> float | None:
@@ -87,11 +88,10 @@ def parse_v1_lidar(data: bytes, source: str, returns: Iterable[int] = (1,)) -> L
             proj_blob = pw.blob(ri, RI_PROJECTION, where)
             proj = (decode_matrix(proj_blob, "int32", f"{where} camera_projection_compressed")
                     if proj_blob else None)
-            _check_shapes(image, proj, poses.get(laser), where)
+            check_shapes(image, proj, poses.get(laser), where)
             out.setdefault(laser, {})[n] = LaserReturn(image, proj)
     pose = _transform(frame, FRAME_POSE, source, "frame pose")
     return LidarFrame(source, out, calibrations, cameras, pose, {k: v for k, v in poses.items() if k in out})
-
 
 
 def read_v1_lidar(path: str | os.PathLike, offset: int, length: int, source: str | None = None,
@@ -100,5 +100,5 @@ def read_v1_lidar(path: str | os.PathLike, offset: int, length: int, source: str
     range images is an InputError ("frame has no LiDAR range images …")."""
     source = source or f"{path}@byte {offset}"
     frame = parse_v1_lidar(read_record(path, offset, length, source, verify), source, returns)
-    return _require_frame_lidar(frame, "its Frame has no lasers with a range image of return "
+    return require_lidar(frame, "its Frame has no lasers with a range image of return "
                                        f"{'/'.join(map(str, returns))}")

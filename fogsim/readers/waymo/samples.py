@@ -1,80 +1,52 @@
-"""Waymo Open Dataset camera images, without TensorFlow or the waymo package.
+"""Waymo Open Dataset camera images as fogsim samples, without TensorFlow or the waymo package.
 
 * v1: TFRecord files of ``Frame`` protos (proto2, ``waymo_open_dataset/dataset.proto``),
   parsed with :mod:`.tfrecord` and :mod:`.protobuf_wire` using the field numbers below.
 * v2: a split folder holding ``camera_image/*.parquet`` and optionally
   ``camera_calibration/*.parquet`` (read with pyarrow).
 
-Sample keys are ``<context name>/<timestamp_micros>_<CAMERA>``. Intrinsics are Waymo's pinhole
-``f_u, f_v, c_u, c_v`` in pixels (OpenCV convention); the lens distortion ``k1, k2, p1, p2, k3``
-is not removed, only recorded in ``meta["distortion"]``. Waymo has no dense depth: depth maps
-come from ``depth_dir/<key><ext>`` (ext in :data:`fogsim.io.DEPTH_SUFFIXES`), else none.
+Sample keys are ``<context name>/<timestamp_micros>_<CAMERA>``. Intrinsics and distortion are
+those of :mod:`.sensors` (the distortion is not removed, only recorded in ``meta["distortion"]``).
+Waymo has no dense depth: depth maps come from ``depth_dir/<key><ext>`` (ext in
+:data:`fogsim.fileio.DEPTH_SUFFIXES`), else none. Each sample holds picklable readers of its image
+(:mod:`.images`), labels (:mod:`.labels_v1`, :mod:`.labels_v2`) and, for the labels' distance
+fallback, its LiDAR points (:mod:`.lidar`).
 """
 from __future__ import annotations
 
 import os
 import re
-from dataclasses import dataclass, replace
-from functools import lru_cache
+from dataclasses import replace
 from pathlib import Path
 from typing import Iterable
 
-import numpy as np
-
-from fogsim.camera import Intrinsics
-from fogsim.errors import FogsimError, InputError
-from fogsim.fileio import DEPTH_SUFFIXES, decode_image
-from fogsim.readers import protobuf_wire as pw
+from fogsim.errors import InputError
+from fogsim.fileio import DEPTH_SUFFIXES
 from fogsim.readers.base import DepthSpec, Sample
 from fogsim.readers.folder import find_depth
-from fogsim.readers.tfrecord import index_tfrecord, read_record
+from fogsim.readers.waymo import protobuf_wire as pw
+from fogsim.readers.waymo.address import V1Record, V2Frame
+from fogsim.readers.waymo.images import FRAME_IMAGES, IMAGE_NAME, V2_IMAGE, ParquetImage, TFRecordImage, open_parquet
+from fogsim.readers.waymo.labels_v1 import WaymoV1Labels, v1_label_index
+from fogsim.readers.waymo.labels_v2 import V2_CAMERA_BOX, WaymoV2Labels, v2_extrinsics
+from fogsim.readers.waymo.lidar import LidarPoints, OptionalPoints
+from fogsim.readers.waymo.sensors import CAMERA_BY_ID, DISTORTION, Calibration, calibration, camera_ids
+from fogsim.readers.waymo.tfrecord import index_tfrecord
 
-#: CameraName.Name enum of dataset.proto (UNKNOWN = 0 is not selectable)
-CAMERA_NAMES = {"FRONT": 1, "FRONT_LEFT": 2, "FRONT_RIGHT": 3, "SIDE_LEFT": 4, "SIDE_RIGHT": 5,
-                "REAR_LEFT": 6, "REAR": 7, "REAR_RIGHT": 8}
-DISTORTION = ("k1", "k2", "p1", "p2", "k3")
 DEFAULT_DEPTH = DepthSpec(path="", encoding="metric", kind="planar")
 
-# v1 field numbers (dataset.proto): Frame, Context, CameraCalibration, CameraImage
-FRAME_CONTEXT, FRAME_TIMESTAMP, FRAME_IMAGES = 1, 2, 4
+# v1 field numbers (dataset.proto): Frame, Context, CameraCalibration (the image's are in .images)
+FRAME_CONTEXT, FRAME_TIMESTAMP = 1, 2
 CONTEXT_NAME, CONTEXT_CALIBRATIONS = 1, 2
 CALIB_NAME, CALIB_INTRINSIC, CALIB_WIDTH, CALIB_HEIGHT = 1, 2, 4, 5
-IMAGE_NAME, IMAGE_DATA = 1, 2
 
 # v2 columns (v2/perception/base.py, camera_image.py, context.py; v2/component.py names them)
 V2_KEYS = ("key.segment_context_name", "key.frame_timestamp_micros", "key.camera_name")
-V2_IMAGE = "[CameraImageComponent].image"
 _CAL = "[CameraCalibrationComponent]"
 V2_CAL_KEYS = ("key.segment_context_name", "key.camera_name")
 V2_CAL_PINHOLE = tuple(f"{_CAL}.intrinsic.{n}" for n in ("f_u", "f_v", "c_u", "c_v"))
 V2_CAL_SIZE = (f"{_CAL}.width", f"{_CAL}.height")
 V2_CAL_DISTORTION = tuple(f"{_CAL}.intrinsic.{n}" for n in DISTORTION)
-
-Calibration = tuple[Intrinsics | None, dict]
-
-
-def camera_ids(cameras: Iterable[str] | str) -> dict[int, str]:
-    """Camera names (case-insensitive) → ``{enum value: NAME}`` in the given order."""
-    names = [cameras] if isinstance(cameras, str) else list(cameras)
-    unknown = [n for n in names if str(n).upper() not in CAMERA_NAMES]
-    if unknown or not names:
-        given = ", ".join(map(repr, unknown)) or "(none given)"
-        raise ValueError(f"unknown Waymo camera(s) {given}; valid: {', '.join(CAMERA_NAMES)}")
-    return {CAMERA_NAMES[str(n).upper()]: str(n).upper() for n in names}
-
-
-def _calibration(pinhole: list, width: int | None, height: int | None,
-                 distortion: dict, source: str) -> Calibration:
-    """Intrinsics (None when incomplete) and the distortion coefficients of one camera.
-
-    Values that are there but unusable (non-finite, f ≤ 0) are refused naming ``source``."""
-    if len(pinhole) < 4 or None in pinhole[:4] or not width or not height:
-        return None, distortion
-    try:
-        return Intrinsics(*(float(v) for v in pinhole[:4]), int(width), int(height)), distortion
-    except (TypeError, ValueError) as exc:
-        raise InputError(source, f"unusable camera calibration ({exc})") from None
-
 
 def _safe(name: str) -> str:
     """A context name made safe as one path component."""
@@ -117,28 +89,6 @@ def _unique(samples: list[Sample]) -> list[Sample]:
 
 
 # ----------------------------------------------------------------------------- v1 (TFRecord)
-@dataclass(frozen=True)
-class TFRecordImage:
-    """Picklable reader: one camera's image from the Frame record at ``offset``
-    (its data CRC checked unless ``verify`` is false)."""
-
-    path: str
-    offset: int
-    length: int
-    camera: int
-    source: str
-    verify: bool = True
-
-    def __call__(self) -> np.ndarray:
-        frame = pw.decode_fields(read_record(self.path, self.offset, self.length, self.source,
-                                             self.verify), self.source)
-        for image in pw.submessages(frame, FRAME_IMAGES, self.source):
-            if pw.integer(image, IMAGE_NAME, 0, self.source) == self.camera:
-                return decode_image(pw.blob(image, IMAGE_DATA, self.source) or b"", self.source)
-        raise InputError(self.source, "camera image not in the frame (file changed since "
-                                      "indexing?)")
-
-
 def _tfrecord_files(path: Path) -> list[Path]:
     if path.is_file():
         return [path]
@@ -161,7 +111,7 @@ def _parse_frame(data: bytes, source: str) -> tuple[str, int, dict[int, Calibrat
     calibrations = {}
     for cal in pw.submessages(context, CONTEXT_CALIBRATIONS, source):
         values = pw.doubles(cal, CALIB_INTRINSIC, source)
-        calibrations[pw.integer(cal, CALIB_NAME, 0, source)] = _calibration(
+        calibrations[pw.integer(cal, CALIB_NAME, 0, source)] = calibration(
             values[:4], pw.integer(cal, CALIB_WIDTH, 0, source),
             pw.integer(cal, CALIB_HEIGHT, 0, source), dict(zip(DISTORTION, values[4:9])),
             f"{source} calibration of camera {pw.integer(cal, CALIB_NAME, 0, source)}")
@@ -174,19 +124,10 @@ def _nothing_to_do(path, count: int, what: str, selected: dict[int, str], presen
     """The error for a dataset without any image of the selected cameras (as an empty folder is)."""
     if not count:
         return InputError(path, f"no {what} in it (an empty dataset: nothing to fog)")
-    names = {v: k for k, v in CAMERA_NAMES.items()}
-    found = ", ".join(names.get(c, str(c)) for c in sorted(present, key=str)) or "none"
+    found = ", ".join(CAMERA_BY_ID.get(c, str(c)) for c in sorted(present, key=str)) or "none"
     return InputError(path, f"none of its {count} {what} has an image from camera(s) "
                             f"{', '.join(selected.values())} (cameras present: {found}); choose "
                             "others with --cameras")
-
-
-def _lidar_points(kind: str, *where):
-    """The frame's LiDAR points for the labels' near-cluster fallback (None without LiDAR);
-    imported here because :mod:`.waymo_lidar` builds on this module."""
-    from fogsim.readers.waymo_lidar import LidarPoints, OptionalPoints
-
-    return OptionalPoints(getattr(LidarPoints, kind)(*where))
 
 
 def _label_meta(extrinsic, missing: str | None) -> dict:
@@ -207,28 +148,27 @@ def waymo_v1_samples(path: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
     ``verify``: check every record's data CRC (on both reads). Raises :class:`InputError`
     when there is nothing to do: no frames, or no image of the selected cameras in any.
     ``labels``: give each sample whose frame has a ``camera_labels`` entry for its camera a
-    :class:`~fogsim.readers.waymo_labels.WaymoV1Labels` (others get ``labels = None`` and say why
+    :class:`~fogsim.readers.waymo.labels_v1.WaymoV1Labels` (others get ``labels = None`` and say why
     in ``meta["labels_missing"]``). ``meta["extrinsic"]`` is the camera→vehicle 4×4 (when known).
     """
-    from fogsim.readers.waymo_labels import WaymoV1Labels, v1_label_index
-
     selected, depth_dir = camera_ids(cameras), _depth_dir(depth_dir)
     samples, frames, seen, listings = [], 0, set(), {}
     for file in _tfrecord_files(Path(path)):
         for i, (offset, length) in enumerate(index_tfrecord(file)):
-            record = f"{file}#record {i}"
-            data = read_record(file, offset, length, record, verify)
+            record, where = f"{file}#record {i}", V1Record(str(file), offset, length, verify)
+            data = where.read(record)
             name, timestamp, calibrations, present = _parse_frame(data, record)
             labelled, extrinsics = v1_label_index(data, record, labels)
             frames, seen = frames + 1, seen | present
             for camera, cam_name in selected.items():
                 if camera in present:
                     source = f"{record} {cam_name}"
-                    reader = TFRecordImage(str(file), offset, length, camera, source, verify)
+                    reader = TFRecordImage(where, camera, source)
                     label_reader = missing = None
                     if labels and camera in labelled:
-                        label_reader = WaymoV1Labels(str(file), offset, length, camera, source, verify,
-                                                     points=_lidar_points("v1", file, offset, length, record, verify))
+                        # the frame's LiDAR points for the near-cluster distance (None without LiDAR)
+                        points = OptionalPoints(LidarPoints(where, record))
+                        label_reader = WaymoV1Labels(where, camera, source, points)
                     elif labels:
                         missing = f"{record}: no camera_labels entry for {cam_name} (an unlabelled frame)"
                     samples.append(_sample(name, timestamp, cam_name, source, reader,
@@ -240,62 +180,15 @@ def waymo_v1_samples(path: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
 
 
 # ----------------------------------------------------------------------------- v2 (parquet)
-def _parquet():
-    try:
-        import pyarrow.parquet as pq
-    except ImportError as exc:
-        raise FogsimError(f"Waymo v2 needs pyarrow: pip install -e '.[waymo]' ({exc})") from None
-    return pq
-
-
-def _open_parquet(file: Path, columns: Iterable[str]):
-    """A ``pyarrow.parquet.ParquetFile`` known to hold ``columns``."""
-    try:
-        pf = _parquet().ParquetFile(file)
-    except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid is a ValueError
-        raise InputError(file, f"not a readable parquet file ({exc})") from None
-    missing = [c for c in columns if c not in pf.schema_arrow.names]
-    if missing:
-        raise InputError(file, f"missing column(s) {', '.join(missing)} (not a Waymo v2 file?)")
-    return pf
-
-
-@lru_cache(maxsize=1)
-def _image_column(path: str, row_group: int, stamp: tuple[int, int]):
-    """One row group's image column, cached (keyed by ``stamp`` = mtime, size too) so reading
-    the images of one row group in turn decodes the column once."""
-    pf = _open_parquet(Path(path), [V2_IMAGE])
-    return pf.read_row_group(row_group, columns=[V2_IMAGE]).column(0)
-
-
-@dataclass(frozen=True)
-class ParquetImage:
-    """Picklable reader: the image in row ``row`` of row group ``row_group`` of a v2 file."""
-
-    path: str
-    row_group: int
-    row: int
-    source: str
-
-    def __call__(self) -> np.ndarray:
-        try:
-            stat = os.stat(self.path)
-            column = _image_column(self.path, self.row_group, (stat.st_mtime_ns, stat.st_size))
-            data = column[self.row].as_py()
-        except (OSError, ValueError, IndexError) as exc:
-            raise InputError(self.source, f"cannot read the image ({exc})") from None
-        return decode_image(data or b"", self.source)
-
-
 def _v2_calibrations(folder: Path) -> dict[tuple[str, int], Calibration]:
     """(context, camera) → calibration from ``camera_calibration/*.parquet`` ({} if absent)."""
     calibrations = {}
     for file in sorted(folder.glob("*.parquet")):
-        pf = _open_parquet(file, V2_CAL_KEYS + V2_CAL_PINHOLE + V2_CAL_SIZE)
+        pf = open_parquet(file, V2_CAL_KEYS + V2_CAL_PINHOLE + V2_CAL_SIZE)
         distortion = [c for c in V2_CAL_DISTORTION if c in pf.schema_arrow.names]
         cols = pf.read(columns=list(V2_CAL_KEYS + V2_CAL_PINHOLE + V2_CAL_SIZE) + distortion)
         for n, row in enumerate(cols.to_pylist()):
-            calibrations[(row[V2_CAL_KEYS[0]], row[V2_CAL_KEYS[1]])] = _calibration(
+            calibrations[(row[V2_CAL_KEYS[0]], row[V2_CAL_KEYS[1]])] = calibration(
                 [row[c] for c in V2_CAL_PINHOLE], *(row[c] for c in V2_CAL_SIZE),
                 {c.rsplit(".", 1)[1]: row[c] for c in distortion}, f"{file}#row {n}")
     return calibrations
@@ -322,11 +215,9 @@ def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
     A row of a selected camera with a null or mistyped key is refused naming file and row;
     no image of the selected cameras at all is an :class:`InputError` too.
     ``labels``: give each sample of a camera_image file with a ``camera_box/`` file of the same
-    name a :class:`~fogsim.readers.waymo_labels.WaymoV2Labels` (others get ``labels = None`` and
+    name a :class:`~fogsim.readers.waymo.labels_v2.WaymoV2Labels` (others get ``labels = None`` and
     say why in ``meta["labels_missing"]``). ``meta["extrinsic"]`` is the camera→vehicle 4×4 (when known).
     """
-    from fogsim.readers.waymo_labels import V2_CAMERA_BOX, WaymoV2Labels, v2_extrinsics
-
     selected, depth_dir, root = camera_ids(cameras), _depth_dir(depth_dir), Path(root)
     files = sorted((root / "camera_image").glob("*.parquet"))
     if not files:
@@ -335,7 +226,7 @@ def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
     extrinsics = v2_extrinsics(root)
     samples, rows, seen, listings = [], 0, set(), {}
     for file in files:
-        pf, start = _open_parquet(file, V2_KEYS + (V2_IMAGE,)), 0
+        pf, start = open_parquet(file, V2_KEYS + (V2_IMAGE,)), 0
         boxes = root / V2_CAMERA_BOX / file.name
         labelled = labels and boxes.is_file()
         for group in range(pf.num_row_groups):
@@ -348,9 +239,9 @@ def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
                     reader = ParquetImage(str(file), group, row, source)
                     label_reader = missing = None
                     if labelled:
-                        points = _lidar_points("v2", root, name, timestamp, f"{file}#row {start + row}")
-                        label_reader = WaymoV2Labels(str(root), file.name, name, timestamp, camera, source, reader,
-                                                     points=points)
+                        frame = V2Frame(str(root), name, timestamp)
+                        points = OptionalPoints(LidarPoints(frame, f"{file}#row {start + row}"))
+                        label_reader = WaymoV2Labels(frame, file.name, camera, source, reader, points)
                     elif labels:
                         missing = f"{boxes}: not found (no 2D camera labels for this segment)"
                     samples.append(_sample(name, timestamp, selected[camera], source, reader,
@@ -368,7 +259,7 @@ def waymo_samples(path: str | os.PathLike, cameras: Iterable[str] = ("FRONT",),
                   depth: DepthSpec = DEFAULT_DEPTH, verify: bool = True, labels: bool = True) -> list[Sample]:
     """v2 when ``path`` is a folder with ``camera_image/``, else v1 TFRecord file(s) (whose
     record CRCs are checked unless ``verify`` is false). ``labels``: attach the 2D camera labels
-    where the dataset has them (:mod:`fogsim.readers.waymo_labels`)."""
+    where the dataset has them (:mod:`fogsim.readers.waymo.labels`)."""
     if (Path(path) / "camera_image").is_dir():
         return waymo_v2_samples(path, cameras, depth_dir, depth, labels)
     return waymo_v1_samples(path, cameras, depth_dir, depth, verify, labels)

@@ -3,7 +3,7 @@
 Each table is ``<root>/<tag>/<context>.parquet`` (v2 ``component.py`` names the columns
 below); pyarrow is imported lazily, and only the row groups holding the frame are read.
 Key and value types are cast (int8 or string sensor names, float32 projections → int).
-Units and conventions of the result: :mod:`fogsim.readers.waymo_lidar_frame`.
+Units and conventions of the result: :mod:`fogsim.readers.waymo.lidar_frame`.
 """
 from __future__ import annotations
 
@@ -13,11 +13,13 @@ from typing import Iterable
 
 import numpy as np
 
-from fogsim.errors import FogsimError, InputError
-from fogsim.readers.waymo import CAMERA_NAMES
-from fogsim.readers.waymo_lidar_frame import (LASER_NAMES, LaserCalibration, LaserReturn, LidarFrame, NoLidar,
-                                              _check_shapes, _matrix4, _require_frame_lidar, laser_name)
-from fogsim.readers.waymo_lidar_v1 import LASER_RETURNS
+from fogsim.errors import InputError
+from fogsim.readers.waymo.address import V2Frame
+from fogsim.readers.waymo.images import open_parquet
+from fogsim.readers.waymo.lidar_frame import (LaserCalibration, LaserReturn, LidarFrame, NoLidar, check_shapes, matrix4,
+                                              require_lidar)
+from fogsim.readers.waymo.lidar_v1 import LASER_RETURNS
+from fogsim.readers.waymo.sensors import CAMERA_NAMES, LASER_NAMES, laser_name
 
 # v2 tables and columns (v2/perception/lidar.py, context.py, pose.py; v2/component.py names them)
 V2_CONTEXT, V2_TIME, V2_LASER, V2_CAMERA = ("key.segment_context_name", "key.frame_timestamp_micros",
@@ -29,14 +31,6 @@ V2_LCAL = {"extrinsic": f"{_LCAL}.extrinsic.transform", "min": f"{_LCAL}.beam_in
            "max": f"{_LCAL}.beam_inclination.max", "values": f"{_LCAL}.beam_inclination.values"}
 V2_CAMERA_EXTRINSIC = "[CameraCalibrationComponent].extrinsic.transform"
 V2_VEHICLE_POSE = "[VehiclePoseComponent].world_from_vehicle.transform"
-
-
-def _parquet():
-    try:
-        import pyarrow.parquet as pq
-    except ImportError as exc:
-        raise FogsimError(f"Waymo v2 needs pyarrow: pip install -e '.[waymo]' ({exc})") from None
-    return pq
 
 
 def _sensor_key(value, source: str, names: dict[str, int] = LASER_NAMES) -> int:
@@ -57,15 +51,7 @@ def _sensor_key(value, source: str, names: dict[str, int] = LASER_NAMES) -> int:
 def _v2_rows(file: Path, keys: dict[str, object], columns: list[str], source: str) -> list[dict]:
     """The rows of ``file`` whose key columns equal ``keys`` (compared after casting), with
     ``columns``; only the row groups holding them are read."""
-    pq = _parquet()
-    try:
-        pf = pq.ParquetFile(file)
-    except (OSError, ValueError) as exc:
-        raise InputError(file, f"not a readable parquet file ({exc})") from None
-    names = pf.schema_arrow.names
-    missing = [c for c in list(keys) + columns if c not in names]
-    if missing:
-        raise InputError(file, f"missing column(s) {', '.join(missing)} (not a Waymo v2 table?)")
+    pf = open_parquet(file, list(keys) + columns)
     key_cols = list(keys)
     rows = []
     try:
@@ -110,10 +96,6 @@ def _v2_matrix(row: dict, prefix: str, dtype, source: str) -> np.ndarray | None:
     return a.reshape(dims)
 
 
-def _v2_file(root: Path, tag: str, context: str) -> Path:
-    return root / tag / f"{context}.parquet"
-
-
 def read_v2_lidar(root: str | os.PathLike, context: str, timestamp: int, source: str | None = None,
                   returns: Iterable[int] = (1,)) -> LidarFrame:
     """The LiDAR data of frame (``context``, ``timestamp`` µs) of a v2 split folder: tables
@@ -121,12 +103,12 @@ def read_v2_lidar(root: str | os.PathLike, context: str, timestamp: int, source:
     ``lidar_pose`` + ``vehicle_pose`` (per-cell compensation, both or neither) and
     ``camera_calibration`` (camera extrinsics), each ``<root>/<tag>/<context>.parquet``.
     Key and value types are cast (int8 or string sensor names, float32 projections → int)."""
-    root = Path(root)
+    v2 = V2Frame(str(root), context, int(timestamp))
     source = source or f"{root} {context}@{timestamp}"
     returns = sorted(set(returns))
     if any(n not in LASER_RETURNS for n in returns):
         raise ValueError(f"lidar returns are 1 or 2, not {returns}")
-    lidar_file = _v2_file(root, "lidar", context)
+    lidar_file = v2.table("lidar")
     if not lidar_file.is_file():
         raise NoLidar(source, f"frame has no LiDAR range images ({lidar_file} not found)")
     frame_keys = {V2_CONTEXT: context, V2_TIME: int(timestamp)}
@@ -145,7 +127,7 @@ def read_v2_lidar(root: str | os.PathLike, context: str, timestamp: int, source:
             if m is not None:
                 images.setdefault(laser, {})[n] = m
     projections: dict[int, dict[int, np.ndarray]] = {}
-    proj_file = _v2_file(root, "lidar_camera_projection", context)
+    proj_file = v2.table("lidar_camera_projection")
     if proj_file.is_file():
         for row in _v2_rows(proj_file, frame_keys, [V2_LASER] + ret_cols("lidar_camera_projection", returns),
                             source):
@@ -156,7 +138,7 @@ def read_v2_lidar(root: str | os.PathLike, context: str, timestamp: int, source:
                 if m is not None:
                     projections.setdefault(laser, {})[n] = m
     poses = {}
-    pose_file = _v2_file(root, "lidar_pose", context)
+    pose_file = v2.table("lidar_pose")
     if pose_file.is_file():
         for row in _v2_rows(pose_file, frame_keys, [V2_LASER] + ret_cols("lidar_pose", [1]), source):
             laser = _sensor_key(row[V2_LASER], f"{pose_file} {source}")
@@ -164,16 +146,16 @@ def read_v2_lidar(root: str | os.PathLike, context: str, timestamp: int, source:
             if m is not None:
                 poses[laser] = m
     frame_pose = None
-    vp_file = _v2_file(root, "vehicle_pose", context)
+    vp_file = v2.table("vehicle_pose")
     if vp_file.is_file():
         vp = _v2_rows(vp_file, frame_keys, [V2_VEHICLE_POSE], source)
         if vp:
-            frame_pose = _matrix4(vp[0][V2_VEHICLE_POSE] or [], f"{vp_file} {source}", "vehicle pose")
+            frame_pose = matrix4(vp[0][V2_VEHICLE_POSE] or [], f"{vp_file} {source}", "vehicle pose")
     if poses and frame_pose is None:
         raise InputError(source, f"{pose_file} has per-cell lidar poses but {vp_file} has no pose "
                                  "for this frame (needed to compensate them)")
     calibrations = {}
-    cal_file = _v2_file(root, "lidar_calibration", context)
+    cal_file = v2.table("lidar_calibration")
     if not cal_file.is_file():
         raise InputError(source, f"no laser calibrations ({cal_file} not found)")
     for row in _v2_rows(cal_file, {V2_CONTEXT: context}, [V2_LASER] + list(V2_LCAL.values()), source):
@@ -181,23 +163,23 @@ def read_v2_lidar(root: str | os.PathLike, context: str, timestamp: int, source:
         laser = _sensor_key(row[V2_LASER], where)
         values = row[V2_LCAL["values"]]
         calibrations[laser] = LaserCalibration(
-            laser, _matrix4(row[V2_LCAL["extrinsic"]] or [], where, f"extrinsic of {laser_name(laser)}"),
+            laser, matrix4(row[V2_LCAL["extrinsic"]] or [], where, f"extrinsic of {laser_name(laser)}"),
             None if row[V2_LCAL["min"]] is None else float(row[V2_LCAL["min"]]),
             None if row[V2_LCAL["max"]] is None else float(row[V2_LCAL["max"]]),
             np.asarray(values, np.float64) if values else None)
     cameras = {}
-    cam_file = _v2_file(root, "camera_calibration", context)
+    cam_file = v2.table("camera_calibration")
     if cam_file.is_file():
         for row in _v2_rows(cam_file, {V2_CONTEXT: context}, [V2_CAMERA, V2_CAMERA_EXTRINSIC], source):
             where = f"{cam_file} {source}"
             cam = _sensor_key(row[V2_CAMERA], where, CAMERA_NAMES)
-            cameras[cam] = _matrix4(row[V2_CAMERA_EXTRINSIC] or [], where, f"extrinsic of camera {cam}")
+            cameras[cam] = matrix4(row[V2_CAMERA_EXTRINSIC] or [], where, f"extrinsic of camera {cam}")
     out = {}
     for laser, by_return in images.items():
         for n, image in by_return.items():
             proj = projections.get(laser, {}).get(n)
-            _check_shapes(image, proj, poses.get(laser), f"{source} {laser_name(laser)} return {n}")
+            check_shapes(image, proj, poses.get(laser), f"{source} {laser_name(laser)} return {n}")
             out.setdefault(laser, {})[n] = LaserReturn(image, proj)
     frame = LidarFrame(source, out, calibrations, cameras, frame_pose,
                        {k: v for k, v in poses.items() if k in out})
-    return _require_frame_lidar(frame, f"no range image of return {'/'.join(map(str, returns))} in {lidar_file}")
+    return require_lidar(frame, f"no range image of return {'/'.join(map(str, returns))} in {lidar_file}")

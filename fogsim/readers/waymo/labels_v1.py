@@ -2,20 +2,20 @@
 
 Reads ``camera_labels`` (8), ``laser_labels`` (6), ``projected_lidar_labels`` (9) and the camera
 calibration (``Context.camera_calibrations``) of one Frame; box conventions and distances are those
-of :mod:`fogsim.readers.waymo_label_distance` (pixel-edge boxes, ray distance in metres).
+of :mod:`fogsim.readers.waymo.label_distance` (pixel-edge boxes, ray distance in metres).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 from fogsim.errors import InputError
-from fogsim.readers import protobuf_wire as pw
 from fogsim.readers.base import Labels
-from fogsim.readers.tfrecord import read_record
-from fogsim.readers.waymo_label_distance import build_labels
-from fogsim.readers.waymo_label_types import (CAMERA_BY_ID, WAYMO_CLASSES, Box2D, CameraFrameLabels, LabelRead,
-                                              LaserBox, PointsProvider, camera_extrinsic, camera_label_id,
-                                              finite_floats)
+from fogsim.readers.waymo import protobuf_wire as pw
+from fogsim.readers.waymo.address import V1Record
+from fogsim.readers.waymo.label_distance import build_labels
+from fogsim.readers.waymo.labels import (WAYMO_CLASSES, Box2D, CameraFrameLabels, LabelRead, LaserBox, PointsProvider,
+                                         camera_extrinsic, camera_label_id, finite_floats)
+from fogsim.readers.waymo.sensors import CAMERA_BY_ID
 
 # v1 field numbers (dataset.proto, label.proto)
 FRAME_CONTEXT, FRAME_LASER_LABELS, FRAME_CAMERA_LABELS, FRAME_PROJECTED_LABELS = 1, 6, 8, 9
@@ -106,25 +106,22 @@ def parse_v1_labels(data: bytes, camera: int, source: str) -> CameraFrameLabels 
 
 @dataclass(frozen=True)
 class WaymoV1Labels:
-    """Picklable :data:`~fogsim.readers.base.LabelReader`: one camera's labels of the Frame record
-    at ``offset`` of a v1 .tfrecord (its data CRC checked unless ``verify`` is false).
+    """Picklable :data:`~fogsim.readers.base.LabelReader`: one camera's labels of the Frame at
+    ``record`` of a v1 .tfrecord.
 
-    ``camera``: the CameraName enum value; ``points``: optional :data:`PointsProvider` for the
-    LiDAR-points fallback distance."""
+    ``camera``: the CameraName enum value; ``source`` names it in messages; ``points``: optional
+    :data:`PointsProvider` for the LiDAR-points fallback distance."""
 
     classes = WAYMO_CLASSES  # the class list, known without reading (not a field)
 
-    path: str
-    offset: int
-    length: int
+    record: V1Record
     camera: int
     source: str
-    verify: bool = True
     points: PointsProvider | None = None
 
     def read(self) -> LabelRead:
         """The labels and the drop counts (:class:`LabelRead`)."""
-        data = read_record(self.path, self.offset, self.length, self.source, self.verify)
+        data = self.record.read(self.source)
         frame = parse_v1_labels(data, self.camera, self.source)
         if frame is None:
             raise InputError(self.source, f"no camera_labels entry for {CAMERA_BY_ID.get(self.camera, self.camera)}"

@@ -7,7 +7,9 @@ vectorised with numpy (no per-value Python loop); negative int32 values are 10-b
 sign-extended varints (two's complement). Malformed input → :class:`fogsim.errors.InputError`
 naming ``source``.
 
-Public API: :func:`decode_matrix`, :func:`encode_matrix` (its inverse, for fixtures and the benchmark).
+Public API: :func:`decode_matrix`, :func:`encode_matrix` (its inverse, for fixtures and the benchmark),
+and the packed-varint codecs they are built on (:func:`decode_varints`, :func:`decode_varints_int32`,
+:func:`encode_varints`).
 """
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ import zlib
 import numpy as np
 
 from fogsim.errors import InputError
-from fogsim.readers import protobuf_wire as pw
+from fogsim.readers.waymo import protobuf_wire as pw
 
 #: field numbers of MatrixFloat / MatrixInt32 (data, shape) and MatrixShape (dims)
 MATRIX_DATA, MATRIX_SHAPE, SHAPE_DIMS = 1, 2, 1
@@ -33,7 +35,7 @@ def _varint_spans(buf: np.ndarray, source: str) -> tuple[np.ndarray, np.ndarray]
     return starts, ends - starts + 1
 
 
-def _varints(buf: np.ndarray, source: str) -> np.ndarray:
+def decode_varints(buf: np.ndarray, source: str) -> np.ndarray:
     """Decode a packed run of base-128 varints (uint8 array) into int64 (two's complement)."""
     if buf.size == 0:
         return np.zeros(0, np.int64)
@@ -50,8 +52,8 @@ def _varints(buf: np.ndarray, source: str) -> np.ndarray:
     return values.view(np.int64)
 
 
-def _varints_int32(buf: np.ndarray, source: str) -> np.ndarray:
-    """Packed int32 varints → int32, faster than :func:`_varints`: a valid int32 is 1–5 bytes
+def decode_varints_int32(buf: np.ndarray, source: str) -> np.ndarray:
+    """Packed int32 varints → int32, faster than :func:`decode_varints`: a valid int32 is 1–5 bytes
     (0 … 2³¹−1) or exactly 10 (negative, sign-extended to 64 bits), and its 32 bits are the low
     bits of its first 5 bytes; anything else (6–9 bytes, a 5-byte value ≥ 2³¹, a 10-byte one
     that is not a sign-extended int32) is refused as out of the int32 range."""
@@ -81,7 +83,7 @@ def _ints(values: list, source: str) -> np.ndarray:
     out = []
     for v in values:
         if isinstance(v, memoryview):
-            out.append(_varints(np.frombuffer(v, np.uint8), source))
+            out.append(decode_varints(np.frombuffer(v, np.uint8), source))
         elif isinstance(v, int):
             out.append(np.array([v], np.uint64).view(np.int64))
         else:
@@ -116,7 +118,7 @@ def decode_matrix(data: bytes, kind: str, source: str, compressed: bool = True) 
         values = np.concatenate(chunks).astype(np.float32, copy=False) if chunks else np.zeros(0, np.float32)
     elif kind == "int32":
         if len(entries) == 1 and isinstance(entries[0], memoryview):  # packed: the usual case
-            values = _varints_int32(np.frombuffer(entries[0], np.uint8), source)
+            values = decode_varints_int32(np.frombuffer(entries[0], np.uint8), source)
         else:
             wide = _ints(entries, source)
             if wide.size and (wide.min() < -(1 << 31) or wide.max() >= 1 << 31):
@@ -130,7 +132,7 @@ def decode_matrix(data: bytes, kind: str, source: str, compressed: bool = True) 
     return values.reshape(dims)
 
 
-def _encode_varints(values: np.ndarray) -> bytes:
+def encode_varints(values: np.ndarray) -> bytes:
     """Packed varints of int64 ``values`` (negative → 10-byte two's complement), vectorised."""
     v = np.asarray(values, np.int64).ravel().view(np.uint64)
     nbytes = np.ones(v.size, np.int64)
@@ -151,7 +153,7 @@ def encode_matrix(array: np.ndarray, *, packed_shape: bool = True, packed_data: 
     a = np.asarray(array)
     dims = np.array(a.shape, np.int64)
     if packed_shape:
-        shape = pw.bytes_field(SHAPE_DIMS, _encode_varints(dims))
+        shape = pw.bytes_field(SHAPE_DIMS, encode_varints(dims))
     else:
         shape = b"".join(pw.varint_field(SHAPE_DIMS, int(d)) for d in dims)
     if np.issubdtype(a.dtype, np.floating):
@@ -160,7 +162,7 @@ def encode_matrix(array: np.ndarray, *, packed_shape: bool = True, packed_data: 
                 b"".join(b"\x0d" + struct.pack("<f", x) for x in flat))  # tag 1, wire type 5
     else:
         flat = a.astype(np.int64).ravel()
-        data = (pw.bytes_field(MATRIX_DATA, _encode_varints(flat)) if packed_data else
+        data = (pw.bytes_field(MATRIX_DATA, encode_varints(flat)) if packed_data else
                 b"".join(pw.varint_field(MATRIX_DATA, int(x)) for x in flat))
     message = data + pw.bytes_field(MATRIX_SHAPE, shape)
     return zlib.compress(message, 6) if compress else message

@@ -4,7 +4,7 @@ Tables under a split root, ``<root>/<tag>/<file>.parquet`` with the camera_image
 ``camera_box`` (required for labels), ``camera_to_lidar_box_association``, ``lidar_box``,
 ``projected_lidar_box``, ``camera_calibration`` (each optional). Tables are read column-wise and
 cached per file and process; pyarrow is imported lazily. Box conventions and distances are those of
-:mod:`fogsim.readers.waymo_label_distance` (pixel-edge boxes, ray distance in metres).
+:mod:`fogsim.readers.waymo.label_distance` (pixel-edge boxes, ray distance in metres).
 """
 from __future__ import annotations
 
@@ -18,11 +18,12 @@ import numpy as np
 
 from fogsim.errors import InputError
 from fogsim.readers.base import Labels
-from fogsim.readers.waymo import CAMERA_NAMES, _open_parquet
-from fogsim.readers.waymo_label_distance import build_labels
-from fogsim.readers.waymo_label_types import (CAMERA_BY_ID, WAYMO_CLASSES, Box2D, CameraFrameLabels, LabelRead,
-                                              LaserBox, PointsProvider, camera_extrinsic, camera_label_id,
-                                              finite_floats)
+from fogsim.readers.waymo.address import V2Frame
+from fogsim.readers.waymo.images import open_parquet
+from fogsim.readers.waymo.label_distance import build_labels
+from fogsim.readers.waymo.labels import (WAYMO_CLASSES, Box2D, CameraFrameLabels, LabelRead, LaserBox, PointsProvider,
+                                         camera_extrinsic, camera_label_id, finite_floats)
+from fogsim.readers.waymo.sensors import CAMERA_BY_ID, CAMERA_NAMES
 
 # v2 tables and columns (v2/perception/box.py, context.py; v2/component.py names them)
 V2_CAMERA_BOX, V2_ASSOCIATION, V2_LIDAR_BOX = "camera_box", "camera_to_lidar_box_association", "lidar_box"
@@ -89,7 +90,7 @@ def _column_values(column):
 def _load_table(path: str, required: tuple[str, ...], optional: tuple[str, ...], key: tuple[str, ...]) -> _Table:
     """Read the columns of a v2 file column-wise (``optional`` ones where the file has them) and
     group the rows by the ``key`` columns (camera names as enum values, timestamps as int)."""
-    pf = _open_parquet(Path(path), required)
+    pf = open_parquet(Path(path), required)
     names = list(required) + [c for c in optional if c in pf.schema_arrow.names]
     try:
         table = pf.read(columns=names)
@@ -214,18 +215,17 @@ def parse_v2_labels(root: str | os.PathLike, file_name: str, context: str, times
 
 @dataclass(frozen=True)
 class WaymoV2Labels:
-    """Picklable :data:`~fogsim.readers.base.LabelReader`: one camera image's labels from the v2
-    tables under split root ``root`` (files named ``file_name``, the camera_image file's name).
+    """Picklable :data:`~fogsim.readers.base.LabelReader`: one camera image's labels of ``frame``
+    from the v2 tables under its split root (files named ``file_name``, the camera_image file's name).
 
-    ``image``: optional picklable image reader, called only to learn the image size when
-    ``camera_calibration`` does not give it; ``points``: optional :data:`PointsProvider`."""
+    ``camera``: the CameraName enum value; ``source`` names it in messages; ``image``: optional
+    picklable image reader, called only to learn the image size when ``camera_calibration`` does
+    not give it; ``points``: optional :data:`PointsProvider`."""
 
     classes = WAYMO_CLASSES  # the class list, known without reading (not a field)
 
-    root: str
+    frame: V2Frame
     file_name: str
-    context: str
-    timestamp: int
     camera: int
     source: str
     image: Callable[[], np.ndarray] | None = None
@@ -233,9 +233,10 @@ class WaymoV2Labels:
 
     def read(self) -> LabelRead:
         """The labels and the drop counts (:class:`LabelRead`)."""
-        frame = parse_v2_labels(self.root, self.file_name, self.context, self.timestamp, self.camera)
+        where = self.frame
+        frame = parse_v2_labels(where.root, self.file_name, where.context, where.timestamp, self.camera)
         if frame is None:
-            raise InputError(Path(self.root) / V2_CAMERA_BOX / self.file_name,
+            raise InputError(Path(where.root) / V2_CAMERA_BOX / self.file_name,
                              f"not found: no 2D camera labels for {self.source} (this split has no "
                              f"{V2_CAMERA_BOX} table for it)")
         if (frame.width is None or frame.height is None) and self.image is not None:
