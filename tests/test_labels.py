@@ -11,7 +11,8 @@ from fogsim.dataset.writer import (DatasetLayout, contact_sheet, finalize, split
                                    write_frame_labels)
 from fogsim.fileio import read_image, write_image, write_json
 from fogsim.boxes import boxes_from_mask, median_distance, parse_yolo_line, yolo_line
-from fogsim.render.labels import coco_annotation, coco_categories, object_records
+from fogsim.dataset.coco import coco_annotation, coco_categories
+from fogsim.render.labels import object_records
 from fogsim.fog.levels import FogLevel
 from fogsim.scene.classes import CLASS_ID, LABELLED
 from fogsim.render.silhouette import NEAR, clip_near, covered_pixels, project_points, silhouette_areas

@@ -6,10 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from fogsim.dataset.writer import DatasetLayout, coco_dataset
+from fogsim.dataset.coco import coco_dataset, visibility_fields
+from fogsim.dataset.layout import DatasetLayout
 from fogsim.fog.model import Fogger
 from fogsim.fog.visibility import (LUMINANCE_FLOOR, VISIBLE_CONTRAST, attach_visibility, frame_visibility,
-                                   object_visibility, visibility_fields)
+                                   object_visibility)
 
 
 def lin(v8):

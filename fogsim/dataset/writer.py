@@ -1,6 +1,8 @@
-"""Writing the rendered dataset: YOLO labels, COCO files, split lists, data files, manifest,
-contact sheet. Every path comes from :class:`fogsim.dataset.layout.DatasetLayout` (the layout
-is listed there); the images are written by the caller.
+"""Writing the rendered dataset: YOLO labels, COCO files (their content: :mod:`fogsim.dataset.coco`),
+split lists, data files, manifest, contact sheet. Every path comes from
+:class:`fogsim.dataset.layout.DatasetLayout` (the layout is listed there); the images are written by
+the caller. Fog levels are taken as they come (anything with ``key``, ``beta`` and ``to_dict()``, as
+:class:`fogsim.fog.levels.FogLevel`): this module imports nothing above the dataset format.
 
 Split rule: a frame is in train when crc32("<seed>/<frame>") % 1000 < 1000·train_fraction,
 so adding frames never moves existing ones (except that a split left empty takes the frame
@@ -19,17 +21,15 @@ import numpy as np
 
 from fogsim.boxes import yolo_line
 from fogsim.colour import to_uint8
+from fogsim.dataset.coco import coco_dataset
 from fogsim.dataset.layout import MIXED_SPLIT, PARTS, DatasetLayout
 from fogsim.dataset.reader import read_meta, read_metas
 from fogsim.fileio import atomic_write_bytes, read_image, write_image, write_json
-from fogsim.render.labels import coco_annotation, coco_categories
-from fogsim.fog.levels import FogLevel
-from fogsim.fog.visibility import visibility_fields
 from fogsim.runs import split_key
 from fogsim.viz import strip
 from fogsim.scene.classes import LABELLED
 
-__all__ = ["MIXED", "PALETTE", "DatasetLayout", "coco_dataset", "contact_sheet", "data_yaml", "finalize",
+__all__ = ["MIXED", "PALETTE", "DatasetLayout", "contact_sheet", "data_yaml", "finalize",
            "frame_split", "split_frames", "write_frame_labels"]
 
 MIXED = MIXED_SPLIT  # the split lists and data file mixing every level (kept name; see layout.py)
@@ -75,24 +75,6 @@ def split_frames(frames: list[str], train_fraction: float = 0.8, seed: int = 0,
         moved = name[min(val, key=lambda f: (key[f], name[f]))]
         train, val = [f for f in val if name[f] == moved], [f for f in val if name[f] != moved]
     return train, val
-
-
-def coco_dataset(metas: list[dict], level: FogLevel, layout: DatasetLayout, classes=LABELLED) -> dict:
-    """COCO detection JSON of one level; image ids follow the sorted frame order from 1;
-    categories named by ``classes`` (the dataset's own list; renders: fogsim's LABELLED)."""
-    images, annotations = [], []
-    for image_id, meta in enumerate(metas, start=1):
-        path = layout.relative(layout.image(level.key, meta["frame"]))
-        images.append({"id": image_id, "file_name": path, "width": meta["width"],
-                       "height": meta["height"], "frame": meta["frame"]})
-        for rec in meta["objects"]:
-            annotations.append(coco_annotation(rec, len(annotations) + 1, image_id)
-                               | visibility_fields(rec, level.key))  # transmission, contrast, visible
-    return {"info": {"description": f"fogsim, fog level {level.key}", "fog_level": level.to_dict(),
-                     "area": "visible (instance mask) pixel count",
-                     "category_id": "YOLO class id + 1"},
-            "licenses": [], "images": images, "annotations": annotations,
-            "categories": coco_categories(classes)}
 
 
 def data_yaml(root: Path, train: str, val: str, description: str, classes=LABELLED) -> str:

@@ -32,7 +32,8 @@ Per object and fog level (β in 1/m):
 
 Records are the render's (``meta["objects"]``) or a real dataset's
 (:class:`fogsim.readers.base.Labels`): ``bbox`` ``[x0, y0, x1, y1)`` pixel-edge, ``distance_m``
-(None = unknown) and, for the mask method, an integer ``id`` of the instance mask.
+(None = unknown) and, for the mask method, an integer ``id`` of the instance mask. Which of these
+fields reach the COCO files: :func:`fogsim.dataset.coco.visibility_fields`.
 """
 from __future__ import annotations
 
@@ -51,8 +52,6 @@ VISIBLE_CONTRAST = 0.05
 LUMINANCE_FLOOR = 1e-3
 RING_PX = 3
 GAP_PX = 1
-#: The per-level fields that go into COCO annotations (see :func:`visibility_fields`).
-COCO_FIELDS = ("transmission", "contrast", "visible")
 
 
 @dataclass(frozen=True)
@@ -209,11 +208,3 @@ def attach_visibility(records: list[dict], clear: np.ndarray, foggy: dict[str, n
     for rec, vis in zip(records, frame_visibility(clear, foggy, betas, records, mask, **kw)):
         rec["visibility"] = vis
     return records
-
-
-def visibility_fields(record: dict, level_key: str) -> dict:
-    """The COCO annotation fields ``transmission``, ``contrast``, ``visible`` of one level
-    (``{}`` when the record has no visibility for it, e.g. a dataset from before this existed:
-    the evaluator then counts the object as visible)."""
-    vis = (record.get("visibility") or {}).get(level_key)
-    return {} if vis is None else {k: vis.get(k) for k in COCO_FIELDS}

@@ -111,7 +111,7 @@ class Labels:
       ``"lidar points in box (near cluster)"``, ``"valid disparity (median)"``, ``"unknown"``),
 
     plus whatever the dataset adds (``difficulty``, the dataset's own ``object_id``, …; these
-    reach the COCO files, see :data:`fogsim.render.labels.COCO_EXTRA_FIELDS`).
+    reach the COCO files, see :data:`fogsim.dataset.coco.COCO_EXTRA_FIELDS`).
     """
 
     classes: tuple[str, ...]

@@ -1,4 +1,5 @@
-"""Per-object ground truth from the instance mask: boxes, visibility, distance; COCO records.
+"""Per-object ground truth from the instance mask: boxes, visibility, distance (their COCO
+record: :mod:`fogsim.dataset.coco`).
 
 Conventions (the box formats and their conversions live in :mod:`fogsim.boxes`):
 
@@ -6,9 +7,6 @@ Conventions (the box formats and their conversions live in :mod:`fogsim.boxes`):
 * Boxes come from the *visible* mask pixels and are ``[x0, y0, x1, y1)`` in pixel-edge
   coordinates: x1 = last column + 1, so a single pixel at column 5 has x0 = 5, x1 = 6.
 * YOLO lines: :func:`fogsim.boxes.yolo_line` (``class cx cy w h``, normalised, 6 decimals).
-* COCO: ``bbox = [x, y, w, h]`` floats in pixel-edge coordinates, ``area`` = the visible
-  (mask) pixel count, and ``category_id`` = YOLO class id + 1 (COCO ids start at 1; 0 is
-  the background for most COCO consumers).
 * Distance: the median ray distance (metres, camera centre to surface) over the object's
   visible pixels; non-finite values (no hit) are ignored.
 """
@@ -16,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from fogsim.boxes import _boxes, _median_distance, _Runs, coco_category, xyxy_to_xywh
-from fogsim.scene.classes import CLASS_ID, LABELLED, is_labelled
+from fogsim.boxes import _boxes, _median_distance, _Runs
+from fogsim.scene.classes import CLASS_ID, is_labelled
 
 DISTANCE_STAT = "median ray distance over visible pixels"
 
@@ -62,33 +60,3 @@ def object_records(mask: np.ndarray, ray_distance: np.ndarray, objects: list[dic
             "distance_m": None if np.isnan(d) else round(d, 3), "distance_stat": DISTANCE_STAT,
             "kept": reason is None, "reason": reason})
     return records
-
-
-# ----------------------------------------------------------------------------- COCO
-#: optional per-record fields a COCO annotation carries when the record has them (real datasets'
-#: records: the distance's provenance, Waymo's difficulty and object id, …)
-COCO_EXTRA_FIELDS = ("visible_fraction", "truncation", "distance_source", "difficulty", "object_id")
-
-
-def coco_categories(classes=LABELLED) -> list[dict]:
-    """COCO categories in YOLO order: ``id`` = index in ``classes`` + 1 (renders: fogsim's
-    :data:`~fogsim.scene.classes.LABELLED`; real datasets: their own class list)."""
-    return [{"id": coco_category(i), "name": name, "supercategory": "street"} for i, name in enumerate(classes)]
-
-
-def coco_annotation(record: dict, ann_id: int, image_id: int) -> dict:
-    """A COCO annotation; ``area`` is the visible pixel count, not the box area. A record the
-    filters dropped (too few pixels, too occluded), or a real dataset's ignore region (a
-    Cityscapes group), becomes an ignore region, ``iscrowd = 1`` with its ``ignore_reason``:
-    a detection on it is neither a hit nor a false alarm, in pycocotools as in
-    :mod:`fogsim.detection.coco_eval` (COCO trainers skip crowd boxes).
-
-    ``distance_m`` is always present (None = unknown); :data:`COCO_EXTRA_FIELDS` are copied
-    when the record has them (rendered records: ``visible_fraction``, ``truncation``; real
-    ones: ``distance_source``, ``difficulty`` …)."""
-    ann = {"id": ann_id, "image_id": image_id, "category_id": coco_category(record["class_id"]),
-           "bbox": [float(v) for v in xyxy_to_xywh(record["bbox"])],
-           "area": float(record["pixels"]), "iscrowd": int(not record["kept"]),
-           "distance_m": record.get("distance_m")}
-    ann |= {k: record[k] for k in COCO_EXTRA_FIELDS if k in record}
-    return ann | ({} if record["kept"] else {"ignore_reason": record.get("reason")})
