@@ -354,7 +354,7 @@ def test_stereo_pair_in_cityscapes_layout(tmp_path):
     # the depth benchmark on this frame: classical completions scored against exact depth
     from fogsim.dataset.writer import DatasetLayout
     from fogsim.dataset.reader import read_stereo_frame
-    from fogsim.depth.bench import CLASSICAL, complete, evaluate_frame
+    from fogsim.bench.depth import CLASSICAL, complete, evaluate_frame
     from fogsim.fog.levels import load_preset
 
     from fogsim.depth.stereo import wls_disparity

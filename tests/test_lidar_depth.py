@@ -8,7 +8,7 @@ import pytest
 
 from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.depth.complete import complete, holdout_split, sky_mask, sparse_image
-from fogsim.depth.lidar_bench import synthetic_scan
+from fogsim.bench.lidar import synthetic_scan
 from fogsim.depth.lidar_source import LidarDepth, parse_lidar, read_holdout, write_holdout
 from fogsim.depth.score import BINS, binned_metrics, pool
 from fogsim.errors import InputError
@@ -416,7 +416,7 @@ def test_cli_fog_lidar_usage_errors(tmp_path, capsys):
 
 def test_synthetic_scan_has_the_real_density():
     """The bench's scan: ≈ 20 k points on 64 rows covering the lower ≈ 55 % of a FRONT image."""
-    from fogsim.depth.lidar_bench import TOP_ROW_PX
+    from fogsim.bench.lidar import TOP_ROW_PX
 
     uv, ray = synthetic_scan(np.full((1280, 1920), 30.0, np.float32), np.random.default_rng(0))
     assert 19_000 < len(ray) < 24_000

@@ -430,7 +430,7 @@ def test_lidar_points_for_v2_sample(tmp_path):
 
 @pytest.mark.slow
 def test_bench_decode_runs_on_real_sizes():
-    from fogsim.readers.waymo_lidar_bench import bench_decode
+    from fogsim.bench.waymo_lidar import bench_decode
 
     r = bench_decode(1)
     assert r["points"] > 10000 and 0 < r["pixels"] <= r["points"] and r["dropped"] < r["pixels"]

@@ -89,7 +89,7 @@ def _positive(**values) -> None:
 
 
 def _fog(args) -> int:
-    from fogsim.fog.bench import run
+    from fogsim.bench.fog import run
 
     _positive(repeat=args.repeat)
     return run(args.repeat)
@@ -117,14 +117,14 @@ def _render_fog(args) -> int:
     return run_fog(args)
 
 def _fog_physics(args) -> int:
-    from fogsim.fog.physics_bench import run
+    from fogsim.bench.fog_physics import run
 
     _positive(frames=args.frames, samples=args.samples)
     return run(args)
 
 
 def _ila(args) -> int:
-    from fogsim.depth.bench import run_benchmark
+    from fogsim.bench.depth import run_benchmark
 
     _positive(frames=args.frames, samples=args.samples, epochs=args.epochs)
     config = None
@@ -136,7 +136,7 @@ def _ila(args) -> int:
 
 
 def _lidar(args) -> int:
-    from fogsim.depth.lidar_bench import run
+    from fogsim.bench.lidar import run
 
     _positive(repeat=args.repeat)
     return run(args.repeat, args.waymo)

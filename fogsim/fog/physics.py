@@ -36,7 +36,7 @@ seeds (linear, float). The method is that of ``shared/notes/path-traced-fog.md``
   exactly; ``ratio`` = C_PT / C_K per model (None where |C_K| < 1e-3).
 
 Frames accumulate (:class:`Comparison`): sums per bin over all frames, each frame normalised
-by its own horizon. :meth:`Comparison.result` → a JSON-ready dict; :mod:`fogsim.fog.physics_report`
+by its own horizon. :meth:`Comparison.result` → a JSON-ready dict; :mod:`fogsim.bench.fog_physics_report`
 (``markdown``, ``write_report``) turns it into a table, PNG panels (:mod:`fogsim.viz`) and files.
 """
 from __future__ import annotations

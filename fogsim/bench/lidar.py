@@ -19,6 +19,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from fogsim.bench.timing import median_ms
 from fogsim.camera import planar_to_ray
 from fogsim.depth.complete import DEFAULT_METHOD, complete, holdout_split, pixel_index, sparse_image
 from fogsim.depth.metrics import depth_metrics
@@ -62,15 +63,13 @@ def bench_frame(seed: int = 0):
 
 
 def _median_s(fns: dict, repeat: int) -> dict:
-    """Median seconds of interleaved repeats (:func:`fogsim.fog.bench.median_ms`)."""
-    from fogsim.fog.bench import median_ms
-
+    """Median seconds of interleaved repeats (:func:`fogsim.bench.timing.median_ms`)."""
     return {k: v / 1e3 for k, v in median_ms(fns, repeat).items()}
 
 
 def _waymo_decode(path: str | None):
     """A callable decoding + projecting the FRONT LiDAR points of one frame (the first frame of
-    ``path``, or :func:`fogsim.readers.waymo_lidar_bench.build_frame`'s synthetic frame of real
+    ``path``, or :func:`fogsim.bench.waymo_lidar.build_frame`'s synthetic frame of real
     sizes: TOP 64×2650 + four 200×600), and what it decodes."""
     from fogsim.readers.waymo.lidar_geometry import camera_points
     from fogsim.readers.waymo.lidar_v1 import parse_v1_lidar
@@ -80,7 +79,7 @@ def _waymo_decode(path: str | None):
         from fogsim.readers.waymo import waymo_samples
 
         return waymo_points_source(waymo_samples(path, ("FRONT",))[0]), f"first frame of {path}"
-    from fogsim.readers.waymo_lidar_bench import build_frame
+    from fogsim.bench.waymo_lidar import build_frame
 
     frame = build_frame()
 

@@ -13,18 +13,18 @@ projections and the pose alone: the floor of any decoder) and ``python varints``
 TOP camera projection with protobuf_wire's varint reader one value at a time, what a
 straightforward decoder does; timed on fewer repeats, it takes about a second).
 
-    python -m fogsim.readers.waymo_lidar_bench [repeat]     (``bench_decode(repeat) -> dict``)
+    python -m fogsim.bench.waymo_lidar [repeat]     (``bench_decode(repeat) -> dict``)
 """
 from __future__ import annotations
 
 import math
 import statistics
 import sys
-import time
 import zlib
 
 import numpy as np
 
+from fogsim.bench.timing import elapsed_ms
 from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.waymo.lidar_frame import LaserCalibration
 from fogsim.readers.waymo.lidar_geometry import (beam_inclinations, camera_points, filter_bleed_through,
@@ -136,12 +136,6 @@ def _python_varints(blob: bytes) -> list[int]:
     return out
 
 
-def _ms(fn) -> float:
-    t0 = time.perf_counter()
-    fn()
-    return (time.perf_counter() - t0) * 1e3
-
-
 def bench_decode(repeat: int = 5) -> dict:
     """Median milliseconds (interleaved repeats) of decode, project and the baselines, plus
     the sizes: ``{"decode_ms", "project_ms", "total_ms", "zlib_ms", "python_varints_ms",
@@ -155,18 +149,18 @@ def bench_decode(repeat: int = 5) -> dict:
     result = {}
     for i in range(repeat):
         box = {}
-        times["zlib"].append(_ms(lambda: [zlib.decompress(b) for b in blobs]))
-        times["decode"].append(_ms(lambda: box.setdefault("frame", parse_v1_lidar(frame_bytes, "bench"))))
+        times["zlib"].append(elapsed_ms(lambda: [zlib.decompress(b) for b in blobs]))
+        times["decode"].append(elapsed_ms(lambda: box.setdefault("frame", parse_v1_lidar(frame_bytes, "bench"))))
 
         def project():
             pts = camera_points(box["frame"], "FRONT")
             depth = sparse_ray_depth(pts.uv, pts.ray, WIDTH, HEIGHT)
             result.update(points=len(pts.ray), pixels=int((depth > 0).sum()),
                           dropped=filter_bleed_through(depth)[1])
-        times["project"].append(_ms(project))
-        times["vector_varints"].append(_ms(lambda: decode_matrix(top_projection, "int32", "bench")))
+        times["project"].append(elapsed_ms(project))
+        times["vector_varints"].append(elapsed_ms(lambda: decode_matrix(top_projection, "int32", "bench")))
         if i < min(repeat, 3):
-            times["python_varints"].append(_ms(lambda: _python_varints(top_projection)))
+            times["python_varints"].append(elapsed_ms(lambda: _python_varints(top_projection)))
     med = {f"{k}_ms": statistics.median(v) for k, v in times.items()}
     med["total_ms"] = med["decode_ms"] + med["project_ms"]
     med["varint_speedup"] = med["python_varints_ms"] / med["vector_varints_ms"]

@@ -13,12 +13,10 @@ extended ≤ 1.5× standard; five levels ≤ 150 ms.
 """
 from __future__ import annotations
 
-import statistics
-import time
-
 import cv2
 import numpy as np
 
+from fogsim.bench.timing import median_ms
 from fogsim.camera import clear_ray_cache, planar_to_ray
 from fogsim.fog.levels import load_preset
 from fogsim.fog.model import PAPER_KERNEL, Fogger, koschmieder_extended
@@ -44,17 +42,6 @@ def reference_loop(img, distance, beta, k=19, airlight=255.0):
             win = (slice(m - r, m + r + 1), slice(n - r, n + r + 1))
             out[win] += img[win] * (t[m, n] / k**2) + airlight * (1 - t[m, n]) / k**2
     return out.astype(np.uint8)
-
-
-def median_ms(fns: dict, repeat: int) -> dict:
-    """Run each function ``repeat`` times, interleaved, and return median milliseconds."""
-    times = {name: [] for name in fns}
-    for _ in range(repeat):
-        for name, fn in fns.items():
-            t0 = time.perf_counter()
-            fn()
-            times[name].append((time.perf_counter() - t0) * 1e3)
-    return {name: statistics.median(v) for name, v in times.items()}
 
 
 def run(repeat: int = 15) -> int:

@@ -16,12 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.camera import depth_to_disparity, disparity_to_depth, planar_to_ray
-from fogsim.dataset.writer import DatasetLayout
-from fogsim.depth.metrics import depth_metrics, laplacian_variance, reference_accuracy
-from fogsim.depth.fill import fill_holes
-from fogsim.fog.model import Fogger
-from fogsim.depth.stereo import wls_disparity
+from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.reader import StereoFrame, frame_count, read_stereo_frame, stereo_frames
+from fogsim.depth.fill import fill_holes
+from fogsim.depth.metrics import depth_metrics, laplacian_variance, reference_accuracy
+from fogsim.depth.stereo import wls_disparity
+from fogsim.fog.model import Fogger
 
 CLASSICAL = ("sgbm", "inpaint", "ipbasic", "wls")
 

@@ -40,7 +40,7 @@ from fogsim.errors import InputError
 from fogsim.fileio import (atomic_write_bytes, read_depth_file, read_exr_channels, read_image, read_json,
                            read_uint16_map, write_json)
 from fogsim.fog.physics import Comparison, default_models
-from fogsim.fog.physics_report import markdown, write_report
+from fogsim.bench.fog_physics_report import markdown, write_report
 from fogsim.presets import preset_path
 
 RUNS = {"clear": None, "volumetric_seed0": 0, "volumetric_seed1": 1}
