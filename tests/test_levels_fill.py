@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from fogsim.depth.fill import HolesError, fill_holes, fill_methods
+from fogsim.fog.fill import HolesError, fill_holes, fill_methods
 from fogsim.fog.levels import (beta_from_visibility, load_preset, parse_levels, preset_names,
                            visibility_from_beta)
 

@@ -5,7 +5,7 @@ completion method fills them; every result is scored against the exact depth on 
 pixels, on the SGBM-valid pixels and on all pixels (:mod:`fogsim.depth.metrics`), and the
 frame is fogged at each level with the exact and with the completed depth to measure the
 error a user would see in the foggy image (PSNR, mean absolute error in 8-bit levels).
-Learned completions (ILA) plug in through :func:`fogsim.depth.fill.register_fill`.
+Learned completions (ILA) plug in through :func:`fogsim.fog.fill.register_fill`.
 """
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ import numpy as np
 from fogsim.camera import depth_to_disparity, disparity_to_depth, planar_to_ray
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.reader import StereoFrame, frame_count, read_stereo_frame, stereo_frames
-from fogsim.depth.fill import fill_holes
+from fogsim.fog.fill import fill_holes
 from fogsim.depth.metrics import depth_metrics, laplacian_variance, reference_accuracy
 from fogsim.depth.stereo import wls_disparity
 from fogsim.fog.model import Fogger
@@ -156,7 +156,7 @@ def run_benchmark(out, frames: int = 12, resolution: str = "512x256", samples: i
     levels = load_preset("paper")
     methods, ila_log = list(CLASSICAL), []
     if ila_config is not None:
-        from fogsim.depth.fill import register_fill
+        from fogsim.fog.fill import register_fill
         from fogsim.depth.ila import ila_fill
 
         ila_log = train_ila(layout.cityscapes_root(), out / "ila", ila_config)

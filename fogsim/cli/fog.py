@@ -233,7 +233,7 @@ def _job(args, out: str, classes: tuple[str, ...] = ()):
     if not args.heterogeneity_scale > 0:
         raise ValueError(f"--heterogeneity-scale must be > 0 pixels, got {args.heterogeneity_scale}")
     fill = args.fill or ("inpaint" if getattr(args, "cityscapes", None) else "none")
-    from fogsim.depth.fill import fill_methods
+    from fogsim.fog.fill import fill_methods
 
     if fill not in fill_methods():
         raise ValueError(f"--fill must be one of {', '.join(fill_methods())}, got {fill!r}")

@@ -1,5 +1,6 @@
 """The fog engine: Koschmieder's law (standard and extended form), fog levels, the depth a
-sample brings (→ ray distance), and the batch runner that fogs whole datasets.
+sample brings (→ ray distance, its holes filled by :mod:`.fill`), and the batch runner that fogs
+whole datasets.
 
 Pure numpy + OpenCV: no bpy, torch or Ultralytics.
 """

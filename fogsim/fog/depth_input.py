@@ -8,7 +8,7 @@ import numpy as np
 from fogsim.camera import NO_HIT_DEPTH, Intrinsics, planar_to_ray
 from fogsim.readers.base import Sample
 from fogsim.errors import InputError
-from fogsim.depth.fill import HolesError, fill_holes, hole_mask
+from fogsim.fog.fill import HolesError, fill_holes, hole_mask
 
 
 NO_INTRINSICS = ("planar depth needs the camera intrinsics to become ray distance: "
