@@ -6,7 +6,7 @@ clamped, a box farther out is an error naming the label file.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Sequence
 
 import numpy as np
 
@@ -14,9 +14,6 @@ from fogsim.dataset.layout import frames_from_keys
 from fogsim.errors import InputError
 from fogsim.fog.depth_input import SetupError
 from fogsim.readers.base import Labels, Sample
-
-if TYPE_CHECKING:
-    from fogsim.fog.batch import FogJob
 
 #: how far (pixels) a label box may lie outside the image and still be clamped into it
 BOX_TOLERANCE_PX = 1.0
@@ -28,27 +25,29 @@ def labels_source(sample: Sample) -> str:
     return str(getattr(sample.labels, "source", None) or sample.source)
 
 
-def checked_records(job: FogJob, sample: Sample, width: int, height: int) -> list[dict]:
-    """The sample's annotations (its label reader runs here), checked against the job's class
-    list and the image size: boxes more than :data:`BOX_TOLERANCE_PX` outside the image are an
-    :class:`InputError`, boxes within it are clamped. Kept records below ``job.min_pixels``
-    pixels become ignore regions (reason ``"too few pixels"``). Returns copies."""
+def checked_records(sample: Sample, classes: Sequence[str], min_pixels: int, width: int, height: int) -> list[dict]:
+    """The sample's annotations (its label reader runs here), checked against the run's class
+    list ``classes`` and the image size ``width`` × ``height``: boxes more than
+    :data:`BOX_TOLERANCE_PX` outside the image are an :class:`InputError`, boxes within it are
+    clamped. Kept records below ``min_pixels`` pixels become ignore regions (reason
+    ``"too few pixels"``). Returns copies."""
     where = labels_source(sample)
     if sample.labels is None:
         raise InputError(sample.source, "has no labels, but this run writes a labelled dataset")
     labels = sample.labels()
     if not isinstance(labels, Labels):
         raise InputError(where, f"the label reader returned {type(labels).__name__}, not Labels")
-    if tuple(labels.classes) != tuple(job.classes):
+    classes = tuple(classes)
+    if tuple(labels.classes) != classes:
         raise InputError(where, f"labels of classes {list(labels.classes)}, but the run's class list is "
-                                f"{list(job.classes)}")
+                                f"{list(classes)}")
     out = []
     for n, obj in enumerate(labels.objects):
         rec = dict(obj)
         name, cid = rec.get("class"), rec.get("class_id")
-        if name not in job.classes or cid != job.classes.index(name):
+        if name not in classes or cid != classes.index(name):
             raise InputError(where, f"annotation {n}: class {name!r} with id {cid!r} is not in the class list "
-                                    f"{list(job.classes)} (the id must be the index)")
+                                    f"{list(classes)} (the id must be the index)")
         try:
             x0, y0, x1, y1 = (float(v) for v in rec["bbox"])
         except (KeyError, TypeError, ValueError):
@@ -67,8 +66,8 @@ def checked_records(job: FogJob, sample: Sample, width: int, height: int) -> lis
             raise InputError(where, f"annotation {n}: distance_m must be a distance in metres or None, got {d!r}")
         rec.setdefault("distance_m", None)
         rec.setdefault("distance_source", "unknown")
-        if rec["kept"] and rec["pixels"] < job.min_pixels:
-            rec["kept"], rec["reason"] = False, f"too few pixels (< {job.min_pixels})"
+        if rec["kept"] and rec["pixels"] < min_pixels:
+            rec["kept"], rec["reason"] = False, f"too few pixels (< {min_pixels})"
         out.append(rec)
     return out
 
