@@ -11,10 +11,9 @@ is the only code that imports bpy), ``depth`` (stereo, hole filling, ILA, metric
 ``detection`` (YOLO training, COCO evaluation, the cross-density study) and ``cli``.
 """
 
-__version__ = "0.3.0"
-
-from fogsim.camera import Intrinsics, StereoCamera, planar_to_ray  # noqa: E402
-from fogsim.fog import (Fogger, FogLevel, Kernel, beta_from_visibility, estimate_airlight, koschmieder,  # noqa: E402
+from fogsim._version import __version__
+from fogsim.camera import Intrinsics, StereoCamera, planar_to_ray
+from fogsim.fog import (Fogger, FogLevel, Kernel, beta_from_visibility, estimate_airlight, koschmieder,
                         koschmieder_extended, load_preset, parse_levels, transmission, visibility_from_beta)
 
 __all__ = ["__version__", "FogLevel", "Fogger", "Intrinsics", "Kernel", "StereoCamera", "beta_from_visibility",

@@ -12,6 +12,7 @@ import platform
 from functools import lru_cache
 from importlib.metadata import PackageNotFoundError, version
 
+from fogsim._version import __version__
 from fogsim.errors import MissingDependency
 
 PACKAGES = ("numpy", "opencv-contrib-python-headless", "trimesh", "OpenEXR", "bpy")
@@ -22,8 +23,6 @@ NON_CONTRIB_OPENCV = ("opencv-python", "opencv-python-headless", "opencv-contrib
 
 
 def package_versions() -> dict:
-    from fogsim import __version__  # here, not at the top: fogsim/__init__ imports the modules that import this one
-
     out = {"fogsim": __version__, "python": platform.python_version()}
     for name in PACKAGES:
         try:

@@ -1,5 +1,8 @@
 """Errors that reach the user as one clear line naming the file and the problem, and the one
-error → exit-code policy of the command line."""
+error → exit-code policy of the command line (:func:`exit_code`, :func:`describe`, applied by
+:func:`run_command`)."""
+
+import sys
 
 
 class FogsimError(Exception):
@@ -49,3 +52,15 @@ def describe(exc: BaseException) -> str:
         where = exc.filename or ""
         return f"{where}: {exc.strerror or exc}" if where else str(exc)
     return str(exc)
+
+
+def run_command(command, args, prog: str = "fogsim") -> int:
+    """Run ``command(args)`` under the one error → exit-code policy: a fogsim error, a bad value
+    (``ValueError``), an OS error or Ctrl-C ends it with ``<prog>: error: <one line>`` on stderr
+    and :func:`exit_code`; any other exception is a bug and propagates (its traceback is the
+    useful report)."""
+    try:
+        return command(args)
+    except (FogsimError, ValueError, OSError, KeyboardInterrupt) as exc:
+        print(f"{prog}: error: {describe(exc)}", file=sys.stderr)
+        return exit_code(exc)

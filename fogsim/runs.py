@@ -20,7 +20,7 @@ from typing import Callable, Sequence, TypeVar
 
 import numpy as np
 
-from fogsim import __version__
+from fogsim._version import __version__
 from fogsim.errors import InputError
 from fogsim.fileio import create_exclusive
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from fogsim import __version__
-from fogsim.errors import describe, exit_code
+from fogsim._version import __version__
+from fogsim.errors import run_command
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -29,19 +29,6 @@ def build_parser() -> argparse.ArgumentParser:
     study.add_parsers(sub)
     bench.add_parsers(sub)
     return parser
-
-
-def run_command(command, args, prog: str = "fogsim") -> int:
-    """Run ``command(args)`` under the one error → exit-code policy."""
-    try:
-        return command(args)
-    except (Exception, KeyboardInterrupt) as exc:
-        from fogsim.errors import FogsimError
-
-        if not isinstance(exc, (FogsimError, ValueError, OSError, KeyboardInterrupt)):
-            raise  # a bug: the traceback is the useful report
-        print(f"{prog}: error: {describe(exc)}", file=sys.stderr)
-        return exit_code(exc)
 
 
 def main(argv: list[str] | None = None) -> int:

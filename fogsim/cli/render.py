@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-from fogsim.errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE, InputError, MissingDependency
+from fogsim.errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE, InputError, MissingDependency, run_command
 from fogsim.render.preset import MAX_PIXELS
 
 
@@ -133,8 +133,6 @@ def _render(job, args, shard) -> int:
 
 def main(argv: list[str] | None = None, prog: str = "fogsim render") -> int:
     """Entry of ``scripts/render_batch.py`` (``blender -b -P``): the same command, its own prog name."""
-    from fogsim.cli import run_command
-
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_arguments(p)
     return run_command(cmd_render, p.parse_args(argv), prog="fogsim")

@@ -33,10 +33,11 @@ from typing import ClassVar
 
 import numpy as np
 
+from fogsim._version import __version__
 from fogsim.camera import depth_to_disparity, disparity_to_depth
 from fogsim.colour import full_scale
 from fogsim.errors import InputError
-from fogsim.fileio import read_image
+from fogsim.fileio import atomic_path, read_image
 from fogsim.readers.cityscapes import cityscapes_samples, read_cityscapes_disparity
 
 
@@ -260,9 +261,6 @@ def save_checkpoint(path: str | Path, model, config: ILAConfig, camera: dict, ro
     "camera": {"baseline_m", "fx_over_w"}, "round": r, "output": "disparity / image width",
     "state_dict": {name: tensor}}`` — all of it loadable with ``torch.load(weights_only=True)``.
     """
-    from fogsim import __version__
-    from fogsim.fileio import atomic_path
-
     torch = _torch()
     ck = {FORMAT_KEY: CHECKPOINT_FORMAT, "fogsim": __version__,
           "config": {**asdict(config), "size": list(config.size)},
@@ -453,7 +451,7 @@ class ILADepth:
 
 
 def ila_fill(checkpoint: str | Path):
-    """A :func:`fogsim.fill.register_fill` function that fills holes with the model's depth.
+    """A :func:`fogsim.fog.fill.register_fill` function that fills holes with the model's depth.
 
     The sparse disparity the model may take is rebuilt from the valid depth with the
     checkpoint's camera (fx = fx/W · W).

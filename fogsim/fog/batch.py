@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsim import __version__
+from fogsim._version import __version__
 from fogsim.dataset.layout import DatasetLayout, frame_from_key
 from fogsim.readers.base import Sample
 from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
@@ -111,7 +111,7 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
     YOLO labels, then the frame's meta)."""
     image = sample.read_image()
     h, w = image.shape[:2]
-    records = checked_records(job, sample, w, h) if job.labels else None
+    records = checked_records(sample, job.classes, job.min_pixels, w, h) if job.labels else None
     dist = sample_distance(sample, w, h, job.fill, image)
     seed = sample_seed(job.seed, sample.key)
     density = None

@@ -11,7 +11,7 @@ from dataclasses import asdict
 
 import numpy as np
 
-from fogsim import __version__
+from fogsim._version import __version__
 from fogsim.camera import Intrinsics, StereoCamera, encode_disparity_png, planar_to_ray
 from fogsim.colour import linear_to_srgb8
 from fogsim.dataset.layout import DatasetLayout
