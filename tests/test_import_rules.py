@@ -1,5 +1,11 @@
 """The dependency rules of the package layout, checked on the source (AST) and in a fresh Python.
 
+* **Layers.** :data:`LAYERS` orders fogsim's packages and top-level modules from the top (the
+  entry points) to the bottom (errors, the version). Every import of a fogsim module targets the
+  importer's own package or a strictly lower layer; packages of one layer never import each
+  other; every fogsim module belongs to a layer (a new package fails here until it is placed).
+* **No import circles**: the import graph (module → the module an import statement reads from,
+  lazy imports and ``__init__`` modules included) has no cycle.
 * Only ``fogsim.render.blender`` imports Blender's modules (bpy, mathutils, bpy_extras).
 * Only ``fogsim.depth.ila`` and ``fogsim.detection.yolo`` import torch, torchvision or Ultralytics.
 * The core — ``fogsim.fog``, ``fogsim.readers``, ``fogsim.scene``, ``fogsim.dataset``,
@@ -10,8 +16,12 @@
 Every import statement counts, wherever it sits in a module (module level, functions,
 ``try`` blocks), and so does ``importlib.import_module("name")`` / ``__import__("name")`` /
 ``fogsim.deps.require("name", extra)`` with a literal name (probing with
-``importlib.util.find_spec`` imports nothing and is not counted). Importing ``fogsim.a.b`` also
-runs ``fogsim/__init__`` and ``fogsim/a/__init__``, so the closure includes parent packages.
+``importlib.util.find_spec`` imports nothing and is not counted); ``if TYPE_CHECKING:`` imports
+count too. An import reads from a module: ``from pkg import sub`` reads ``pkg.sub`` when that is
+a module, ``pkg`` itself only for a name defined in ``pkg/__init__``. Importing ``fogsim.a.b`` also
+runs ``fogsim/__init__`` and ``fogsim/a/__init__``: the closure below includes those parent
+packages (what gets loaded), the layer and circle rules do not (a parent's ``__init__`` running
+first is Python's order of loading, not a dependency of the importing module on it).
 """
 from __future__ import annotations
 
@@ -34,6 +44,24 @@ HEAVY = BLENDER_MODULES | TORCH_MODULES
 TORCH_OWNERS = {"fogsim.depth.ila", "fogsim.detection.yolo"}
 CORE_PACKAGES = ("fogsim.fog", "fogsim.readers", "fogsim.scene", "fogsim.dataset", "fogsim.presets")
 FORBIDDEN_IN_CORE = ("fogsim.render.blender", "fogsim.depth.ila", "fogsim.detection")
+
+#: The layers, top first: (name, the packages and top-level modules in it). An entry that is a
+#: package holds its whole subtree; ``fogsim`` is the package's own ``__init__`` (the public fog
+#: API it re-exports) alone. ``augment`` and ``schema`` are placed before they exist.
+LAYERS = (
+    ("entry points", {"fogsim", "fogsim.__main__"}),
+    ("command line", {"fogsim.cli"}),
+    ("benchmarks", {"fogsim.bench"}),
+    ("renderer and detector study", {"fogsim.render", "fogsim.detection"}),
+    ("augmentation", {"fogsim.augment"}),
+    ("fog engine and depth", {"fogsim.fog", "fogsim.depth"}),
+    ("dataset format", {"fogsim.dataset"}),
+    ("dataset readers and scenes", {"fogsim.readers", "fogsim.scene"}),
+    ("presets and their schema", {"fogsim.presets", "fogsim.schema"}),
+    ("run bookkeeping", {"fogsim.runs"}),
+    ("files, dependencies, camera, pictures", {"fogsim.fileio", "fogsim.deps", "fogsim.camera", "fogsim.viz"}),
+    ("basics", {"fogsim.errors", "fogsim._version", "fogsim.colour", "fogsim.boxes", "fogsim.integrity"}),
+)
 
 
 @dataclass(frozen=True)
@@ -131,10 +159,9 @@ class _Visitor(ast.NodeVisitor):
 
     def visit_ImportFrom(self, node: ast.ImportFrom):
         base = resolve_from(self.module, node)
-        # ``from pkg import name`` imports pkg, and pkg.name too when that is a module
-        targets = [base] + [f"{base}.{a.name}" for a in node.names
-                            if a.name != "*" and f"{base}.{a.name}" in MODULES]
-        self._add(node, targets)
+        # ``from pkg import name`` reads pkg.name when that is a fogsim module, else pkg's namespace
+        subs = [f"{base}.{a.name}" for a in node.names if a.name != "*" and f"{base}.{a.name}" in MODULES]
+        self._add(node, subs + ([base] if len(subs) < len(node.names) else []))
 
 
 def imports_of(module: str) -> list[Edge]:
@@ -201,6 +228,90 @@ def _report(title: str, items: list[str]) -> str:
     return title + "\n  " + "\n  ".join(items)
 
 
+# ------------------------------------------------------------------------------- layers and circles
+Graph = dict[str, list[tuple[str, Edge]]]
+
+
+def layer_unit(module: str) -> tuple[int, str] | None:
+    """(layer index, entry) of a fogsim module: the entry naming it, else the package entry that
+    holds it (``fogsim`` holds only itself); None when it is in no layer."""
+    for i, (_, entries) in enumerate(LAYERS):
+        if module in entries:
+            return i, module
+    for i, (_, entries) in enumerate(LAYERS):
+        for entry in entries:
+            if entry != "fogsim" and module.startswith(entry + "."):
+                return i, entry
+    return None
+
+
+def import_graph() -> Graph:
+    """module → (the fogsim module read, the import) for every import of a fogsim module, lazy
+    ones included, parent packages not added (see the module docstring)."""
+    graph = {}
+    for module, edges in EDGES.items():
+        targets = [(_internal(e.target), e) for e in edges if _within(e.target, "fogsim")]
+        graph[module] = [(t, e) for t, e in targets if t is not None and t != module]
+    return graph
+
+
+def _layer_name(index: int) -> str:
+    return f"layer {index + 1} ({LAYERS[index][0]})"
+
+
+def layer_violations(graph: Graph) -> list[str]:
+    """Every import that does not point into the importer's own package or a strictly lower layer."""
+    bad = []
+    for module, targets in graph.items():
+        here = layer_unit(module)
+        for target, edge in targets:
+            there = layer_unit(target)
+            if here is None or there is None or here[1] == there[1] or there[0] > here[0]:
+                continue  # unplaced modules are reported by their own test
+            how = "a sibling package of the same layer" if there[0] == here[0] else "a higher layer"
+            bad.append(f"{edge}\n      {module} is in {_layer_name(here[0])}; {target} is in "
+                       f"{_layer_name(there[0])}, {how}")
+    return bad
+
+
+def import_circles(graph: Graph) -> list[list[tuple[str, Edge]]]:
+    """One shortest cycle (as its imports) per strongly connected set of modules."""
+    successors = {m: {t for t, _ in targets} for m, targets in graph.items()}
+
+    def reachable(start: str) -> set[str]:
+        seen, queue = set(), deque(successors.get(start, ()))
+        while queue:
+            node = queue.popleft()
+            if node not in seen:
+                seen.add(node)
+                queue.extend(successors.get(node, ()))
+        return seen
+
+    reach = {m: reachable(m) for m in graph}
+    done, circles = set(), []
+    for start in sorted(graph):
+        if start in done or start not in reach[start]:
+            continue
+        done |= {n for n in reach[start] if start in reach.get(n, ())}
+        back: dict[str, tuple[str, Edge]] = {}
+        queue = deque([start])
+        while start not in back:  # breadth first from start until an import leads back to it
+            node = queue.popleft()
+            for target, edge in graph.get(node, ()):
+                if target not in back:
+                    back[target] = (node, edge)
+                    queue.append(target)
+        cycle, node = [], start
+        while True:
+            prev, edge = back[node]
+            cycle.append((node, edge))
+            node = prev
+            if node == start:
+                break
+        circles.append(cycle[::-1])
+    return circles
+
+
 # ------------------------------------------------------------------------------- the scanner works
 def test_scanner_sees_the_layout_and_the_known_heavy_imports():
     """Guards the rules below against passing vacuously (a scanner that finds nothing)."""
@@ -247,6 +358,58 @@ def test_relative_imports_resolve():
 
 
 # ----------------------------------------------------------------------------------------- rules
+def test_layers_name_distinct_entries_that_do_not_nest():
+    entries = [e for _, layer in LAYERS for e in layer]
+    assert len(entries) == len(set(entries)), "an entry is in two layers"
+    nested = [(a, b) for a in entries for b in entries if a != "fogsim" and b.startswith(a + ".")]
+    assert not nested, f"a layer entry inside another: {nested}"
+
+
+def test_every_module_belongs_to_a_layer():
+    unplaced = sorted(m for m in MODULES if layer_unit(m) is None)
+    if unplaced:
+        pytest.fail(_report("fogsim modules in no layer (place their package in LAYERS, "
+                            "tests/test_import_rules.py):", unplaced), pytrace=False)
+
+
+def test_every_import_points_down_the_layers():
+    bad = layer_violations(import_graph())
+    if bad:
+        pytest.fail(_report("imports that do not point into their own package or a lower layer "
+                            "(LAYERS, tests/test_import_rules.py):", bad), pytrace=False)
+
+
+def test_no_import_circles():
+    circles = import_circles(import_graph())
+    if circles:
+        pytest.fail(_report("import circles (lazy imports included), each as its imports:",
+                            ["\n    ".join(str(edge) for _, edge in cycle) for cycle in circles]), pytrace=False)
+
+
+def test_the_layer_and_circle_checks_catch_what_they_forbid():
+    """Guards the two rules above against passing vacuously, on made-up imports."""
+    def edge(module, target, line=1):
+        return Edge(module, target, line, f"import {target}", False)
+
+    assert layer_unit("fogsim") == (0, "fogsim") and layer_unit("fogsim.fog.model") == layer_unit("fogsim.fog")
+    assert layer_unit("fogsim.newpackage.x") is None and layer_unit("fogsim.newmodule") is None
+    up = {"fogsim.dataset.writer": [("fogsim.render.labels", edge("fogsim.dataset.writer", "fogsim.render.labels"))],
+          "fogsim.readers.base": [("fogsim.scene.classes", edge("fogsim.readers.base", "fogsim.scene.classes"))],
+          "fogsim.fog.model": [("fogsim.fog.levels", edge("fogsim.fog.model", "fogsim.fog.levels")),
+                               ("fogsim.errors", edge("fogsim.fog.model", "fogsim.errors"))]}
+    bad = layer_violations(up)
+    assert len(bad) == 2 and "fogsim/dataset/writer.py:1" in bad[0] and "a higher layer" in bad[0]
+    assert "layer 7 (dataset format)" in bad[0] and "layer 4 (renderer and detector study)" in bad[0]
+    assert "sibling" in bad[1]
+    loop = {"fogsim.camera": [("fogsim.errors", edge("fogsim.camera", "fogsim.errors", 3))],
+            "fogsim.errors": [("fogsim.fileio", edge("fogsim.errors", "fogsim.fileio", 5))],
+            "fogsim.fileio": [("fogsim.camera", edge("fogsim.fileio", "fogsim.camera", 7))],
+            "fogsim.colour": [("fogsim.errors", edge("fogsim.colour", "fogsim.errors"))]}
+    circles = import_circles(loop)
+    assert len(circles) == 1 and sorted(m for m, _ in circles[0]) == ["fogsim.camera", "fogsim.errors", "fogsim.fileio"]
+    assert import_circles({k: v for k, v in loop.items() if k != "fogsim.fileio"}) == []
+
+
 def test_only_render_blender_imports_blender_modules():
     bad = [str(e) for m, edges in EDGES.items() if not _within(m, "fogsim.render.blender")
            for e in edges if e.target.split(".")[0] in BLENDER_MODULES]
