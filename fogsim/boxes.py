@@ -25,17 +25,20 @@ BOX_FORMATS = ("xyxy", "xywh", "cxcywh")
 
 # ----------------------------------------------------------------------------- mask → boxes
 @dataclass(frozen=True)
-class _Runs:
-    """Horizontal runs of equal non-zero ids, grouped by id (raster order within an id)."""
+class MaskRuns:
+    """An H×W instance mask as its horizontal runs of equal non-zero ids, grouped by id (raster
+    order within an id): built once (:meth:`of`), it gives every id's box (:meth:`boxes`) and
+    median distance (:meth:`median_distance`) at a cost that does not grow with the number of ids."""
 
     id: np.ndarray      # id of each run
     start: np.ndarray   # flat index of its first pixel
     length: np.ndarray  # its length in pixels
     ids: np.ndarray     # the distinct ids, ascending
     first: np.ndarray   # index of each id's first run
+    width: int          # the mask's width in pixels
 
     @classmethod
-    def of(cls, mask: np.ndarray) -> "_Runs":
+    def of(cls, mask: np.ndarray) -> "MaskRuns":
         if mask.ndim != 2:
             raise ValueError(f"an instance mask is 2-D, got shape {mask.shape}")
         w = mask.shape[1]
@@ -52,7 +55,7 @@ class _Runs:
         order = np.argsort(run_id, kind="stable")
         run_id, start, length = run_id[order], start[order], length[order]
         ids, first = np.unique(run_id, return_index=True)
-        return cls(run_id, start, length, ids, first)
+        return cls(run_id, start, length, ids, first, w)
 
     def pixel_index(self, wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Flat indices of the pixels of the ``wanted`` ids (all present), grouped by id, and the
@@ -66,6 +69,36 @@ class _Runs:
         bounds = np.append(offsets[group_start], idx.size)
         return idx, bounds
 
+    def boxes(self) -> dict[int, dict]:
+        """:func:`boxes_from_mask` of the mask."""
+        if not self.ids.size:
+            return {}
+        row, x0 = np.divmod(self.start, self.width)
+        x1 = x0 + self.length
+        last = np.append(self.first[1:], self.id.size) - 1
+        bx0 = np.minimum.reduceat(x0, self.first)
+        bx1 = np.maximum.reduceat(x1, self.first)
+        pixels = np.add.reduceat(self.length, self.first)
+        y0, y1 = row[self.first], row[last] + 1  # runs are in raster order within an id
+        return {int(i): {"bbox": [int(a), int(b), int(c), int(d)], "pixels": int(n)}
+                for i, a, b, c, d, n in zip(self.ids, bx0, y0, bx1, y1, pixels)}
+
+    def median_distance(self, ray_distance: np.ndarray, ids) -> dict[int, float]:
+        """:func:`median_distance` of the mask."""
+        wanted = np.asarray(sorted(set(int(i) for i in ids)), dtype=np.int64)
+        out = {int(i): float("nan") for i in wanted}
+        present = wanted[np.isin(wanted, self.ids)]
+        if not present.size:
+            return out
+        idx, bounds = self.pixel_index(present)
+        values = np.ascontiguousarray(ray_distance).ravel()[idx]
+        for i, a, b in zip(present, bounds[:-1], bounds[1:]):
+            v = values[a:b]
+            v = v[np.isfinite(v)]
+            if v.size:
+                out[int(i)] = float(np.median(v))
+        return out
+
 
 def boxes_from_mask(mask: np.ndarray) -> dict[int, dict]:
     """``{id: {"bbox": [x0, y0, x1, y1], "pixels": n}}`` (pixel-edge xyxy) for every id > 0 of
@@ -74,21 +107,7 @@ def boxes_from_mask(mask: np.ndarray) -> dict[int, dict]:
     Works on the horizontal runs of the mask (one pass over the pixels), so its cost
     does not grow with the number of ids.
     """
-    return _boxes(_Runs.of(mask), mask.shape[1])
-
-
-def _boxes(runs: _Runs, width: int) -> dict[int, dict]:
-    if not runs.ids.size:
-        return {}
-    row, x0 = np.divmod(runs.start, width)
-    x1 = x0 + runs.length
-    last = np.append(runs.first[1:], runs.id.size) - 1
-    bx0 = np.minimum.reduceat(x0, runs.first)
-    bx1 = np.maximum.reduceat(x1, runs.first)
-    pixels = np.add.reduceat(runs.length, runs.first)
-    y0, y1 = row[runs.first], row[last] + 1  # runs are in raster order within an id
-    return {int(i): {"bbox": [int(a), int(b), int(c), int(d)], "pixels": int(n)}
-            for i, a, b, c, d, n in zip(runs.ids, bx0, y0, bx1, y1, pixels)}
+    return MaskRuns.of(mask).boxes()
 
 
 def median_distance(mask: np.ndarray, ray_distance: np.ndarray, ids) -> dict[int, float]:
@@ -96,23 +115,7 @@ def median_distance(mask: np.ndarray, ray_distance: np.ndarray, ids) -> dict[int
 
     Ids absent from the mask, or with no finite distance, map to NaN.
     """
-    return _median_distance(_Runs.of(mask), ray_distance, ids)
-
-
-def _median_distance(runs: _Runs, ray_distance: np.ndarray, ids) -> dict[int, float]:
-    wanted = np.asarray(sorted(set(int(i) for i in ids)), dtype=np.int64)
-    out = {int(i): float("nan") for i in wanted}
-    present = wanted[np.isin(wanted, runs.ids)]
-    if not present.size:
-        return out
-    idx, bounds = runs.pixel_index(present)
-    values = np.ascontiguousarray(ray_distance).ravel()[idx]
-    for i, a, b in zip(present, bounds[:-1], bounds[1:]):
-        v = values[a:b]
-        v = v[np.isfinite(v)]
-        if v.size:
-            out[int(i)] = float(np.median(v))
-    return out
+    return MaskRuns.of(mask).median_distance(ray_distance, ids)
 
 
 # ----------------------------------------------------------------------------- formats

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.camera import planar_to_ray
-from fogsim.dataset.writer import DatasetLayout, finalize, write_frame_labels
+from fogsim.dataset.layout import DatasetLayout
+from fogsim.dataset.writer import finalize, write_frame_labels
 from fogsim.fog.synthetic import demo_scene
 from fogsim.fog.model import Fogger
 from fogsim.fileio import write_image, write_json

@@ -352,7 +352,7 @@ def test_stereo_pair_in_cityscapes_layout(tmp_path):
     assert main(["fog", "--cityscapes", str(cs), "--split", split, "--levels", "0.06", "--out", str(tmp_path / "fog"),
                  "--quiet"]) == 0
     # the depth benchmark on this frame: classical completions scored against exact depth
-    from fogsim.dataset.writer import DatasetLayout
+    from fogsim.dataset.layout import DatasetLayout
     from fogsim.dataset.reader import read_stereo_frame
     from fogsim.bench.depth import CLASSICAL, complete, evaluate_frame
     from fogsim.fog.levels import load_preset

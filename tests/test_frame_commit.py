@@ -9,7 +9,7 @@ import pytest
 import fogsim.render.frame as frame_mod
 from conftest import expected_yolo_lines
 from fogsim.camera import Intrinsics, decode_disparity_png
-from fogsim.dataset.writer import DatasetLayout
+from fogsim.dataset.layout import DatasetLayout
 from fogsim.fileio import read_depth_file, read_image, read_uint16_map
 from fogsim.render.frame import commit_frame, describe_frame, frame_name, scene_meshes
 from fogsim.render.preset import load_render_preset

@@ -386,6 +386,27 @@ def test_no_import_circles():
                             ["\n    ".join(str(edge) for _, edge in cycle) for cycle in circles]), pytrace=False)
 
 
+def private_imports(module: str, source: str | None = None) -> list[str]:
+    """``from fogsim.x import _name`` statements of ``module``: a private name used outside the
+    module that defines it (dunders such as ``__version__`` are not private)."""
+    source = MODULES[module].read_text(encoding="utf-8") if source is None else source
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom) and _within(resolve_from(module, node), "fogsim"):
+            names = [a.name for a in node.names if a.name.startswith("_") and not a.name.startswith("__")]
+            out += [f"{module} line {node.lineno}: {resolve_from(module, node)}.{n}" for n in names]
+    return out
+
+
+def test_no_private_name_crosses_modules():
+    made_up = "from fogsim.boxes import _Runs, box_convert\nfrom . import __version__\n"
+    assert private_imports("fogsim.errors", made_up) == ["fogsim.errors line 1: fogsim.boxes._Runs"]  # it works
+    bad = [item for m in MODULES for item in private_imports(m)]
+    if bad:
+        pytest.fail(_report("private names imported from another module (make them public or move them):", bad),
+                    pytrace=False)
+
+
 def test_the_layer_and_circle_checks_catch_what_they_forbid():
     """Guards the two rules above against passing vacuously, on made-up imports."""
     def edge(module, target, line=1):

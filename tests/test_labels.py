@@ -7,8 +7,8 @@ import pytest
 import trimesh
 
 from fogsim.camera import Intrinsics
-from fogsim.dataset.writer import (DatasetLayout, contact_sheet, finalize, split_frames,
-                                   write_frame_labels)
+from fogsim.dataset.layout import DatasetLayout
+from fogsim.dataset.writer import contact_sheet, finalize, split_frames, write_frame_labels
 from fogsim.fileio import read_image, write_image, write_json
 from fogsim.boxes import boxes_from_mask, median_distance, parse_yolo_line, yolo_line
 from fogsim.dataset.coco import coco_annotation, coco_categories

@@ -21,7 +21,8 @@ from fogsim.fileio import read_depth_file, read_image, read_rgb_exr, read_uint16
 from fogsim.render.preset import frame_volumetric, load_render_preset, volumetric_settings
 from fogsim.fog.physics import interior_mask
 from fogsim.fog.model import koschmieder
-from fogsim.render.volumetric import auto_exposure, horizon_radiance
+from fogsim.fog.physics import far_luminance
+from fogsim.render.volumetric import auto_exposure
 
 from test_blender import KINDS, ROOT, SCRIPTS, dataset_digest, run, runner
 
@@ -134,14 +135,14 @@ def test_auto_exposure_matches_the_median_luminance():
     assert auto_exposure(clear, np.zeros_like(clear)) == 1.0
 
 
-def test_horizon_radiance_reads_pixels_beyond_the_visibility():
+def test_horizon_radiance_is_the_far_luminance_beyond_the_visibility():
     fog = np.full((4, 5, 3), 0.2, np.float32)
     fog[0] = 0.6
     ray = np.full((4, 5), 10.0, np.float32)
     ray[0] = np.inf
     ray[1, :2] = 60.0  # beyond ln(20)/0.06 = 49.9 m: counts, with value 0.2
-    assert horizon_radiance(fog, ray, 0.06) == pytest.approx(0.6)
-    assert horizon_radiance(fog, np.full((4, 5), 10.0, np.float32), 0.06) is None
+    assert far_luminance(fog, ray, 0.06) == pytest.approx(0.6)
+    assert far_luminance(fog, np.full((4, 5), 10.0, np.float32), 0.06) is None
 
 
 def test_koschmieder_linear_and_bins_against_the_formula():

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fogsim.cli.fog import environment
+from fogsim.deps import package_versions
 from fogsim.errors import EXIT_FAILED, EXIT_OK
 
 
@@ -39,7 +39,7 @@ def cmd_demo(args) -> int:
         raise ValueError(f"--frames must be ≥ 1, got {args.frames}")
     levels = tuple(parse_levels(args.levels))
     job = FogJob(levels, str(out / "fog"), seed=args.seed, inputs={"demo_seed": args.seed, "frames": args.frames})
-    check_run_file(job, environment())  # before writing inputs: never overwrite another run's
+    check_run_file(job, package_versions())  # before writing inputs: never overwrite another run's
     rng = np.random.default_rng(args.seed)
     K = None
     for i in range(args.frames):
@@ -47,7 +47,7 @@ def cmd_demo(args) -> int:
         write_image(out / "input" / "images" / f"street_{i:03d}.png", rgb)
         write_depth(out / "input" / "depth" / f"street_{i:03d}.exr", depth)
     samples = folder_samples(out / "input" / "images", out / "input" / "depth", DepthSpec(""), "", K)
-    summary = run(samples, job, progress=not args.quiet, environment=environment())
+    summary = run(samples, job, progress=not args.quiet, environment=package_versions())
     print(summary.line(job))
     first = samples[0]
     tiles = [colorize_depth(depth_of(out, first.key))] + [read_image(job.paths(first, lv)[0]) for lv in levels]

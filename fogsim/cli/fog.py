@@ -125,8 +125,6 @@ def _samples(args):
     if args.intrinsics:
         K = Intrinsics.from_dict(read_json(args.intrinsics), args.intrinsics)
     if args.input:
-        from dataclasses import replace as _replace
-
         from fogsim.readers.folder import folder_samples
 
         samples = folder_samples(args.input, args.depth, spec, args.depth_suffix, K)
@@ -135,7 +133,7 @@ def _samples(args):
                 raise ValueError(f"--hfov must be in (0, 180) degrees, got {args.hfov}")
             h, w = samples[0].read_image().shape[:2]
             K = Intrinsics.from_hfov(args.hfov, w, h)
-            samples = [_replace(smp, intrinsics=K) for smp in samples]
+            samples = [replace(smp, intrinsics=K) for smp in samples]
         return samples
     if args.cityscapes:
         from fogsim.readers.cityscapes import cityscapes_samples
@@ -271,15 +269,10 @@ def _inputs(args) -> dict:
     return out
 
 
-def environment() -> dict:
-    from fogsim.deps import package_versions
-
-    return package_versions()
-
-
 def cmd_fog(args) -> int:
     from dataclasses import replace
 
+    from fogsim.deps import package_versions
     from fogsim.fog.batch import run
     from fogsim.fog.labelled import check_labelled, sample_classes
     from fogsim.runs import check_output, is_sharded, parse_shard, select_shard
@@ -303,7 +296,7 @@ def cmd_fog(args) -> int:
     job = _job(args, args.out, sample_classes(everything) if labelled else ())
     shard = parse_shard(args.shard)
     samples = select_shard(everything, shard)
-    summary = run(samples, job, args.workers, not args.no_resume, not args.quiet, environment())
+    summary = run(samples, job, args.workers, not args.no_resume, not args.quiet, package_versions())
     print(summary.line(job))
     for source, error in summary.failed:
         print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)

@@ -29,10 +29,9 @@ from fogsim.runs import split_key
 from fogsim.viz import strip
 from fogsim.scene.classes import LABELLED
 
-__all__ = ["MIXED", "PALETTE", "DatasetLayout", "contact_sheet", "data_yaml", "finalize",
+__all__ = ["PALETTE", "contact_sheet", "data_yaml", "finalize",
            "frame_split", "split_frames", "write_frame_labels"]
 
-MIXED = MIXED_SPLIT  # the split lists and data file mixing every level (kept name; see layout.py)
 #: box colours (RGB) by class id
 PALETTE = ((230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48),
            (145, 30, 180), (70, 240, 240), (240, 50, 230))

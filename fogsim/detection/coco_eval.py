@@ -33,7 +33,6 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.errors import FogsimError, InputError
-from fogsim.fileio import read_json
 from fogsim.boxes import box_convert, coco_category, yolo_to_xywh
 
 BINS = ((0.0, 25.0), (25.0, 50.0), (50.0, 100.0))
@@ -261,12 +260,3 @@ def evaluate(gt: dict, dets: list[dict], max_distance_m: float = 100.0, conf: fl
             "ignored": len(gt["annotations"]) - len(real), "max_distance_m": max_distance_m,
             "unknown_distance": unknown_distance, "visible_only": visible_only,
             "ignored_invisible": counted - len(real)}
-
-
-def evaluate_files(gt_json: str | Path, predictions: str | Path, **kw) -> dict:
-    """:func:`evaluate` on a COCO file and a COCO results JSON or a folder of YOLO txt files."""
-    gt = read_json(gt_json)
-    dets = yolo_predictions(predictions, gt) if Path(predictions).is_dir() else read_json(predictions)
-    if not isinstance(dets, list):
-        raise InputError(predictions, "COCO results must be a JSON list of detections")
-    return evaluate(gt, dets, **kw)

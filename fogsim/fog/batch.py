@@ -49,7 +49,6 @@ from fogsim.fog.visibility import attach_visibility
 from fogsim.dataset.writer import finalize, write_frame_labels
 
 RUN_FILE = "fogsim_run.json"
-#: a label box may lie this far (pixels) outside the image (rounding) before it is refused
 
 
 @dataclass(frozen=True)

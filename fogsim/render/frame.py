@@ -58,11 +58,6 @@ def scene_meshes(desc: dict) -> dict[int, list]:
     return {obj["id"]: world_parts(obj) for obj in desc["objects"]}
 
 
-def to_srgb8(rgb_linear: np.ndarray, exposure: float = 1.0) -> np.ndarray:
-    """Scene-linear render → 8-bit sRGB (exposure scale, clip at white, sRGB transfer)."""
-    return linear_to_srgb8(rgb_linear, exposure)
-
-
 def write_stereo(layout: DatasetLayout, config: RenderConfig, name: str, K: Intrinsics,
                  left: np.ndarray, right: np.ndarray) -> dict:
     """SGBM disparity of the clear pair, written with the pair and camera in Cityscapes' tree."""
@@ -94,7 +89,7 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: 
     name = frame_name(index)
     K = Intrinsics.from_dict(desc["camera"]["intrinsics"])
     h, w = mask.shape
-    rgb = to_srgb8(rgb_linear, config.exposure)
+    rgb = linear_to_srgb8(rgb_linear, config.exposure)
     ray = planar_to_ray(depth, K)
     cls = {o["id"]: o["class"] for o in desc["objects"]}
     labelled = {oid: [(v, f) for v, f, _ in parts] for oid, parts in meshes.items() if is_labelled(cls[oid])}
@@ -122,7 +117,7 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: 
     write_depth(layout.depth(name), depth)
     write_image(layout.mask(name), mask)
     stereo = None if right_linear is None else write_stereo(layout, config, name, K, rgb,
-                                                             to_srgb8(right_linear, config.exposure))
+                                                             linear_to_srgb8(right_linear, config.exposure))
     t3 = time.perf_counter()
     timings = dict(timings, ground_truth=t1 - t0, fog=t2 - t1, write=t3 - t2)
     meta = {"frame": name, "index": index, "seed": desc["seed"], "width": w, "height": h,

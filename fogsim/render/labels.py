@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fogsim.boxes import _boxes, _median_distance, _Runs
+from fogsim.boxes import MaskRuns
 from fogsim.scene.classes import CLASS_ID, is_labelled
 
 DISTANCE_STAT = "median ray distance over visible pixels"
@@ -35,10 +35,10 @@ def object_records(mask: np.ndarray, ray_distance: np.ndarray, objects: list[dic
     Objects with no visible pixel (hidden or outside the view) get no record.
     """
     h, w = mask.shape
-    runs = _Runs.of(mask)
-    boxes = _boxes(runs, w)
+    runs = MaskRuns.of(mask)
+    boxes = runs.boxes()
     labelled = [o for o in objects if is_labelled(o["class"]) and int(o["id"]) in boxes]
-    dist = _median_distance(runs, ray_distance, [o["id"] for o in labelled])
+    dist = runs.median_distance(ray_distance, [o["id"] for o in labelled])
     records = []
     for obj in labelled:
         oid = int(obj["id"])

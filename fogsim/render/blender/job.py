@@ -16,7 +16,8 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from fogsim.dataset.writer import DatasetLayout, finalize
+from fogsim.dataset.layout import DatasetLayout
+from fogsim.dataset.writer import finalize
 from fogsim.render.frame import check_scene, commit_frame, describe_frame, frame_name, scene_meshes
 from fogsim.fileio import remove_stale_parts
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
@@ -135,22 +136,23 @@ class RenderJob:
     def _fog_images(self, name: str, desc: dict, passes, fog: dict, fog_linear: dict, cycles_used: dict):
         """8-bit images per level (clear level = the clear render), linear EXRs if asked, meta["fog"]."""
         from fogsim.camera import Intrinsics, planar_to_ray
+        from fogsim.colour import linear_to_srgb8
         from fogsim.fileio import write_rgb_exr
-        from fogsim.render.frame import to_srgb8
-        from fogsim.render.volumetric import auto_exposure, horizon_radiance
+        from fogsim.fog.physics import far_luminance
+        from fogsim.render.volumetric import auto_exposure
 
         s, cfg = fog, self.config
         ray = planar_to_ray(passes.depth, Intrinsics.from_dict(desc["camera"]["intrinsics"]))
         foggy, factors, horizon, linear = {}, {}, {}, {}
         for lv in cfg.levels:
             if lv.beta == 0:
-                foggy[lv.key] = to_srgb8(passes.rgb_linear, cfg.exposure)
+                foggy[lv.key] = linear_to_srgb8(passes.rgb_linear, cfg.exposure)
                 img = passes.rgb_linear
             else:
                 img = fog_linear[lv.key]
                 factors[lv.key] = auto_exposure(passes.rgb_linear, img) if s["exposure"] == "auto" else 1.0
-                horizon[lv.key] = horizon_radiance(img, ray, lv.beta)
-                foggy[lv.key] = to_srgb8(img * np.float32(factors[lv.key]), cfg.exposure)
+                horizon[lv.key] = far_luminance(img, ray, lv.beta)  # the horizon radiance
+                foggy[lv.key] = linear_to_srgb8(img * np.float32(factors[lv.key]), cfg.exposure)
             if s["keep_linear"]:  # the renders before any exposure scale
                 write_rgb_exr(self.layout.linear(lv.key, name), img)
                 linear[lv.key] = self.layout.relative(self.layout.linear(lv.key, name))
