@@ -4,11 +4,12 @@ The public fog API is re-exported here::
 
     from fogsim import koschmieder, Fogger, Kernel, Intrinsics, planar_to_ray, load_preset
 
-Subpackages, one per concern (see CONTRIBUTING.md for the dependency rules):
-``fog`` (the engine), ``readers`` (Waymo, Cityscapes, folders), ``scene`` (procedural street
-scenes), ``dataset`` (fogsim's on-disk format), ``render`` (frames → dataset; ``render.blender``
-is the only code that imports bpy), ``depth`` (stereo, hole filling, ILA, metrics),
-``detection`` (YOLO training, COCO evaluation, the cross-density study) and ``cli``.
+Subpackages, one per concern (CONTRIBUTING.md draws their layers):
+``fog`` (the engine and its hole fill), ``readers`` (Waymo, Cityscapes, folders), ``scene``
+(procedural street scenes), ``dataset`` (fogsim's on-disk format and its COCO record), ``render``
+(frames → dataset; ``render.blender`` is the only code that imports bpy), ``depth`` (stereo, ILA,
+LiDAR completion, metrics), ``detection`` (YOLO training, COCO evaluation, the cross-density
+study), ``bench`` (the benchmarks) and ``cli``.
 """
 
 from fogsim._version import __version__

@@ -27,7 +27,7 @@ fi
 # opencv-python (pulled by Ultralytics), opencv-python-headless and opencv-contrib-python all
 # write the same cv2/ folder as opencv-contrib-python-headless; whichever came last wins and
 # can leave cv2.ximgproc an empty namespace (so hasattr(cv2, "ximgproc") proves nothing).
-# Check the functions fogsim calls (DESIGN.md §5).
+# Check the functions fogsim calls (fogsim.deps.require_contrib; docs/safety.md).
 CV2_CHECK='import sys
 try:
     import cv2

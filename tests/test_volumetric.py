@@ -1,4 +1,4 @@
-"""Volumetric fog (issue 12): the preset block, the pure helpers, and real Cycles renders.
+"""Volumetric fog: the preset block, the pure helpers, and real Cycles renders.
 
 The Blender tests are tiny (96×64, 8–16 samples): the volumetric and the Koschmieder run of one
 preset and seed write the same labels, depth and masks and different foggy images; the

@@ -1,6 +1,6 @@
 """Real-format Waymo fixtures with labels: v1 ``Frame`` protos and v2 parquet tables of one content.
 
-Field numbers and columns as in ``shared/notes/real-datasets.md`` §1 and §3 (WOD ``dataset.proto``,
+Field numbers and columns as in WOD (``dataset.proto``,
 ``label.proto``, ``v2/perception/*.py``). A :class:`LabelFrame` describes one frame (calibrations,
 camera labels, projected laser labels, laser labels, images); :func:`frame_message` encodes it as
 a v1 Frame, :func:`write_v1` writes .tfrecord files and :func:`write_v2` the same content as a v2

@@ -6,7 +6,7 @@ Prints ms per frame per level (medians of interleaved repeats) for:
   extended   fogsim's extended form (box 19, separable, border-normalised)
 then all five paper levels of a frame including the planar→ray conversion, and the speedup
 of the extended form over a literal per-pixel transcription of the reference's windowed
-accumulation on a 128×128 crop. Targets (issue #2): standard ≥ 3× faster than baseline;
+accumulation on a 128×128 crop. Targets (``docs/speed.md``): standard ≥ 3× faster than baseline;
 extended ≤ 1.5× standard; five levels ≤ 150 ms.
 
     fogsim bench fog [--repeat 15]

@@ -68,7 +68,7 @@ def fog_preset(base: str, noise_seed: int, path: Path, denoise: bool = False) ->
     """Write the base preset with ``fog_model.volumetric`` set for a measurement: ``keep_linear``,
     ``noise_seed``, ``exposure = "none"`` (raw radiance: the comparison normalises itself) and
     ``denoise`` off by default (a denoiser's residual is not independent between seeds, and it
-    biases; notes/path-traced-fog.md §6.6)."""
+    biases; ``docs/fog-physics.md``)."""
     src = preset_path(base)
     if not src.is_file():
         raise InputError(src, "preset not found")

@@ -1,6 +1,6 @@
 """LiDAR completion speed and accuracy on a 1920×1280 FRONT-like frame, against the fog step.
 
-The scan is synthetic but has the real density pattern (real-datasets.md §2): 64 TOP beam
+The scan is synthetic but has the real density pattern (``docs/real-data.md``): 64 TOP beam
 rows ≈ 11 px apart whose highest lands near row 576 (so the rows cover the lower ≈ 55 %
 of the image), one return every ≈ 4.9 px along a row, ≈ 10 % of returns missing, nothing
 beyond 75 m or on the sky; ≈ 20 k points. The truth is the procedural street of

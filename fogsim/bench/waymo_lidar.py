@@ -168,7 +168,7 @@ def bench_decode(repeat: int = 5) -> dict:
 
 
 def run(repeat: int = 5) -> int:
-    """Print :func:`bench_decode`'s figures (for ``fogsim bench lidar-decode``); returns 0."""
+    """Print :func:`bench_decode`'s figures (``python -m fogsim.bench.waymo_lidar``); returns 0."""
     r = bench_decode(repeat)
     print(f"Waymo LiDAR decode + FRONT projection, synthetic frame of real sizes ({r['frame_mb']:.1f} MB: "
           f"TOP 64×2650 + 4 × 200×600), medians of {repeat}:")

@@ -4,7 +4,7 @@ Conventions: every map here is **ray distance** in metres from the camera centre
 Waymo's ``camera_projection`` + ``‖p_cam‖`` gives, and what the fog model needs; no
 planar→ray step), H×W float32; in a *sparse* map 0 = no point; in a *dense* map every pixel
 is > 0, +inf = "sky / beyond the LiDAR". Points are ``uv`` N×2 float pixel coordinates
-(integer = pixel centre, DESIGN.md) and ``ray`` N float metres.
+(integer = pixel centre, ``docs/conventions.md``) and ``ray`` N float metres.
 
 Completion methods (:data:`METHODS`):
 
@@ -26,7 +26,7 @@ Completion methods (:data:`METHODS`):
 
 Sky rule (``sky="above"``, the default for ``ipbasic``): the TOP lidar's highest beam
 (+2.5°) lands near row 575 of the 1280-row FRONT image, so the upper ≈ 45 % has no return
-(real-datasets.md §2). A pixel becomes +inf when it lies **above the coverage envelope**
+(``docs/real-data.md``). A pixel becomes +inf when it lies **above the coverage envelope**
 (above the highest point within ±``gap_px`` columns) **and** farther than ``gap_px`` pixels
 from every point (default 24 px ≈ two beam rows at f ≈ 2044 px). Inside the envelope every
 hole is filled (a dark car without returns must not become sky), and just above it the top

@@ -9,9 +9,9 @@ finer list to the coarser one, never the other way round.
 Built-in maps (``--class-map NAME``):
 
 * ``fogsim-to-waymo`` — fogsim's renderer classes to Waymo's 2D classes
-  (``real-datasets.md`` §4): car, van, truck, bus → vehicle; pedestrian → pedestrian;
+  (``docs/real-data.md``): car, van, truck, bus → vehicle; pedestrian → pedestrian;
   cyclist → cyclist; traffic_light, traffic_sign dropped (Waymo has no 2D sign labels).
-* ``fogsim-to-cityscapes`` — to the 8 Cityscapes detection classes (§6): car, truck, bus as they
+* ``fogsim-to-cityscapes`` — to the 8 Cityscapes detection classes: car, truck, bus as they
   are; van → car (Cityscapes' car includes vans); pedestrian → person; cyclist → rider (the
   Cityscapes rider box excludes the bicycle, fogsim's cyclist box holds both: an approximation);
   traffic_light, traffic_sign dropped. Cityscapes' train, motorcycle and bicycle have no fogsim

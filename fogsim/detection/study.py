@@ -1,5 +1,5 @@
-"""The per-density detection study: train, predict, evaluate, report (driver of
-``scripts/train_per_density.py``).
+"""The per-density detection study: train, predict, evaluate, report (``fogsim study``;
+``docs/study.md``).
 
 Models: one detector per fog level of the dataset (named by level key) and ``mixed``, trained
 on every level at once. Each is run on the validation images of every level. Report rows: the

@@ -4,7 +4,7 @@ Per frame the inputs are the clear render in linear light (H×W×3 float, scene-
 distance (ray distance ℓ in metres, +inf = sky; convert planar Z with
 :func:`fogsim.camera.planar_to_ray` or pass ``intrinsics``), the instance mask (H×W, 0 =
 background/sky), and per β two path-traced renders of the same frame made with independent
-seeds (linear, float). The method is that of ``shared/notes/path-traced-fog.md`` §3:
+seeds (linear, float). The method (``docs/fog-physics.md``):
 
 * **Koschmieder models** (:class:`fogsim.fog.model.Fogger`, airlight A = white): the clear
   image as the dataset stores it (clipped at white, sRGB-encoded, float so no 8-bit rounding)

@@ -7,7 +7,7 @@ the median seconds per frame for scene description, bpy build, Cycles render, gr
 fog and writing; the share of the frame spent outside Cycles; resident memory after frame
 10 and after the last frame. The baseline, measured in the same run on the first frames'
 scenes, is Blender's factory Cycles light-path and world settings at the same sample count,
-so the ratio shows what fogsim's render settings buy. Targets (issue #3): draft ≤ 6 s per
+so the ratio shows what fogsim's render settings buy. Targets (``docs/speed.md``): draft ≤ 6 s per
 frame; outside Cycles ≤ 15 %; RSS growth frame 10 → 100 ≤ 100 MB.
 """
 from __future__ import annotations

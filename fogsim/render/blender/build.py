@@ -119,7 +119,7 @@ def _lighting(built: Built, light: dict, scene) -> None:
 def build(desc: dict, scene=None, meshes: dict | None = None) -> Built:
     """Create camera, lighting and every object of ``desc`` in ``scene`` (pass index = id).
 
-    ``meshes`` (id → world parts, from :func:`fogsim.frames.scene_meshes`) avoids building
+    ``meshes`` (id → world parts, from :func:`fogsim.render.frame.scene_meshes`) avoids building
     the trimesh geometry twice when the caller already has it.
     """
     scene = scene or bpy.context.scene

@@ -87,7 +87,7 @@ def render(scene, exr_path: str | os.PathLike | None = None) -> RenderPasses:
 
 def render_combined(scene, exr_path: str | os.PathLike | None = None) -> np.ndarray:
     """Render only the Combined pass (H×W×3 float32, scene-linear): the caller has turned the Z and
-    object-index passes off (a fog render's are not valid, notes/path-traced-fog.md §4)."""
+    object-index passes off (a fog render's are not valid, ``docs/fog-physics.md``)."""
     return _pick(_render_channels(scene, exr_path), PASS_CHANNELS["rgb"]).astype(np.float32)
 
 

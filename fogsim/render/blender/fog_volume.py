@@ -1,6 +1,6 @@
 """Fog as a participating medium in Cycles: a closed box domain around camera and scene.
 
-Facts this follows (notes/path-traced-fog.md, measured in Blender 3.4 and 5.0):
+Facts this follows (``docs/fog-physics.md``; measured in Blender 3.4 and 5.0):
 
 * **Never a world volume**: it makes Cycles ignore the world background and the sun (the image
   is 0.0 everywhere). The fog is a closed box mesh (the "fog layer") from 1 m below the ground
