@@ -151,6 +151,11 @@ def depth_to_disparity(depth: np.ndarray, baseline_m: float, fx: float) -> np.nd
     return d
 
 
+#: Cityscapes' stereo baseline in metres (its camera JSON's ``extrinsic.baseline`` ≈ 0.209 m): the
+#: right camera's offset when a rendering preset's camera gives none
+CITYSCAPES_BASELINE_M = 0.209
+
+
 @dataclass(frozen=True)
 class StereoCamera:
     """A rectified stereo rig as Cityscapes' ``camera/*.json`` describes it (read by

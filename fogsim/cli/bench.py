@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import argparse
 
+from fogsim.render.fog_settings import FOG_MEDIA
+
 
 def add_parsers(sub) -> None:
     bench = sub.add_parser("bench", help="benchmarks: fog speed, render speed, depth completion (ILA), "
@@ -71,7 +73,7 @@ def add_parsers(sub) -> None:
     fp.add_argument("--samples", type=int, default=16, help="Cycles samples per render")
     fp.add_argument("--seed", type=int, default=3, help="dataset seed (the scenes)")
     fp.add_argument("--levels", help="fog levels (preset name or comma-separated β; must include 0)")
-    fp.add_argument("--medium", choices=("full", "hybrid", "ea"), default="full",
+    fp.add_argument("--medium", choices=FOG_MEDIA, default="full",
                     help="volumetric medium (fogsim render --fog-medium); ea = camera-only emission-absorption, "
                     "the zero-error control")
     fp.add_argument("--denoise", action="store_true", help="denoise the fog renders (off: measurements want "

@@ -5,8 +5,10 @@ import argparse
 import sys
 from pathlib import Path
 
+from fogsim.dataset.writer import TRAIN_FRACTION, check_train_fraction
 from fogsim.errors import EXIT_FAILED, EXIT_OK, InputError
-from fogsim.fog.model import KERNELS, SPACES
+from fogsim.fog.batch import SPLIT_BY
+from fogsim.fog.model import KERNELS, SPACES, airlight_rgb, check_heterogeneity
 from fogsim.readers.base import DEPTH_ENCODINGS
 
 
@@ -57,9 +59,9 @@ def _add_label_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--min-pixels", type=int, default=0,
                    help="annotations with fewer pixels become ignore regions (default 0: kept as annotated)")
     g.add_argument("--train-fraction", type=float, default=None,
-                   help="share of frames in the train split (hash of the frame name; default 0.8, or the "
-                        "run's with --finalize-only)")
-    g.add_argument("--split-by", choices=("frame", "folder"), default=None,
+                   help=f"share of frames in the train split (hash of the frame name; default {TRAIN_FRACTION}, "
+                        "or the run's with --finalize-only)")
+    g.add_argument("--split-by", choices=SPLIT_BY, default=None,
                    help="train/val split by hash of each frame's name, or of its input folder so one sequence "
                         "never sits on both sides (Waymo: the segment; Cityscapes: the city); default frame, or "
                         "the run's with --finalize-only")
@@ -223,13 +225,9 @@ def _job(args, out: str, classes: tuple[str, ...] = ()):
         if len(vals) not in (1, 3):
             raise ValueError(f"--airlight takes one value or R,G,B, got {args.airlight!r}")
         airlight = tuple(vals * 3 if len(vals) == 1 else vals)
-        if any(not 0 <= a <= 255 for a in airlight):
-            raise ValueError(f"--airlight values must lie in [0, 255], got {args.airlight}")
+        airlight_rgb(airlight, name="--airlight")  # the model's range, checked before any work
     kernel = Kernel(args.kernel, args.kernel_size, args.sigma, args.eps) if args.extended else None
-    if not 0 <= args.heterogeneity < 1:
-        raise ValueError(f"--heterogeneity must be in [0, 1), got {args.heterogeneity}")
-    if not args.heterogeneity_scale > 0:
-        raise ValueError(f"--heterogeneity-scale must be > 0 pixels, got {args.heterogeneity_scale}")
+    check_heterogeneity(args.heterogeneity, args.heterogeneity_scale, ("--heterogeneity", "--heterogeneity-scale"))
     fill = args.fill or ("inpaint" if getattr(args, "cityscapes", None) else "none")
     from fogsim.fog.fill import fill_methods
 
@@ -240,18 +238,13 @@ def _job(args, out: str, classes: tuple[str, ...] = ()):
     if min_pixels < 0:
         raise ValueError(f"--min-pixels must be ≥ 0, got {min_pixels}")
     if classes:
-        inputs["train_fraction"] = _train_fraction(args)
+        train_fraction = getattr(args, "train_fraction", None)
+        inputs["train_fraction"] = check_train_fraction(TRAIN_FRACTION if train_fraction is None else train_fraction,
+                                                        "--train-fraction")
         inputs["split_by"] = getattr(args, "split_by", None) or "frame"
     return FogJob(levels, out, airlight, args.space, kernel, fill, args.heterogeneity,
                   args.heterogeneity_scale, args.seed, getattr(args, "image_format", "png"), inputs,
                   labels=bool(classes), classes=tuple(classes), min_pixels=min_pixels)
-
-
-def _train_fraction(args, default: float = 0.8) -> float:
-    value = default if getattr(args, "train_fraction", None) is None else args.train_fraction
-    if not 0 < value < 1:
-        raise ValueError(f"--train-fraction must be in (0, 1), got {value}")
-    return value
 
 
 def _inputs(args) -> dict:
@@ -312,7 +305,8 @@ def cmd_fog(args) -> int:
     return EXIT_FAILED if summary.failed else EXIT_OK
 
 
-def _finalize(out: str, train_fraction: float, split_by: str = "frame") -> None:
+def _finalize(out: str, train_fraction: float | None = None, split_by: str | None = None) -> None:
+    """Write the dataset files (None: the run's own train fraction / split rule) and say so."""
     from fogsim.fog.batch import finalize_dataset
 
     summary = finalize_dataset(out, train_fraction, split_by)
@@ -322,21 +316,9 @@ def _finalize(out: str, train_fraction: float, split_by: str = "frame") -> None:
 
 
 def _finalize_only(args) -> int:
-    from fogsim.fileio import read_json
-    from fogsim.fog.batch import RUN_FILE
-
     given = [f"--{k}" for k in ("input", "cityscapes", "waymo", "shard") if getattr(args, k, None)]
     if given:
         raise ValueError(f"--finalize-only takes --out (and --train-fraction, --split-by) only, not "
                          f"{', '.join(given)}")
-    run_file = Path(args.out) / RUN_FILE
-    if not run_file.is_file():
-        raise InputError(args.out, f"no {RUN_FILE} here: not a fogsim fog output to finalize")
-    labels = (read_json(run_file).get("parameters") or {}).get("labels")
-    if not isinstance(labels, dict):
-        raise InputError(run_file, "this run wrote images without labels (--no-labels): there is no "
-                                   "dataset to finalize")
-    inputs = read_json(run_file)["parameters"].get("inputs") or {}
-    _finalize(args.out, _train_fraction(args, inputs.get("train_fraction", 0.8)),
-              args.split_by or inputs.get("split_by", "frame"))
+    _finalize(args.out, args.train_fraction, args.split_by)  # the run file's checks: finalize_dataset's
     return EXIT_OK

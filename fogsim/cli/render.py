@@ -19,7 +19,10 @@ import sys
 import time
 from pathlib import Path
 
+from fogsim.camera import CITYSCAPES_BASELINE_M
+from fogsim.dataset.writer import TRAIN_FRACTION
 from fogsim.errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE, InputError, MissingDependency, run_command
+from fogsim.render.fog_settings import FOG_KINDS, FOG_MEDIA
 from fogsim.render.preset import MAX_PIXELS
 
 
@@ -35,19 +38,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "about 8192×4883; Blender's own limit is 65536 px a side)")
     p.add_argument("--samples", type=int, help="Cycles samples (overrides the quality preset)")
     p.add_argument("--levels", help="fog levels: preset name or comma-separated β (overrides the preset)")
-    p.add_argument("--fog", choices=("koschmieder", "volumetric"),
+    p.add_argument("--fog", choices=FOG_KINDS,
                    help="fog model (overrides the preset's fog_model.kind): koschmieder = the post-process on the "
                         "clear render (default); volumetric = one Cycles render per fog level with a participating "
                         "medium (labels, depth and masks still come from the clear render)")
-    p.add_argument("--fog-medium", choices=("full", "hybrid", "ea"),
+    p.add_argument("--fog-medium", choices=FOG_MEDIA,
                    help="volumetric medium (implies --fog volumetric): full = pure scattering (default), "
                         "hybrid = half absorption + emission (cheaper), ea = camera-only emission-absorption "
                         "(exactly Koschmieder in linear light; a check)")
     p.add_argument("--stereo", action="store_true",
-                   help="also render the right camera (preset baseline, else the camera's, else 0.209 m) "
+                   help=f"also render the right camera (preset baseline, else the camera's, else "
+                        f"{CITYSCAPES_BASELINE_M} m) "
                         "and write SGBM disparity in Cityscapes' layout under OUT/cityscapes/")
     p.add_argument("--train-fraction", type=float, help="share of frames in the train split (default: the "
-                   "preset's, else 0.8; the paper's 8,100/4,800: 0.628); --finalize-only re-splits without rendering")
+                   f"preset's, else {TRAIN_FRACTION}; the paper's 8,100/4,800: 0.628); --finalize-only re-splits "
+                   "without rendering")
     p.add_argument("--shard", help="i/N: render frames i, i+N, … (0-based), e.g. $SLURM_ARRAY_TASK_ID/N")
     p.add_argument("--no-resume", action="store_true", help="re-render committed frames")
     p.add_argument("--gpu", action="store_true", help="render on the GPU when one is available")

@@ -29,8 +29,11 @@ from fogsim.runs import split_key
 from fogsim.viz import strip
 from fogsim.scene.classes import LABELLED
 
-__all__ = ["PALETTE", "contact_sheet", "data_yaml", "finalize",
+__all__ = ["PALETTE", "TRAIN_FRACTION", "check_train_fraction", "contact_sheet", "data_yaml", "finalize",
            "frame_split", "split_frames", "write_frame_labels"]
+
+#: the share of frames in the train split unless a preset or ``--train-fraction`` says otherwise
+TRAIN_FRACTION = 0.8
 
 #: box colours (RGB) by class id
 PALETTE = ((230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48),
@@ -45,12 +48,19 @@ def write_frame_labels(layout: DatasetLayout, frame: str, levels, records: list[
         atomic_write_bytes(layout.label(lv.key, frame), text.encode())
 
 
-def frame_split(frame: str, train_fraction: float = 0.8, seed: int = 0) -> str:
+def check_train_fraction(value, name: str = "train_fraction") -> float:
+    """``value`` when it is a share strictly between 0 and 1, else a ValueError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < 1:
+        raise ValueError(f"{name} must be in (0, 1), got {value!r}")
+    return float(value)
+
+
+def frame_split(frame: str, train_fraction: float = TRAIN_FRACTION, seed: int = 0) -> str:
     """"train" or "val" for one frame by the split rule alone (no empty-split adjustment)."""
     return "train" if split_key(frame, seed) < round(1000 * train_fraction) else "val"
 
 
-def split_frames(frames: list[str], train_fraction: float = 0.8, seed: int = 0,
+def split_frames(frames: list[str], train_fraction: float = TRAIN_FRACTION, seed: int = 0,
                  groups: dict[str, str] | None = None) -> tuple[list, list]:
     """Deterministic (train, val) frame lists by hash of name (see the module docstring).
 
@@ -95,7 +105,7 @@ def _write_lists(layout: DatasetLayout, name: str, split: dict[str, list[Path]],
     atomic_write_bytes(layout.data_yaml(name), data_yaml(layout.root, *lists, description, classes).encode())
 
 
-def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: float = 0.8,
+def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: float = TRAIN_FRACTION,
              seed: int = 0, classes=LABELLED, split_group=None) -> dict:
     """Write every dataset-level file from the committed frames; returns ``dataset.json``'s content.
 

@@ -46,7 +46,7 @@ from fogsim.fileio import (TO_8BIT, atomic_write_bytes, encode_image, read_json,
 from fogsim.fog.levels import FogLevel
 from fogsim.fog.labelled import check_labelled, checked_records
 from fogsim.fog.visibility import attach_visibility
-from fogsim.dataset.writer import finalize, write_frame_labels
+from fogsim.dataset.writer import TRAIN_FRACTION, check_train_fraction, finalize, write_frame_labels
 
 RUN_FILE = "fogsim_run.json"
 
@@ -264,15 +264,15 @@ def key_folder(key: str) -> str:
     return key.rpartition("/")[0]
 
 
-def finalize_dataset(out: str | Path, train_fraction: float = 0.8, split_by: str = "frame") -> dict:
+def finalize_dataset(out: str | Path, train_fraction: float | None = None, split_by: str | None = None) -> dict:
     """Write the dataset-wide files of a labelled ``fogsim fog`` run (COCO per level with the
     dataset's classes and ``distance_m`` per annotation, split lists, data YAMLs,
     ``dataset.json``, contact sheet) from its committed frames and ``fogsim_run.json``.
+    ``train_fraction`` and ``split_by`` (one of :data:`SPLIT_BY`): None = the run's own (its
+    recorded inputs), else :data:`~fogsim.dataset.writer.TRAIN_FRACTION` and ``"frame"``.
     The split seed is the run's ``--seed``; ``split_by="folder"`` keeps the frames of one input
     folder (:func:`key_folder`: a Waymo segment, a Cityscapes city) on one side of the split.
     Returns ``dataset.json``'s content."""
-    if split_by not in SPLIT_BY:
-        raise ValueError(f"--split-by must be one of {', '.join(SPLIT_BY)}, got {split_by!r}")
     run_file = Path(out) / RUN_FILE
     if not run_file.is_file():
         raise InputError(out, f"no {RUN_FILE} here: not a fogsim fog output to finalize")
@@ -280,10 +280,17 @@ def finalize_dataset(out: str | Path, train_fraction: float = 0.8, split_by: str
     if not isinstance(params.get("labels"), dict):
         raise InputError(run_file, "this run wrote images without labels (--no-labels): there is no "
                                    "dataset to finalize")
+    inputs = params.get("inputs") or {}
+    if train_fraction is None:
+        train_fraction = inputs.get("train_fraction", TRAIN_FRACTION)
+    train_fraction = check_train_fraction(train_fraction, "--train-fraction")
+    split_by = split_by or inputs.get("split_by", "frame")
+    if split_by not in SPLIT_BY:
+        raise ValueError(f"--split-by must be one of {', '.join(SPLIT_BY)}, got {split_by!r}")
     levels = [FogLevel(lv["key"], lv["name"], lv["beta"]) for lv in params["levels"]]
     classes = tuple(params["labels"]["classes"])
     manifest = {"source": "fogsim fog", "fog": {k: v for k, v in params.items() if k != "inputs"},
-                "inputs": params.get("inputs", {}), "seed": params.get("seed", 0)}
+                "inputs": inputs, "seed": params.get("seed", 0)}
     group = None if split_by == "frame" else ("the sample key's folder", lambda meta: key_folder(meta["key"]))
     return finalize(DatasetLayout(out), levels, manifest, train_fraction, seed=params.get("seed", 0),
                     classes=classes, split_group=group)

@@ -142,11 +142,12 @@ def smooth_transmission(t: np.ndarray, kernel: Kernel, guide: np.ndarray | None 
 
 
 # ----------------------------------------------------------------------------- airlight
-def airlight_rgb(airlight, dtype=np.uint8) -> np.ndarray:
-    """Airlight (scalar or RGB, 8-bit units) → float32 RGB in the scale of ``dtype``."""
+def airlight_rgb(airlight, dtype=np.uint8, name: str = "airlight") -> np.ndarray:
+    """Airlight (scalar or RGB, 8-bit units) → float32 RGB in the scale of ``dtype``; a value
+    outside [0, 255] is a ValueError naming ``name`` (the caller's word for it, e.g. a flag)."""
     a = np.broadcast_to(np.asarray(airlight, dtype=np.float64), (3,))
     if not np.all(np.isfinite(a)) or (a < 0).any() or (a > 255).any():
-        raise ValueError(f"airlight must lie in [0, 255] (8-bit units), got {airlight}")
+        raise ValueError(f"{name} must lie in [0, 255] (8-bit units), got {airlight}")
     return (a * (full_scale(dtype) / 255.0)).astype(np.float32)
 
 
@@ -170,6 +171,16 @@ def estimate_airlight(image: np.ndarray, patch: int = 15, top_fraction: float = 
 
 
 # ----------------------------------------------------------------------------- heterogeneous fog
+def check_heterogeneity(amplitude: float, scale_px: float,
+                        names: tuple[str, str] = ("heterogeneity amplitude", "heterogeneity scale")) -> None:
+    """The range of :func:`density_field`'s parameters: 0 ≤ ``amplitude`` < 1 and ``scale_px`` > 0
+    pixels; a ValueError names the parameter by ``names`` (the caller's words, e.g. flags)."""
+    if not 0 <= amplitude < 1:
+        raise ValueError(f"{names[0]} must be in [0, 1), got {amplitude}")
+    if not scale_px > 0:
+        raise ValueError(f"{names[1]} must be > 0 pixels, got {scale_px}")
+
+
 def density_field(shape: tuple[int, int], rng: np.random.Generator, amplitude: float = 0.3,
                   scale_px: float = 64.0) -> np.ndarray:
     """A smooth random field m(x) with mean exactly 1 and values in [1 − a, 1 + a].
@@ -177,8 +188,7 @@ def density_field(shape: tuple[int, int], rng: np.random.Generator, amplitude: f
     Multiplying β by m makes patchy fog with the same mean density. ``scale_px`` is the
     size of the patches in pixels; ``rng`` makes it reproducible (pass one seeded Generator).
     """
-    if not 0 <= amplitude < 1:
-        raise ValueError(f"heterogeneity amplitude must be in [0, 1), got {amplitude}")
+    check_heterogeneity(amplitude, scale_px)
     h, w = shape
     gh, gw = max(2, int(np.ceil(h / scale_px)) + 1), max(2, int(np.ceil(w / scale_px)) + 1)
     coarse = rng.standard_normal((gh, gw)).astype(np.float32)

@@ -20,7 +20,7 @@ from fogsim.errors import InputError
 from fogsim.fog.model import Fogger
 from fogsim.fog.visibility import attach_visibility
 from fogsim.fileio import write_depth, write_image, write_json
-from fogsim.render.labels import object_records
+from fogsim.render.labels import MIN_PIXELS, MIN_VISIBLE_FRACTION, object_records
 from fogsim.render.preset import RenderConfig, fog_settings
 from fogsim.runs import frame_seed
 from fogsim.scene.classes import is_labelled
@@ -96,8 +96,8 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: 
     sil = silhouette_areas(labelled, K, np.asarray(desc["camera"]["world_to_camera"]))
     lab = config.labels
     records = object_records(mask, ray, desc["objects"], sil,
-                             min_pixels=int(lab.get("min_pixels", 25)),
-                             min_visible_fraction=float(lab.get("min_visible_fraction", 0.1)))
+                             min_pixels=int(lab.get("min_pixels", MIN_PIXELS)),
+                             min_visible_fraction=float(lab.get("min_visible_fraction", MIN_VISIBLE_FRACTION)))
     t1 = time.perf_counter()
     fs = fog_settings(config)
     if foggy is None:

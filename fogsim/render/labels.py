@@ -18,11 +18,14 @@ from fogsim.boxes import MaskRuns
 from fogsim.scene.classes import CLASS_ID, is_labelled
 
 DISTANCE_STAT = "median ray distance over visible pixels"
+#: the label filters' defaults (a preset's ``labels`` block overrides them): an object with fewer
+#: visible pixels, or a smaller visible fraction of its silhouette, is kept out of the YOLO labels
+MIN_PIXELS, MIN_VISIBLE_FRACTION = 25, 0.1
 
 
 def object_records(mask: np.ndarray, ray_distance: np.ndarray, objects: list[dict],
-                   silhouettes: dict[int, dict], min_pixels: int = 25,
-                   min_visible_fraction: float = 0.1) -> list[dict]:
+                   silhouettes: dict[int, dict], min_pixels: int = MIN_PIXELS,
+                   min_visible_fraction: float = MIN_VISIBLE_FRACTION) -> list[dict]:
     """One record per labelled object with at least one visible pixel, in ``objects`` order.
 
     ``silhouettes[id]`` holds ``pixels_in_image`` and ``pixels_total`` (unoccluded silhouette

@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from fogsim import presets
+from fogsim.camera import CITYSCAPES_BASELINE_M
+from fogsim.dataset.writer import TRAIN_FRACTION
 from fogsim.errors import InputError
 from fogsim.fileio import read_json
 from fogsim.fog.levels import FogLevel, parse_levels
@@ -67,7 +69,7 @@ class RenderConfig:
     frames: int = 8
     seed: int = 0
     stereo_baseline: float | None = None  # metres; None = no right camera
-    train_fraction: float = 0.8  # share of frames in the train split (fogsim.dataset_writer's rule)
+    train_fraction: float = TRAIN_FRACTION  # share of frames in the train split (fogsim.dataset.writer's rule)
     lighting: dict = field(default_factory=dict)  # checked "lighting" object; {} = day (see check_lighting)
 
     def to_dict(self) -> dict:
@@ -152,7 +154,8 @@ def _component(kind: str, value, key: str, source: Path) -> dict:
 
 def _stereo_baseline(spec, camera: dict, override: bool | None) -> float | None:
     """Baseline in metres from the preset's ``stereo`` ({"baseline_m": …} or true = the
-    camera's ``stereo_baseline_m``, else Cityscapes' 0.209 m); ``override`` forces it on/off."""
+    camera's ``stereo_baseline_m``, else Cityscapes' :data:`~fogsim.camera.CITYSCAPES_BASELINE_M`);
+    ``override`` forces it on/off."""
     if spec is not None and not isinstance(spec, (bool, dict)):
         raise ValueError(f"stereo must be true, false or {{\"baseline_m\": …}}, got {spec!r}")
     if isinstance(spec, dict):
@@ -161,7 +164,7 @@ def _stereo_baseline(spec, camera: dict, override: bool | None) -> float | None:
     if not on:
         return None
     b = spec.get("baseline_m") if isinstance(spec, dict) else None
-    return float(b if b is not None else camera.get("stereo_baseline_m", 0.209))
+    return float(b if b is not None else camera.get("stereo_baseline_m", CITYSCAPES_BASELINE_M))
 
 
 def _resolution(value) -> tuple[int, int]:
@@ -276,7 +279,7 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
             frames=frames if frames is not None else integer(d.get("frames", 8), "frames", 1),
             seed=seed if seed is not None else integer(d.get("seed", 0), "seed", 0), stereo_baseline=baseline,
             train_fraction=(train_fraction if train_fraction is not None
-                            else number(d.get("train_fraction", 0.8), "train_fraction")))
+                            else number(d.get("train_fraction", TRAIN_FRACTION), "train_fraction")))
         for key, check in _META.items():
             if key in d:
                 check(d[key], key)
