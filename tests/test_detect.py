@@ -292,12 +292,12 @@ def test_ultralytics_errors_become_one_line_naming_the_model(tmp_path, monkeypat
     monkeypatch.setattr(detect, "load_ultralytics", lambda config_dir: type("U", (), {"YOLO": FakeYOLO}))
     monkeypatch.setattr(detect, "resolve_device", lambda device: "cpu")
     with pytest.raises(FogsimError) as err:
-        detect.train("beta0.06", tmp_path / "data.yaml", tmp_path / "runs", TrainConfig(), tmp_path)
+        detect.train("beta0.06", tmp_path / "data.yaml", tmp_path / "runs" / "beta0.06", TrainConfig(), tmp_path)
     assert str(err.value) == "training beta0.06 failed: ValueError: batch size 2 is too large for 1 image"
     assert exit_code(err.value) == 1
     raised[0] = KeyboardInterrupt()
     with pytest.raises(KeyboardInterrupt):
-        detect.train("beta0.06", tmp_path / "data.yaml", tmp_path / "runs", TrainConfig(), tmp_path)
+        detect.train("beta0.06", tmp_path / "data.yaml", tmp_path / "runs" / "beta0.06", TrainConfig(), tmp_path)
     image = tmp_path / "images" / "a.png"
     image.parent.mkdir()
     image.write_bytes(b"")

@@ -25,6 +25,7 @@ import sys
 from pathlib import Path
 
 from fogsim.errors import EXIT_OK
+from fogsim.fog.visibility import INVISIBLE_RULE
 
 
 def add_parsers(sub) -> None:
@@ -68,7 +69,8 @@ def add_parsers(sub) -> None:
     ev = p.add_argument_group("evaluation")
     ev.add_argument("--max-distance", type=float, default=100.0, help="objects farther (m) are ignored")
     ev.add_argument("--visible-only", action="store_true", help="also score mAP@50 and the distance bins "
-                    "with invisible objects (contrast < 5 %%) ignored; recall is reported both ways always")
+                    f"with invisible objects ({INVISIBLE_RULE.replace('%', '%%')}) ignored; recall is reported both "
+                    "ways always")
     ev.add_argument("--unknown-distance", choices=("ignore", "count"), default="ignore",
                     help="objects of unknown distance (no laser label, no valid disparity): ignore regions, or "
                          "ground truth counted by the distance cut; the report gives both counts")
@@ -146,7 +148,6 @@ def cmd_study(args) -> int:
               f"write the report with --report-only")
         return EXIT_OK
     study.report(args.max_distance, visible_only=args.visible_only)
-    report = out / "report"
-    print((report / "cross_density.md").read_text())
-    print(f"report: {report / 'report.md'} (heatmaps: recall_heatmap.png, map50_heatmap.png)")
+    print(study.files.report("cross_density.md").read_text())
+    print(f"report: {study.files.report('report.md')} (heatmaps: recall_heatmap.png, map50_heatmap.png)")
     return EXIT_OK

@@ -7,15 +7,8 @@ models, ``oracle`` (each level's own model on it: routing by the true level) and
 ``routed (<estimator>)`` (each validation image sent to the model of its *estimated* level,
 :mod:`fogsim.detection.level_estimation`). Columns: validation levels.
 
-Layout under OUT::
-
-    study.json                   dataset, levels, training configuration (a rerun with other
-                                 parameters is refused)
-    yolo/                        training view of the dataset (symlinks, split lists, data YAMLs)
-    runs/<model>/                Ultralytics run; fogsim_done.json marks it trained
-    predictions/<model>/<level>.json   COCO results on the level's validation images
-    report/                      cross_density.{json,csv,md}, recall/map50 heatmaps,
-                                 fog_level.json, fog_level_<estimator>.png, report.md
+The folder OUT (``study.json``, ``yolo/``, ``runs/<model>/``, ``predictions/<model>/<level>.json``,
+``report/``, ``sim_to_real/``) is :class:`fogsim.detection.layout.StudyLayout`'s.
 
 Every unit (a model's training, one prediction file) is skipped when done, so an interrupted
 study resumes; ``shard=(i, N)`` takes models i, i+N, … for a scheduler's array job.
@@ -28,9 +21,9 @@ study). ``unknown_distance`` (``ignore``/``count``) decides objects whose distan
 policy evaluates.
 
 **Sim-to-real** (``sim_dataset``, a rendered dataset): its models (one per level + mixed) are
-trained by a study of its own under ``OUT/sim_to_real/study`` and run on this (real) dataset's
-validation images (``OUT/sim_to_real/predictions/<model>/<level>.json``); their detections go
-through the class map sim → real (given, or the identity for equal class lists, or the built-in
+trained by a study of its own (:meth:`~fogsim.detection.layout.StudyLayout.sim_study`) and run on
+this (real) dataset's validation images (:meth:`~fogsim.detection.layout.StudyLayout.sim_prediction`);
+their detections go through the class map sim → real (given, or the identity for equal class lists, or the built-in
 whose lists match: ``fogsim-to-waymo``, ``fogsim-to-cityscapes``) and appear as rows
 ``sim <model>``. Then every row is evaluated on the real classes the map reaches, so the rows
 are comparable (Cityscapes' train, motorcycle, bicycle have no fogsim source).
@@ -46,17 +39,19 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from fogsim.detection.table import cross_density, heatmap, markdown, write_report
 from fogsim.dataset.layout import MIXED_MODEL, DatasetLayout
 from fogsim.dataset.reader import dataset_classes, dataset_levels, missing_files, read_split, val_ground_truth
 from fogsim.detection.class_map import (BUILTIN, ClassMap, identity, map_detections, map_ground_truth,
                                         restriction)
-from fogsim.detection.yolo import TrainConfig, check_model, predict, train, training_view
-from fogsim.runs import claim_output
-from fogsim.errors import InputError
 from fogsim.detection.coco_eval import BINS, UNKNOWN_DISTANCE, distance_coverage
+from fogsim.detection.layout import StudyLayout
 from fogsim.detection.level_estimation import LevelEstimator, confusion, image_features, route
+from fogsim.detection.table import cross_density, heatmap, markdown, write_report
+from fogsim.detection.yolo import TrainConfig, check_model, predict, train, training_view
+from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes, read_image, read_json, write_image, write_json
+from fogsim.fog.visibility import INVISIBLE_RULE
+from fogsim.runs import claim_output
 
 ESTIMATORS = ("features", "dark-channel")
 ESTIMATOR_TRAIN_IMAGES = 200  # per level: enough for centroids, bounded time on large datasets
@@ -70,14 +65,14 @@ class Study:
                  unknown_distance: str = "ignore", class_map: ClassMap | None = None,
                  sim_dataset: str | Path | None = None):
         self.dataset, self.out, self.cfg = Path(dataset).resolve(), Path(out).resolve(), cfg
-        self.layout = DatasetLayout(self.dataset)
+        self.layout, self.files = DatasetLayout(self.dataset), StudyLayout(self.out)
         self.levels = dataset_levels(self.layout)
         self.classes = dataset_classes(self.layout)
         if unknown_distance not in UNKNOWN_DISTANCE:
             raise ValueError(f"--unknown-distance must be one of {', '.join(UNKNOWN_DISTANCE)}, "
                              f"got {unknown_distance!r}")
         self.unknown_distance = unknown_distance
-        self.sim = None if sim_dataset is None else Study(sim_dataset, self.out / "sim_to_real" / "study", cfg)
+        self.sim = None if sim_dataset is None else Study(sim_dataset, self.files.sim_study(), cfg)
         if self.sim is not None:
             if self.sim.dataset == self.dataset:
                 raise InputError(sim_dataset, "--sim-dataset is the --dataset itself")
@@ -93,15 +88,15 @@ class Study:
             raise InputError(self.layout.manifest(), f"fog level keys {clash} clash with the study's "
                                                      "row names (mixed, oracle, routed …)")
         self.models = [*self.levels, MIXED_MODEL]
-        self.config_dir = self.out / "ultralytics_config"
+        self.config_dir = self.files.config_dir()
 
     def prediction(self, model: str, level: str) -> Path:
-        return self.out / "predictions" / model / f"{level}.json"
+        return self.files.prediction(model, level)
 
     def sim_prediction(self, model: str, level: str) -> Path:
         """Detections of the sim study's model ``model`` on this dataset's level ``level``
         (in the sim dataset's classes, as the model predicts)."""
-        return self.out / "sim_to_real" / "predictions" / model / f"{level}.json"
+        return self.files.sim_prediction(model, level)
 
     def _dataset_parameters(self, gts: dict) -> dict:
         """What ties predictions to the dataset: its path, levels and validation images (ids and
@@ -113,11 +108,11 @@ class Study:
     def check_parameters(self, gts: dict) -> None:
         """Write ``study.json``, or refuse when OUT holds a study with other parameters."""
         params = self._dataset_parameters(gts) | {"train": asdict(self.cfg)}
-        claim_output(self.out / "study.json", params, what="study")
+        claim_output(self.files.study_file(), params, what="study")
 
     def stored_config(self, gts: dict) -> TrainConfig:
         """The training parameters in ``study.json``, after checking it is this dataset's study."""
-        path = self.out / "study.json"
+        path = self.files.study_file()
         if not path.is_file():
             raise InputError(path, "no study here: train the models first")
         stored = read_json(path).get("parameters", {})
@@ -134,14 +129,14 @@ class Study:
         gts = self.ground_truth()
         self.check_files(gts)  # a missing image named in the dataset, not as Ultralytics' link to it
         mine = self.models[shard[0]::shard[1]]
-        if any(not (self.out / "runs" / m / "fogsim_done.json").is_file() for m in mine):
+        if any(not self.files.run_done(m).is_file() for m in mine):
             check_model(self.cfg.model, self.config_dir)  # before study.json: a typo must not lock OUT
         self.check_parameters(gts)
-        data = training_view(self.dataset, self.out / "yolo", self.levels, self.classes)
+        data = training_view(self.dataset, self.files.training_view(), self.levels, self.classes)
         for name in tqdm(mine, desc="models", unit="model", disable=not progress):
-            if not (self.out / "runs" / name / "fogsim_done.json").is_file():
-                shutil.rmtree(self.out / "predictions" / name, ignore_errors=True)  # from older weights
-            best = train(name, data[name], self.out / "runs", self.cfg, self.config_dir)
+            if not self.files.run_done(name).is_file():
+                shutil.rmtree(self.files.predictions(name), ignore_errors=True)  # from older weights
+            best = train(name, data[name], self.files.run(name), self.cfg, self.config_dir)
             for lv in self.levels:
                 path = self.prediction(name, lv)
                 if not path.is_file():
@@ -154,9 +149,8 @@ class Study:
         this dataset's validation images of every level (resumable)."""
         self.sim.run_models(shard, progress)
         for name in self.sim.models[shard[0]::shard[1]]:
-            run = self.sim.out / "runs" / name
-            stamp = (run / "fogsim_done.json").stat().st_mtime
-            best = run / "weights" / "best.pt"
+            stamp = self.sim.files.run_done(name).stat().st_mtime
+            best = self.sim.files.weights(name)
             for lv in self.levels:
                 path = self.sim_prediction(name, lv)
                 if path.is_file() and path.stat().st_mtime < stamp:
@@ -224,7 +218,7 @@ class Study:
         eval_gts, rows = self.evaluation_rows(gts, rows)
         table = cross_density(eval_gts, rows, max_distance_m=max_distance_m, unknown_distance=self.unknown_distance,
                               visible_only=visible_only)
-        out = self.out / "report"
+        out = self.files.report()
         write_report(table, out)
         write_json(out / "fog_level.json", levels_out)
         coverage = self.coverage(gts, max_distance_m)
@@ -239,10 +233,7 @@ class Study:
                     for i, t in enumerate(self.levels)}
             write_image(out / f"fog_level_{method}.png",
                         heatmap(grid, "share", title=f"fog level, {method}: share (row: true, column: estimated)"))
-        md = self.report_markdown(table, levels_out, max_distance_m, cfg, coverage)
-        if visible_only:  # the headline policy, said where the numbers are
-            md = md.replace("farther ones are ignored.", "farther ones, and invisible ones (contrast < 5 %), "
-                            "are ignored in map50 and by distance.", 1)
+        md = self.report_markdown(table, levels_out, max_distance_m, cfg, coverage, visible_only)
         atomic_write_bytes(out / "report.md", md.encode())
         return table
 
@@ -281,17 +272,19 @@ class Study:
         return out
 
     def report_markdown(self, table: dict, levels_out: dict, max_distance_m: float, cfg: TrainConfig,
-                        coverage: dict | None = None) -> str:
+                        coverage: dict | None = None, visible_only: bool = False) -> str:
         n_train = len(read_split(self.layout, self.levels[0], "train"))
         n_val = len(read_split(self.layout, self.levels[0], "val"))
+        ignored = (f"farther ones, and invisible ones ({INVISIBLE_RULE}), are ignored in map50 and by distance"
+                   if visible_only else "farther ones are ignored")  # the headline policy, with the numbers
         lines = ["# Cross-density detection study", "",
                  f"Dataset `{self.dataset}`: {n_train} training / {n_val} validation frames per level; "
                  f"model `{cfg.model}`{' from scratch' if cfg.model.endswith(('.yaml', '.yml')) else ''}, "
                  f"{cfg.epochs} epochs "
                  f"(mixed: {cfg.epochs_for(MIXED_MODEL)} over every level), {cfg.imgsz} px, batch {cfg.batch}. "
-                 f"Objects within {max_distance_m:g} m count; farther ones are ignored.",
+                 f"Objects within {max_distance_m:g} m count; {ignored}.",
                  "", "Recall = Ultralytics' R (recall at the max-F1 confidence), over every object and over "
-                 "the visible ones only (recall_visible: invisible objects, contrast < 5 % against their "
+                 f"the visible ones only (recall_visible: invisible objects, {INVISIBLE_RULE} against their "
                  "surround in that level's image, are ignored); map50 = COCO AP@0.5 "
                  "(pycocotools). Rows: trained on (oracle = each level's own model; routed = the model "
                  "of the estimated level); columns: validated on.", "", *self._classes_lines(),
@@ -306,7 +299,7 @@ class Study:
         lines += ["", "**training** (seconds of the run that finished each model)", "",
                   "| model | epochs | seconds | state |", "|---|---|---|---|"]
         for m in self.models:
-            done = self.out / "runs" / m / "fogsim_done.json"
+            done = self.files.run_done(m)
             info = read_json(done) if done.is_file() else {}
             seconds, state = info.get("seconds_this_run", "—"), info.get("state", "—")
             lines.append(f"| {m} | {cfg.epochs_for(m)} | {seconds} | {state} |")

@@ -28,6 +28,7 @@ from fogsim.errors import FogsimError, InputError
 from fogsim.dataset.layout import MIXED_MODEL, PARTS, DatasetLayout
 from fogsim.dataset.reader import dataset_classes, read_split
 from fogsim.dataset.writer import data_yaml
+from fogsim.detection.layout import DONE_FILE
 from fogsim.fileio import atomic_write_bytes, write_json
 
 MIN_ULTRALYTICS = (8, 4, 37)  # earlier releases inflate mAP (PR curve extended to recall 1)
@@ -154,15 +155,16 @@ def _symlink(link: Path, target: Path) -> None:
 
 # --- training ------------------------------------------------------------------------------------
 
-def train(name: str, data_file: Path, runs: Path, cfg: TrainConfig, config_dir: Path) -> Path:
+def train(name: str, data_file: Path, run: Path, cfg: TrainConfig, config_dir: Path) -> Path:
     """Train (or resume, or skip when done) model ``name``; returns its ``best.pt``.
 
-    The run is Ultralytics' folder ``runs/<name>`` (weights, results.csv, plots); its
-    ``fogsim_done.json``, written last, marks it trained. An interrupted run resumes from
-    ``weights/last.pt`` (data, folder and device of this call, in case the study moved).
+    ``run`` is the model's Ultralytics run folder (:meth:`fogsim.detection.layout.StudyLayout.run`:
+    weights, results.csv, plots); its :data:`~fogsim.detection.layout.DONE_FILE`, written last,
+    marks it trained. An interrupted run resumes from ``weights/last.pt`` (data, folder and device
+    of this call, in case the study moved).
     """
-    run = (runs / name).resolve()
-    best, last, done = run / "weights" / "best.pt", run / "weights" / "last.pt", run / "fogsim_done.json"
+    run = Path(run).resolve()
+    best, last, done = run / "weights" / "best.pt", run / "weights" / "last.pt", run / DONE_FILE
     if done.is_file() and best.is_file():
         return best
     ultralytics = load_ultralytics(config_dir)
@@ -182,7 +184,7 @@ def train(name: str, data_file: Path, runs: Path, cfg: TrainConfig, config_dir: 
                 data=str(data_file), epochs=cfg.epochs_for(name), imgsz=cfg.imgsz, batch=cfg.batch,
                 nbs=cfg.nbs or cfg.batch, device=device, workers=cfg.workers, seed=cfg.seed, deterministic=True,
                 patience=cfg.patience, cache="ram" if cfg.cache else False, plots=cfg.plots,
-                pretrained=False, amp=False, project=str(run.parent), name=name, exist_ok=True)
+                pretrained=False, amp=False, project=str(run.parent), name=run.name, exist_ok=True)
     if not best.is_file():
         raise FogsimError(f"{run}: Ultralytics finished without writing weights/best.pt")
     write_json(done, {"model": name, "data": str(data_file), "config": asdict(cfg),

@@ -47,6 +47,8 @@ from fogsim.colour import srgb_luminance
 
 #: Contrast at which an object is no longer seen (meteorological visibility: V = ln(20)/β).
 VISIBLE_CONTRAST = 0.05
+#: the rule in words, as reports and help texts say it ("contrast < 5 %")
+INVISIBLE_RULE = f"contrast < {VISIBLE_CONTRAST * 100:g} %"
 #: Lower bound on the surround luminance in the Weber denominator (linear light, white = 1),
 #: so a black surround gives a large but finite contrast.
 LUMINANCE_FLOOR = 1e-3
