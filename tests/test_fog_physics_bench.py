@@ -56,19 +56,18 @@ def write_rgb_exr(path, rgb):
 
 @pytest.fixture(scope="module")
 def bench_dir(tmp_path_factory):
-    from fogsim.render.frame import commit_frame, describe_frame, scene_meshes
+    from fogsim.render.frame import DescribedFrame, FramePasses, commit_frame
     from fogsim.render.preset import load_render_preset
 
     out = tmp_path_factory.mktemp("fog_physics")
     config = load_render_preset("default", frames=1, resolution=f"{W}x{H}", levels="0,0.06,0.12")
-    desc = describe_frame(config, 0)
     rng = np.random.default_rng(0)
     rgb = np.clip(rng.normal(0.25, 0.05, (H, W, 3)), 0, 1).astype(np.float32)
     depth = np.tile(np.geomspace(40, 8, H - 12)[:, None], (1, W)).astype(np.float32)
     depth = np.vstack([np.full((12, W), np.inf, np.float32), depth])
     mask = np.zeros((H, W), np.uint16)
-    commit_frame(DatasetLayout(out / "clear"), config, 0, desc, scene_meshes(desc), rgb, depth, mask,
-                 {"render": 0.5}, {})
+    commit_frame(DatasetLayout(out / "clear"), config, DescribedFrame.of(config, 0), FramePasses(rgb, depth, mask),
+                 timings={"render": 0.5})
     clear = DatasetLayout(out / "clear")
     meta = json.loads(clear.meta("000000").read_text())
     ray = planar_to_ray(depth, Intrinsics.from_dict(meta["camera"]["intrinsics"]))

@@ -11,7 +11,7 @@ from conftest import expected_yolo_lines
 from fogsim.camera import Intrinsics, decode_disparity_png
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.fileio import read_depth_file, read_image, read_uint16_map
-from fogsim.render.frame import commit_frame, describe_frame, frame_name, scene_meshes
+from fogsim.render.frame import DescribedFrame, FramePasses, commit_frame, describe_frame, frame_name, scene_meshes
 from fogsim.render.preset import load_render_preset
 from fogsim.render.silhouette import silhouette_areas
 from fogsim.scene.classes import CLASS_ID, LABELLED
@@ -103,7 +103,8 @@ def test_commit_frame_writes_every_file_as_computed_by_hand(scene, tmp_path, mon
         real = getattr(frame_mod, fn)
         monkeypatch.setattr(frame_mod, fn, lambda *a, _real=real, _fn=fn, **kw: (calls.append((_fn, None)),
                                                                                    _real(*a, **kw))[1])
-    meta = commit_frame(layout, config, 0, desc, meshes, rgb, depth, mask, {"render": 1.5}, {"engine": "fake"})
+    meta = commit_frame(layout, config, DescribedFrame(0, desc, meshes), FramePasses(rgb, depth, mask),
+                        timings={"render": 1.5}, render_info={"engine": "fake"})
 
     # meta/<frame>.json: written last, so its presence marks the frame done
     assert calls[-1] == ("meta", [True] * len(others)) and sum(c[0] == "meta" for c in calls) == 1
@@ -175,7 +176,8 @@ def test_commit_frame_without_objects_writes_empty_labels(scene, tmp_path):
     layout = DatasetLayout(tmp_path / "ds")
     rgb = np.full((H, W, 3), 0.2, np.float32)
     depth = np.full((H, W), 20.0, np.float32)
-    meta = commit_frame(layout, config, 3, desc, meshes, rgb, depth, np.zeros((H, W), np.uint16), {}, {})
+    meta = commit_frame(layout, config, DescribedFrame(3, desc, meshes),
+                        FramePasses(rgb, depth, np.zeros((H, W), np.uint16)))
     assert meta["objects"] == [] and meta["frame"] == "000003" and layout.done_frames() == ["000003"]
     for lv in config.levels:
         assert layout.label(lv.key, "000003").read_text() == ""  # background image
@@ -194,8 +196,8 @@ def test_commit_frame_stereo_pair_in_cityscapes_layout(scene, tmp_path):
     left, right = wide[:, :W], wide[:, 4:]  # right(x) = left(x + 4): disparity 4 px
     depth = np.full((H, W), 30.0, np.float32)
     layout = DatasetLayout(tmp_path / "ds")
-    meta = commit_frame(layout, config, 0, desc, meshes, left, depth, np.zeros((H, W), np.uint16), {}, {},
-                        right_linear=right)
+    meta = commit_frame(layout, config, DescribedFrame(0, desc, meshes),
+                        FramePasses(left, depth, np.zeros((H, W), np.uint16), right_linear=right))
     st = meta["stereo"]
     assert st["baseline_m"] == config.stereo_baseline and st["split"] in ("train", "val")
     disp = decode_disparity_png(read_uint16_map(layout.cityscapes("disparity", "000000", st["split"])))

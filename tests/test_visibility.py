@@ -152,7 +152,7 @@ def test_render_commit_puts_visibility_in_meta_and_coco(tmp_path):
     level in meta, recomputed here from the written images and mask; COCO gets the per-level fields."""
     from fogsim.camera import Intrinsics
     from fogsim.fileio import read_image
-    from fogsim.render.frame import commit_frame, describe_frame, frame_name, scene_meshes
+    from fogsim.render.frame import DescribedFrame, FramePasses, commit_frame, describe_frame, frame_name, scene_meshes
     from fogsim.render.preset import load_render_preset
     from fogsim.render.silhouette import silhouette_areas
     from fogsim.scene.classes import LABELLED
@@ -175,7 +175,7 @@ def test_render_commit_puts_visibility_in_meta_and_coco(tmp_path):
         depth[20:40, x0:x0 + 20] = d
         rgb[20:40, x0:x0 + 20] = 0.02
     layout = DatasetLayout(tmp_path / "ds")
-    meta = commit_frame(layout, config, 0, desc, meshes, rgb, depth, mask, {}, {})
+    meta = commit_frame(layout, config, DescribedFrame(0, desc, meshes), FramePasses(rgb, depth, mask))
     stored = json.loads(layout.meta(frame_name(0)).read_text())
     assert len(stored["objects"]) == 2
     for rec in stored["objects"]:

@@ -1,13 +1,16 @@
 """One rendered frame → a committed dataset frame (pure Python; the renderer hands arrays in).
 
-Per frame: sRGB image from the scene-linear render, ray distance from the planar depth,
-instance mask, boxes and visibility from the mask and the unoccluded silhouettes, the fogged
-image at every level, then ``meta/<frame>.json`` last — its presence marks the frame done.
+A frame is described first (:class:`DescribedFrame`: the scene, renderer-agnostic), a renderer
+turns it into :class:`FramePasses` (and, for volumetric fog, :class:`FogRenders`), and
+:func:`commit_frame` makes the rest: sRGB image from the scene-linear render, ray distance from
+the planar depth, boxes and visibility from the instance mask and the unoccluded silhouettes,
+the fogged image at every level, then ``meta/<frame>.json`` last — its presence marks the frame
+done.
 """
 from __future__ import annotations
 
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -58,6 +61,45 @@ def scene_meshes(desc: dict) -> dict[int, list]:
     return {obj["id"]: world_parts(obj) for obj in desc["objects"]}
 
 
+@dataclass(frozen=True)
+class DescribedFrame:
+    """Frame ``index`` before it is rendered: its scene description ``desc``
+    (:func:`describe_frame`) and the world-space ``meshes`` of its objects (:func:`scene_meshes`),
+    which the renderer builds and the ground truth projects."""
+
+    index: int
+    desc: dict
+    meshes: dict
+
+    @classmethod
+    def of(cls, config: RenderConfig, index: int) -> "DescribedFrame":
+        desc = describe_frame(config, index)
+        return cls(index, desc, scene_meshes(desc))
+
+
+@dataclass(frozen=True)
+class FramePasses:
+    """What a renderer hands over for one frame (the clear render): ``rgb_linear`` H×W×3 float32
+    scene-linear; ``depth`` H×W float32 planar Z in metres, +inf where nothing was hit; ``mask``
+    H×W uint16 instance ids (the object pass index, 0 = background); ``right_linear`` the right
+    view of a stereo pair (H×W×3 float32 scene-linear) or None."""
+
+    rgb_linear: np.ndarray
+    depth: np.ndarray
+    mask: np.ndarray
+    right_linear: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class FogRenders:
+    """Fog rendered by the renderer itself (volumetric): ``foggy`` level key → 8-bit sRGB H×W×3
+    image, one per level of the preset; ``info`` replaces the Koschmieder parameters in
+    ``meta["fog"]`` (its ``levels`` stay)."""
+
+    foggy: dict
+    info: dict
+
+
 def write_stereo(layout: DatasetLayout, config: RenderConfig, name: str, K: Intrinsics,
                  left: np.ndarray, right: np.ndarray) -> dict:
     """SGBM disparity of the clear pair, written with the pair and camera in Cityscapes' tree."""
@@ -73,19 +115,19 @@ def write_stereo(layout: DatasetLayout, config: RenderConfig, name: str, K: Intr
             "matcher": {"method": "OpenCV StereoSGBM (3-way)", **asdict(params)}}
 
 
-def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: dict, meshes: dict,
-                 rgb_linear: np.ndarray, depth: np.ndarray, mask: np.ndarray, timings: dict,
-                 render_info: dict, right_linear: np.ndarray | None = None,
-                 foggy: dict | None = None, fog_info: dict | None = None) -> dict:
+def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFrame, passes: FramePasses,
+                 fog: FogRenders | None = None, *, timings: dict | None = None,
+                 render_info: dict | None = None) -> dict:
     """Ground truth, fog and every file of one frame; returns the frame record (meta).
 
-    ``right_linear``: the right view of a stereo pair, if the preset asks for one; it is
-    matched with SGBM and written with the left view in Cityscapes' layout.
-    ``foggy``: level key → 8-bit sRGB H×W×3 image rendered elsewhere (volumetric fog), one per
-    level of the preset; None = Koschmieder fog computed here from the clear render. ``fog_info``
-    then replaces the Koschmieder parameters in ``meta["fog"]`` (its ``levels`` stay).
+    ``passes.right_linear`` (a stereo pair, if the preset asks for one) is matched with SGBM and
+    written with the left view in Cityscapes' layout. ``fog``: None = Koschmieder fog computed
+    here from the clear render. ``timings`` (seconds by stage) and ``render_info`` (the
+    renderer's settings) are recorded in the meta as given.
     """
     t0 = time.perf_counter()
+    index, desc, meshes = frame.index, frame.desc, frame.meshes
+    rgb_linear, depth, mask, right_linear = passes.rgb_linear, passes.depth, passes.mask, passes.right_linear
     name = frame_name(index)
     K = Intrinsics.from_dict(desc["camera"]["intrinsics"])
     h, w = mask.shape
@@ -100,15 +142,16 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: 
                              min_visible_fraction=float(lab.get("min_visible_fraction", MIN_VISIBLE_FRACTION)))
     t1 = time.perf_counter()
     fs = fog_settings(config)
-    if foggy is None:
+    if fog is None:
         fogger = Fogger(rgb, ray, fs["airlight"], fs["space"], fs["kernel"])
         foggy = {lv.key: fogger(lv.beta) for lv in config.levels}
         fog_meta = {"model": "koschmieder", "distance": "planar→ray", "airlight": fs["airlight"],
                     "blend_space": fs["space"], "kernel": fs["kernel"].to_dict() if fs["kernel"] else None}
     else:
+        foggy = fog.foggy
         if {lv.key for lv in config.levels} - set(foggy):
             raise ValueError(f"foggy images lack levels {sorted({lv.key for lv in config.levels} - set(foggy))}")
-        fog_meta = dict(fog_info or {})
+        fog_meta = dict(fog.info)
     attach_visibility(records, rgb, foggy, {lv.key: lv.beta for lv in config.levels}, mask)  # per object, level
     t2 = time.perf_counter()
     for lv in config.levels:
@@ -119,14 +162,14 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, index: int, desc: 
     stereo = None if right_linear is None else write_stereo(layout, config, name, K, rgb,
                                                              linear_to_srgb8(right_linear, config.exposure))
     t3 = time.perf_counter()
-    timings = dict(timings, ground_truth=t1 - t0, fog=t2 - t1, write=t3 - t2)
+    timings = dict(timings or {}, ground_truth=t1 - t0, fog=t2 - t1, write=t3 - t2)
     meta = {"frame": name, "index": index, "seed": desc["seed"], "width": w, "height": h,
             "camera": desc["camera"], "objects": records,
             "fog": {"levels": [lv.to_dict() for lv in config.levels], **fog_meta},
             "depth": {"file": str(layout.depth(name).relative_to(layout.root)), "kind": "planar Z, metres",
                       "no_hit": "inf"},
             "stereo": stereo,
-            "render": render_info, "timings_s": {k: round(v, 4) for k, v in timings.items()},
+            "render": render_info or {}, "timings_s": {k: round(v, 4) for k, v in timings.items()},
             "scene": desc, "fogsim_version": __version__}
     write_json(layout.meta(name), meta)
     return meta

@@ -36,11 +36,11 @@ built = build.build(desc, scene)
 p = render.render(scene)
 build.clear(built)
 ray = planar_to_ray(p.depth, K)
-wall = p.index == 7
+wall = p.mask == 7
 v, u = np.nonzero(wall)
 expect_ray = 10.0 * np.sqrt(1 + ((u - K.cx) / K.fx) ** 2 + ((v - K.cy) / K.fy) ** 2)
 rows = np.arange(64)[:, None] * np.ones((1, 96))
-ground = p.index == 1
+ground = p.mask == 1
 expect_ground = 1.5 * K.fy / (rows - K.cy)
 json.dump({"blender": bpy.app.version_string, "wall_pixels": int(wall.sum()),
            "wall_depth_min": float(p.depth[wall].min()), "wall_depth_max": float(p.depth[wall].max()),

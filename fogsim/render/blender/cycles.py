@@ -3,23 +3,16 @@ from __future__ import annotations
 
 import os
 import tempfile
-from dataclasses import dataclass
 
 import bpy
 import numpy as np
 
 from fogsim.camera import NO_HIT_DEPTH
 from fogsim.render.exr_reader import read_exr
+from fogsim.render.frame import FramePasses
 
 from fogsim.render.blender.compat import (PASS_CHANNELS, cycles_device, has_denoiser, set_denoiser_speed,
                                           set_multilayer_exr)
-
-
-@dataclass
-class RenderPasses:
-    rgb_linear: np.ndarray  # H×W×3 float32, scene-linear
-    depth: np.ndarray       # H×W float32, planar Z in metres, +inf where nothing was hit
-    index: np.ndarray       # H×W uint16, object pass index (0 = nothing)
 
 
 def configure(scene, quality: dict, seed: int, gpu: bool = False) -> dict:
@@ -70,8 +63,9 @@ def _pick(channels: dict, names: list):
     raise KeyError(f"render output lacks {names}; it has {sorted(channels)}")
 
 
-def render(scene, exr_path: str | os.PathLike | None = None) -> RenderPasses:
-    """Render ``scene`` to a temporary multilayer EXR and return its passes.
+def render(scene, exr_path: str | os.PathLike | None = None) -> FramePasses:
+    """Render ``scene`` to a temporary multilayer EXR and return its passes (the object pass
+    index as the instance mask; no right view).
 
     ``exr_path``: where Cycles writes that file (removed once read). A render job gives a path
     in its dataset folder (:data:`fogsim.render.leftovers.TMP_DIR`), so a kill during Cycles
@@ -82,7 +76,7 @@ def render(scene, exr_path: str | os.PathLike | None = None) -> RenderPasses:
     depth = _pick(ch, PASS_CHANNELS["depth"]).astype(np.float32)
     depth[depth >= NO_HIT_DEPTH] = np.inf
     index = np.rint(_pick(ch, PASS_CHANNELS["index"])).astype(np.uint16)
-    return RenderPasses(_pick(ch, PASS_CHANNELS["rgb"]).astype(np.float32), depth, index)
+    return FramePasses(_pick(ch, PASS_CHANNELS["rgb"]).astype(np.float32), depth, index)
 
 
 def render_combined(scene, exr_path: str | os.PathLike | None = None) -> np.ndarray:

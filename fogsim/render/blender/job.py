@@ -11,6 +11,7 @@ own frames there and beside the outputs (:mod:`fogsim.render.leftovers`).
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import bpy
@@ -18,7 +19,7 @@ import numpy as np
 
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import finalize
-from fogsim.render.frame import check_scene, commit_frame, describe_frame, frame_name, scene_meshes
+from fogsim.render.frame import DescribedFrame, FogRenders, FramePasses, check_scene, commit_frame, frame_name
 from fogsim.fileio import remove_stale_parts
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
 from fogsim.deps import package_versions
@@ -85,11 +86,11 @@ class RenderJob:
         """Render and commit the next frame; returns its meta record."""
         index = self.todo.pop(0)
         t0 = time.perf_counter()
-        desc = describe_frame(self.config, index)
-        meshes = scene_meshes(desc)
+        frame = DescribedFrame.of(self.config, index)
+        desc = frame.desc
         t1 = time.perf_counter()
         info = configure(self.scene, self.config.quality, frame_seed(self.config.seed, index), self.gpu)
-        built = scene_build.build(desc, self.scene, meshes)
+        built = scene_build.build(desc, self.scene, frame.meshes)
         t2 = time.perf_counter()
         right = fog_linear = fog_cycles = None
         tmp = render_tmp_dir(self.layout)
@@ -110,14 +111,13 @@ class RenderJob:
         t3 = time.perf_counter()
         info["blender"] = bpy.app.version_string
         timings = {"scene": t1 - t0, "bpy_build": t2 - t1, "render": t3 - t2}
-        foggy = fog_info = None
+        fog_renders = None
         if self.fog is not None:
             timings = {"scene": t1 - t0, "bpy_build": t2 - t1, "render": (t_clear - t2) + (t3 - t_fog),
                        "fog_render": t_fog - t_clear}
-            foggy, fog_info = self._fog_images(name, desc, passes, fog, fog_linear, fog_cycles)
-        meta = commit_frame(self.layout, self.config, index, desc, meshes, passes.rgb_linear,
-                            passes.depth, passes.index, timings, info, right_linear=right,
-                            foggy=foggy, fog_info=fog_info)
+            fog_renders = self._fog_images(name, desc, passes, fog, fog_linear, fog_cycles)
+        meta = commit_frame(self.layout, self.config, frame, replace(passes, right_linear=right), fog_renders,
+                            timings=timings, render_info=info)
         self.done.append(meta)
         return meta
 
@@ -133,7 +133,8 @@ class RenderJob:
                     out[lv.key] = render_combined(self.scene, exr_path)
         return out, dict(used, phase=domain.phase)
 
-    def _fog_images(self, name: str, desc: dict, passes, fog: dict, fog_linear: dict, cycles_used: dict):
+    def _fog_images(self, name: str, desc: dict, passes: FramePasses, fog: dict, fog_linear: dict,
+                    cycles_used: dict) -> FogRenders:
         """8-bit images per level (clear level = the clear render), linear EXRs if asked, meta["fog"]."""
         from fogsim.camera import Intrinsics, planar_to_ray
         from fogsim.colour import linear_to_srgb8
@@ -171,7 +172,7 @@ class RenderJob:
             info["phase"] = cycles_used["phase"]
             if info["phase"] == "MIE":
                 info["diameter_um"] = s["diameter_um"]
-        return foggy, info
+        return FogRenders(foggy, info)
 
     def finish(self) -> None:
         """Write the dataset-level files (COCO, YAMLs, manifest, contact sheet) over all done frames."""
