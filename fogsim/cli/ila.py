@@ -4,22 +4,26 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from fogsim.depth.ila import LOSS_ON, LOSSES, ILAConfig
 from fogsim.errors import EXIT_FAILED, EXIT_OK, InputError
 
 
-def add_training_options(p, rounds: int = 2) -> None:
-    """ILA training flags, shared by ``fogsim ila train`` and ``fogsim bench ila`` (one meaning each)."""
+def add_training_options(p, rounds: int = ILAConfig.rounds) -> None:
+    """ILA training flags, shared by ``fogsim ila train`` and ``fogsim bench ila`` (one meaning each):
+    each sets the :class:`~fogsim.depth.ila.ILAConfig` field of its name, with that field's default."""
+    d = ILAConfig()
     g = p.add_argument_group("ILA training")
     g.add_argument("--rounds", type=int, default=rounds, help=f"ILA rounds (default {rounds})")
-    g.add_argument("--epochs", type=int, default=40, help="epochs per round (default 40)")
-    g.add_argument("--width", type=int, default=16, help="U-Net width: 16 ≈ 2 M parameters, 64 = the reference's 31 M")
-    g.add_argument("--size", default="256x128", help="training resolution WxH, multiples of 16")
+    g.add_argument("--epochs", type=int, default=d.epochs, help=f"epochs per round (default {d.epochs})")
+    g.add_argument("--width", type=int, default=d.width,
+                   help=f"U-Net width (default {d.width} ≈ 2 M parameters; 64 = the reference's 31 M)")
+    g.add_argument("--size", default="x".join(map(str, d.size)), help="training resolution WxH, multiples of 16")
     g.add_argument("--sparse", action="store_true", help="also input the sparse disparity")
-    g.add_argument("--loss", choices=("valid", "all"), default="valid",
-                   help="masked to valid targets, or over all pixels as the reference (holes → 0)")
-    g.add_argument("--loss-kind", choices=("mse", "log_l1"), default="mse",
-                   help="mse of disparity (the reference) or log-L1 (relative error)")
-    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--loss-on", choices=LOSS_ON, default=d.loss_on,
+                   help="the pixels of the loss: valid targets only, or all as the reference (holes → 0)")
+    g.add_argument("--loss", choices=LOSSES, default=d.loss,
+                   help="mse of disparity (the reference) or log_l1 (relative error)")
+    g.add_argument("--seed", type=int, default=d.seed)
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -37,15 +41,13 @@ def parse_size(text: str) -> tuple[int, int]:
 
 def training_config(args):
     """The ``ILAConfig`` of the training flags; a bad value is a ``ValueError`` naming its flag."""
-    from fogsim.depth.ila import ILAConfig
-
     for flag, value in (("--rounds", args.rounds), ("--epochs", args.epochs), ("--width", args.width)):
         if value < 1:
             raise ValueError(f"{flag} must be ≥ 1, got {value}")
     if args.seed < 0:
         raise ValueError(f"--seed must be ≥ 0, got {args.seed}")
-    return ILAConfig(width=args.width, size=parse_size(args.size), use_sparse=args.sparse, loss_on=args.loss,
-                     loss=args.loss_kind, rounds=args.rounds, epochs=args.epochs, seed=args.seed)
+    return ILAConfig(width=args.width, size=parse_size(args.size), use_sparse=args.sparse, loss_on=args.loss_on,
+                     loss=args.loss, rounds=args.rounds, epochs=args.epochs, seed=args.seed)
 
 
 def add_parsers(sub) -> None:

@@ -47,16 +47,26 @@ def _torch():
     return require("torch", "ila")  # a MissingDependency (exit 2) naming the extra
 
 
+#: the pixels the loss is computed on (``loss_on``, ``--loss-on``): valid targets only, or all (holes → 0)
+LOSS_ON = ("valid", "all")
+#: the loss (``loss``, ``--loss``): MSE of d/W (the reference) or log-L1, |log d − log d*| (relative)
+LOSSES = ("mse", "log_l1")
+
+
 @dataclass(frozen=True)
 class ILAConfig:
+    """The ILA training configuration; ``fogsim ila train`` / ``bench ila`` flags of the same
+    names (``--loss-on``, ``--loss``, ``--epochs`` …) set it, with these defaults. Checkpoints
+    store it field by field."""
+
     width: int = 16             # channels of the first U-Net level (reference: 64)
     size: tuple[int, int] = (256, 128)  # training resolution W×H (reference: 480×320)
     use_sparse: bool = False    # also feed the sparse disparity and its validity mask
     sparse_drop: float = 0.3    # share of the sparse input hidden (in blobs) per training batch
-    loss_on: str = "valid"      # "valid" (masked) or "all" (the reference: holes → 0)
-    loss: str = "mse"           # "mse" of d/W (the reference) or "log_l1": |log d − log d*| (relative)
+    loss_on: str = "valid"      # one of LOSS_ON: "valid" (masked) or "all" (the reference: holes → 0)
+    loss: str = "mse"           # one of LOSSES: "mse" of d/W (the reference) or "log_l1" (relative)
     rounds: int = 2
-    epochs: int = 4
+    epochs: int = 40
     batch: int = 4
     lr: float = 1e-3
     seed: int = 0
@@ -71,9 +81,9 @@ class ILAConfig:
             raise ValueError(f"sparse_drop must be in [0, 1), got {self.sparse_drop}")
         if not self.lr > 0:
             raise ValueError(f"lr must be > 0, got {self.lr}")
-        if self.loss_on not in ("valid", "all"):
+        if self.loss_on not in LOSS_ON:
             raise ValueError(f"loss_on must be 'valid' or 'all', got {self.loss_on!r}")
-        if self.loss not in ("mse", "log_l1"):
+        if self.loss not in LOSSES:
             raise ValueError(f"loss must be 'mse' or 'log_l1', got {self.loss!r}")
 
 
@@ -284,10 +294,31 @@ def read_checkpoint(checkpoint: str | Path) -> dict:
     """The checked contents of an ILA checkpoint; any problem is an :class:`InputError` naming it.
 
     Only a ``torch.save`` zip archive is opened, and only with ``weights_only=True``, so a
-    crafted file cannot run code; then the format number, the config, the camera and the
-    weights' names and types are checked.
+    crafted file cannot run code (:func:`_load_archive`); then the format number
+    (:func:`_checkpoint_format`), the config, the camera and the weights' names and types are checked.
     """
     path = Path(checkpoint)
+    ck = _load_archive(path)
+    _checkpoint_format(ck, path)
+    missing = [k for k in ("config", "camera", "round", "state_dict") if k not in ck]
+    if missing:
+        raise InputError(path, f"ILA checkpoint lacks {', '.join(map(repr, missing))}")
+    ck["config"] = _config_from_dict(ck["config"], path)
+    ck["camera"] = _camera_from_dict(ck["camera"], path)
+    r = ck["round"]
+    if not isinstance(r, int) or isinstance(r, bool) or r < 0:
+        raise InputError(path, f"ILA checkpoint: round is {r!r}, not a round number")
+    sd, torch = ck["state_dict"], _torch()
+    if not isinstance(sd, dict) or not sd or not all(isinstance(k, str) and isinstance(v, torch.Tensor)
+                                                     for k, v in sd.items()):
+        raise InputError(path, "ILA checkpoint: state_dict is not a dict of named tensors")
+    return ck
+
+
+def _load_archive(path: Path) -> dict:
+    """The dict a ``torch.save`` zip archive holds, loaded with ``weights_only=True``; a missing
+    file (named before torch is needed), anything but such an archive, or one holding Python
+    objects is refused (unread when it is not an archive)."""
     if not path.exists():
         raise InputError(path, "ILA checkpoint not found")
     if not path.is_file():
@@ -318,6 +349,12 @@ def read_checkpoint(checkpoint: str | Path) -> dict:
         raise InputError(path, f"not a readable ILA checkpoint (corrupt or truncated: {_first_line(exc)})") from None
     if not isinstance(ck, dict):
         raise InputError(path, f"not an ILA checkpoint: holds a {type(ck).__name__}, not fogsim's dict")
+    return ck
+
+
+def _checkpoint_format(ck: dict, path: Path) -> None:
+    """Refuse a checkpoint whose format number is missing, not a number, older or newer than
+    :data:`CHECKPOINT_FORMAT` (fogsim 0.1's, which had no number, is format 1)."""
     fmt = ck.get(FORMAT_KEY)
     if fmt is None:
         if {"state_dict", "config", "camera"} <= set(ck):
@@ -332,19 +369,6 @@ def read_checkpoint(checkpoint: str | Path) -> dict:
     if fmt > CHECKPOINT_FORMAT:
         raise InputError(path, f"written by a newer fogsim (format {fmt}; this fogsim reads format "
                                f"{CHECKPOINT_FORMAT}); update fogsim")
-    missing = [k for k in ("config", "camera", "round", "state_dict") if k not in ck]
-    if missing:
-        raise InputError(path, f"ILA checkpoint lacks {', '.join(map(repr, missing))}")
-    ck["config"] = _config_from_dict(ck["config"], path)
-    ck["camera"] = _camera_from_dict(ck["camera"], path)
-    r = ck["round"]
-    if not isinstance(r, int) or isinstance(r, bool) or r < 0:
-        raise InputError(path, f"ILA checkpoint: round is {r!r}, not a round number")
-    sd = ck["state_dict"]
-    if not isinstance(sd, dict) or not sd or not all(isinstance(k, str) and isinstance(v, torch.Tensor)
-                                                     for k, v in sd.items()):
-        raise InputError(path, "ILA checkpoint: state_dict is not a dict of named tensors")
-    return ck
 
 
 def _config_from_dict(c, path: Path) -> ILAConfig:
