@@ -96,6 +96,71 @@ def _v2_matrix(row: dict, prefix: str, dtype, source: str) -> np.ndarray | None:
     return a.reshape(dims)
 
 
+def _return_columns(tag: str, returns) -> list[str]:
+    return [f"{V2_TABLES[tag]}.range_image_return{n}.{p}" for n in returns for p in ("values", "shape")]
+
+
+def _by_laser(rows: list[dict], tag: str, returns, dtype, where: str) -> dict[int, dict[int, np.ndarray]]:
+    """laser → return number → the H×W×C matrix of table ``tag`` in ``rows`` (a null one left out)."""
+    out: dict[int, dict[int, np.ndarray]] = {}
+    for row in rows:
+        laser = _sensor_key(row[V2_LASER], where)
+        for n in returns:
+            m = _v2_matrix(row, f"{V2_TABLES[tag]}.range_image_return{n}", dtype, where)
+            if m is not None:
+                out.setdefault(laser, {})[n] = m
+    return out
+
+
+def _optional_by_laser(v2: V2Frame, tag: str, returns, dtype, source: str) -> dict[int, dict[int, np.ndarray]]:
+    """:func:`_by_laser` of the frame's rows of table ``tag``; {} when the segment has no such table."""
+    file = v2.table(tag)
+    if not file.is_file():
+        return {}
+    rows = _v2_rows(file, _frame_keys(v2), [V2_LASER] + _return_columns(tag, returns), source)
+    return _by_laser(rows, tag, returns, dtype, f"{file} {source}")
+
+
+def _frame_keys(v2: V2Frame) -> dict[str, object]:
+    return {V2_CONTEXT: v2.context, V2_TIME: v2.timestamp}
+
+
+def _vehicle_pose(v2: V2Frame, source: str) -> np.ndarray | None:
+    """The frame's vehicle→world pose (4×4) from ``vehicle_pose``, or None without one."""
+    file = v2.table("vehicle_pose")
+    rows = _v2_rows(file, _frame_keys(v2), [V2_VEHICLE_POSE], source) if file.is_file() else []
+    return matrix4(rows[0][V2_VEHICLE_POSE] or [], f"{file} {source}", "vehicle pose") if rows else None
+
+
+def _laser_calibrations(v2: V2Frame, source: str) -> dict[int, LaserCalibration]:
+    """Every lidar's calibration of the segment (``lidar_calibration``, required)."""
+    file = v2.table("lidar_calibration")
+    if not file.is_file():
+        raise InputError(source, f"no laser calibrations ({file} not found)")
+    calibrations, where = {}, f"{file} {source}"
+    for row in _v2_rows(file, {V2_CONTEXT: v2.context}, [V2_LASER] + list(V2_LCAL.values()), source):
+        laser = _sensor_key(row[V2_LASER], where)
+        values = row[V2_LCAL["values"]]
+        calibrations[laser] = LaserCalibration(
+            laser, matrix4(row[V2_LCAL["extrinsic"]] or [], where, f"extrinsic of {laser_name(laser)}"),
+            None if row[V2_LCAL["min"]] is None else float(row[V2_LCAL["min"]]),
+            None if row[V2_LCAL["max"]] is None else float(row[V2_LCAL["max"]]),
+            np.asarray(values, np.float64) if values else None)
+    return calibrations
+
+
+def _camera_extrinsics(v2: V2Frame, source: str) -> dict[int, np.ndarray]:
+    """Camera id → camera→vehicle 4×4 of the segment (``camera_calibration``; {} without it)."""
+    file = v2.table("camera_calibration")
+    if not file.is_file():
+        return {}
+    cameras, where = {}, f"{file} {source}"
+    for row in _v2_rows(file, {V2_CONTEXT: v2.context}, [V2_CAMERA, V2_CAMERA_EXTRINSIC], source):
+        cam = _sensor_key(row[V2_CAMERA], where, CAMERA_NAMES)
+        cameras[cam] = matrix4(row[V2_CAMERA_EXTRINSIC] or [], where, f"extrinsic of camera {cam}")
+    return cameras
+
+
 def read_v2_lidar(root: str | os.PathLike, context: str, timestamp: int, source: str | None = None,
                   returns: Iterable[int] = (1,)) -> LidarFrame:
     """The LiDAR data of frame (``context``, ``timestamp`` µs) of a v2 split folder: tables
@@ -111,69 +176,17 @@ def read_v2_lidar(root: str | os.PathLike, context: str, timestamp: int, source:
     lidar_file = v2.table("lidar")
     if not lidar_file.is_file():
         raise NoLidar(source, f"frame has no LiDAR range images ({lidar_file} not found)")
-    frame_keys = {V2_CONTEXT: context, V2_TIME: int(timestamp)}
-
-    def ret_cols(tag: str, ns) -> list[str]:
-        return [f"{V2_TABLES[tag]}.range_image_return{n}.{p}" for n in ns for p in ("values", "shape")]
-
-    rows = _v2_rows(lidar_file, frame_keys, [V2_LASER] + ret_cols("lidar", returns), source)
+    rows = _v2_rows(lidar_file, _frame_keys(v2), [V2_LASER] + _return_columns("lidar", returns), source)
     if not rows:
         raise NoLidar(source, f"frame has no LiDAR range images (no rows in {lidar_file})")
-    images: dict[int, dict[int, np.ndarray]] = {}
-    for row in rows:
-        laser = _sensor_key(row[V2_LASER], f"{lidar_file} {source}")
-        for n in returns:
-            m = _v2_matrix(row, f"{V2_TABLES['lidar']}.range_image_return{n}", np.float32, f"{lidar_file} {source}")
-            if m is not None:
-                images.setdefault(laser, {})[n] = m
-    projections: dict[int, dict[int, np.ndarray]] = {}
-    proj_file = v2.table("lidar_camera_projection")
-    if proj_file.is_file():
-        for row in _v2_rows(proj_file, frame_keys, [V2_LASER] + ret_cols("lidar_camera_projection", returns),
-                            source):
-            laser = _sensor_key(row[V2_LASER], f"{proj_file} {source}")
-            for n in returns:
-                m = _v2_matrix(row, f"{V2_TABLES['lidar_camera_projection']}.range_image_return{n}", np.int32,
-                               f"{proj_file} {source}")
-                if m is not None:
-                    projections.setdefault(laser, {})[n] = m
-    poses = {}
-    pose_file = v2.table("lidar_pose")
-    if pose_file.is_file():
-        for row in _v2_rows(pose_file, frame_keys, [V2_LASER] + ret_cols("lidar_pose", [1]), source):
-            laser = _sensor_key(row[V2_LASER], f"{pose_file} {source}")
-            m = _v2_matrix(row, f"{V2_TABLES['lidar_pose']}.range_image_return1", np.float32, f"{pose_file} {source}")
-            if m is not None:
-                poses[laser] = m
-    frame_pose = None
-    vp_file = v2.table("vehicle_pose")
-    if vp_file.is_file():
-        vp = _v2_rows(vp_file, frame_keys, [V2_VEHICLE_POSE], source)
-        if vp:
-            frame_pose = matrix4(vp[0][V2_VEHICLE_POSE] or [], f"{vp_file} {source}", "vehicle pose")
+    images = _by_laser(rows, "lidar", returns, np.float32, f"{lidar_file} {source}")
+    projections = _optional_by_laser(v2, "lidar_camera_projection", returns, np.int32, source)
+    poses = {laser: r[1] for laser, r in _optional_by_laser(v2, "lidar_pose", [1], np.float32, source).items()}
+    frame_pose = _vehicle_pose(v2, source)
     if poses and frame_pose is None:
-        raise InputError(source, f"{pose_file} has per-cell lidar poses but {vp_file} has no pose "
-                                 "for this frame (needed to compensate them)")
-    calibrations = {}
-    cal_file = v2.table("lidar_calibration")
-    if not cal_file.is_file():
-        raise InputError(source, f"no laser calibrations ({cal_file} not found)")
-    for row in _v2_rows(cal_file, {V2_CONTEXT: context}, [V2_LASER] + list(V2_LCAL.values()), source):
-        where = f"{cal_file} {source}"
-        laser = _sensor_key(row[V2_LASER], where)
-        values = row[V2_LCAL["values"]]
-        calibrations[laser] = LaserCalibration(
-            laser, matrix4(row[V2_LCAL["extrinsic"]] or [], where, f"extrinsic of {laser_name(laser)}"),
-            None if row[V2_LCAL["min"]] is None else float(row[V2_LCAL["min"]]),
-            None if row[V2_LCAL["max"]] is None else float(row[V2_LCAL["max"]]),
-            np.asarray(values, np.float64) if values else None)
-    cameras = {}
-    cam_file = v2.table("camera_calibration")
-    if cam_file.is_file():
-        for row in _v2_rows(cam_file, {V2_CONTEXT: context}, [V2_CAMERA, V2_CAMERA_EXTRINSIC], source):
-            where = f"{cam_file} {source}"
-            cam = _sensor_key(row[V2_CAMERA], where, CAMERA_NAMES)
-            cameras[cam] = matrix4(row[V2_CAMERA_EXTRINSIC] or [], where, f"extrinsic of camera {cam}")
+        raise InputError(source, f"{v2.table('lidar_pose')} has per-cell lidar poses but {v2.table('vehicle_pose')} "
+                                 "has no pose for this frame (needed to compensate them)")
+    calibrations, cameras = _laser_calibrations(v2, source), _camera_extrinsics(v2, source)
     out = {}
     for laser, by_return in images.items():
         for n, image in by_return.items():
