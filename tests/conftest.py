@@ -7,6 +7,7 @@ import pytest
 
 from fogsim.camera import Intrinsics, encode_disparity_png, depth_to_disparity
 from fogsim.fileio import write_depth, write_image
+from fogsim.readers.waymo import tfrecord
 
 
 def expected_yolo_lines(mask: np.ndarray, objects: list[dict], visible_fraction: dict, min_pixels: int,
@@ -69,3 +70,16 @@ def cityscapes_root(tmp_path):
         (root / "camera" / "val" / "aachen").mkdir(parents=True, exist_ok=True)
         (root / "camera" / "val" / "aachen" / f"{base}_camera.json").write_text(json.dumps(cam))
     return root
+
+
+def _crc_implementations():
+    """The numpy fallback always; the compiled module too when one is installed."""
+    return ["fallback"] + (["compiled"] if tfrecord._FAST_CRC32C is not None else [])
+
+
+@pytest.fixture(params=_crc_implementations())
+def crc_impl(request, monkeypatch):
+    """Each TFRecord CRC32C implementation in turn (Waymo v1 tests that read records)."""
+    if request.param == "fallback":  # as if neither google_crc32c nor crc32c were installed
+        monkeypatch.setattr(tfrecord, "_FAST_CRC32C", None)
+    return request.param

@@ -1,14 +1,10 @@
-"""The per-density detection study: training view, report rows (oracle, routed, mixed), the
-driver's errors — and, when the 'detect' extra is installed, a tiny real Ultralytics training
-through scripts/train_per_density.py.
+"""The per-density detection study (``fogsim.detection.study``): report rows (oracle, routed,
+mixed), the study folder's layout, the driver's errors — and, when the 'detect' extra is
+installed, a tiny real Ultralytics training through scripts/train_per_density.py.
 
 Markers: the report tests need pycocotools and the real trainings Ultralytics (``detect``; the
 trainings are also ``slow``); the others need neither and stay in the fast tier."""
-import importlib.util
 import json
-import time
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,43 +12,34 @@ import pytest
 
 from conftest import tree_digest
 from fogsim.dataset.reader import val_ground_truth
-from fogsim.detection.yolo import MIXED_MODEL, TrainConfig, training_view
-from fogsim.errors import InputError
+from fogsim.detection.layout import StudyLayout
 from fogsim.detection.study import Study
+from fogsim.detection.yolo import MIXED_MODEL, TrainConfig
+from fogsim.errors import InputError
+from study_driver import LEVELS, TINY, driver, need_detect_extra, study_dataset
 from synthetic_dataset import make_dataset
-
-ROOT = Path(__file__).resolve().parents[1]
-LEVELS = ["clear", "beta0.03", "beta0.06", "beta0.09", "beta0.12"]
 
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
-    return make_dataset(tmp_path_factory.mktemp("synthetic") / "ds", frames=16, train_fraction=0.5)
+    return study_dataset(tmp_path_factory)
+
+
+def test_study_layout_is_the_documented_folder(tmp_path):
+    """The study folder's format (what a resumed or sharded study finds on disk)."""
+    f = StudyLayout(tmp_path)
+    assert f.study_file() == tmp_path / "study.json" and f.training_view() == tmp_path / "yolo"
+    assert f.run_done(MIXED_MODEL) == tmp_path / "runs" / "mixed" / "fogsim_done.json"
+    assert f.weights("clear") == tmp_path / "runs" / "clear" / "weights" / "best.pt"
+    assert f.prediction("clear", "beta0.06") == tmp_path / "predictions" / "clear" / "beta0.06.json"
+    assert f.report("report.md") == tmp_path / "report" / "report.md" and f.report() == tmp_path / "report"
+    assert f.sim_study() == tmp_path / "sim_to_real" / "study"
+    assert f.sim_prediction("mixed", "clear") == tmp_path / "sim_to_real" / "predictions" / "mixed" / "clear.json"
 
 
 def perfect(gt, score=0.9):
     return [{"image_id": a["image_id"], "category_id": a["category_id"], "bbox": a["bbox"], "score": score}
             for a in gt["annotations"]]
-
-
-def test_training_view_reads_the_dataset_without_writing_it(dataset, tmp_path):
-    before = tree_digest(dataset)
-    data = training_view(dataset, tmp_path / "yolo", LEVELS)
-    assert set(data) == {*LEVELS, MIXED_MODEL}
-    n_train = len((dataset / "splits" / "clear_train.txt").read_text().split())
-    for model, yaml in data.items():
-        lines = (yaml.parent / "train.txt").read_text().split()
-        assert len(lines) == n_train * (len(LEVELS) if model == MIXED_MODEL else 1)
-        for line in lines:
-            image = Path(line)
-            label = Path("/labels/".join(line.rsplit("/images/", 1))).with_suffix(".txt")  # Ultralytics' rule
-            assert image.is_file() and label.is_file()
-            assert image.resolve().parent.parent == (dataset / "images").resolve()
-        assert "names:\n  0: \"car\"" in yaml.read_text()
-    # caches of different models / splits land in different folders of the view
-    view = tmp_path / "yolo" / "clear" / "train" / "clear" / "labels"
-    assert view.resolve() == (dataset / "labels" / "clear").resolve()
-    assert tree_digest(dataset) == before
 
 
 def test_val_ground_truth_keeps_validation_frames_only(dataset):
@@ -173,52 +160,6 @@ def test_misrouted_images_lose_their_objects(dataset, tmp_path, monkeypatch):
         assert table["oracle"][lv]["recall_max"] == 1.0
 
 
-class FakeBoxes:
-    def __init__(self, rows):
-        self.xyxy = FakeTensor([r[:4] for r in rows])
-        self.conf = FakeTensor([r[4] for r in rows])
-        self.cls = FakeTensor([r[5] for r in rows])
-
-
-class FakeTensor(list):
-    def tolist(self):
-        return list(self)
-
-
-def test_predict_writes_coco_results_in_image_pixels(dataset, tmp_path, monkeypatch):
-    """Ultralytics' xyxy boxes (original-image pixels) → COCO xywh, class + 1, per image id."""
-    import fogsim.detection.yolo as detect
-
-    gt = val_ground_truth(dataset, "beta0.03")
-    seen = []
-
-    class FakeYOLO:
-        def __init__(self, weights):
-            assert weights == "w.pt"
-
-        def predict(self, paths, **kw):
-            seen.extend(paths)
-            assert kw["conf"] == 0.001 and kw["max_det"] == 100 and kw["imgsz"] == 320
-            for n, _ in enumerate(paths):
-                yield type("Result", (), {"boxes": FakeBoxes([(10 + n, 20, 40, 60, 0.75, 2)])})()
-
-    monkeypatch.setattr(detect, "load_ultralytics", lambda config_dir: type("U", (), {"YOLO": FakeYOLO}))
-    monkeypatch.setattr(detect, "resolve_device", lambda device: "cpu")
-    dets = detect.predict(Path("w.pt"), gt, dataset, TrainConfig(), tmp_path, chunk=2)
-    assert seen == [str(dataset / im["file_name"]) for im in gt["images"]]
-    assert [d["image_id"] for d in dets] == [im["id"] for im in gt["images"]]
-    assert dets[0] == {"image_id": gt["images"][0]["id"], "category_id": 3, "score": 0.75, "bbox": [10, 20, 30, 40]}
-    assert [d["bbox"][0] for d in dets] == [10 + (n % 2) for n in range(len(dets))]  # n restarts per chunk
-    missing = dict(gt, images=[dict(gt["images"][0], file_name="images/beta0.03/gone.png")])
-    with pytest.raises(InputError, match="gone.png.*missing"):
-        detect.predict(Path("w.pt"), missing, dataset, TrainConfig(), tmp_path)
-
-
-def driver(*args, **kw):
-    return subprocess.run([sys.executable, str(ROOT / "scripts" / "train_per_density.py"), *map(str, args)],
-                          capture_output=True, text=True, cwd=ROOT, **kw)
-
-
 def test_driver_bad_input_names_the_problem(dataset, tmp_path):
     r = driver("--out", tmp_path / "s", "--dataset", tmp_path / "nowhere")
     assert r.returncode == 2 and "nowhere" in r.stderr and "dataset.json" in r.stderr
@@ -271,58 +212,13 @@ def test_driver_names_a_missing_dataset_image_before_training(dataset, tmp_path)
     assert not (out / "study.json").exists() and not (out / "runs").exists()
 
 
-def test_ultralytics_errors_become_one_line_naming_the_model(tmp_path, monkeypatch):
-    """#19: whatever Ultralytics raises while training or predicting → FogsimError (exit 1)
-    'training <model> failed: …' on one line; Ctrl-C passes unchanged."""
-    import fogsim.detection.yolo as detect
-    from fogsim.errors import FogsimError, exit_code
-
-    raised = [ValueError("\x1b[31mbatch size 2 is\ntoo large\x1b[0m for 1 image")]
-
-    class FakeYOLO:
-        def __init__(self, model):
-            pass
-
-        def train(self, **kw):
-            raise raised[0]
-
-        def predict(self, paths, **kw):
-            raise RuntimeError("CUDA out of memory.\nTried to allocate")
-
-    monkeypatch.setattr(detect, "load_ultralytics", lambda config_dir: type("U", (), {"YOLO": FakeYOLO}))
-    monkeypatch.setattr(detect, "resolve_device", lambda device: "cpu")
-    with pytest.raises(FogsimError) as err:
-        detect.train("beta0.06", tmp_path / "data.yaml", tmp_path / "runs" / "beta0.06", TrainConfig(), tmp_path)
-    assert str(err.value) == "training beta0.06 failed: ValueError: batch size 2 is too large for 1 image"
-    assert exit_code(err.value) == 1
-    raised[0] = KeyboardInterrupt()
-    with pytest.raises(KeyboardInterrupt):
-        detect.train("beta0.06", tmp_path / "data.yaml", tmp_path / "runs" / "beta0.06", TrainConfig(), tmp_path)
-    image = tmp_path / "images" / "a.png"
-    image.parent.mkdir()
-    image.write_bytes(b"")
-    gt = {"images": [{"id": 1, "file_name": "images/a.png"}], "annotations": []}
-    with pytest.raises(FogsimError, match="^prediction with w.pt failed: RuntimeError: CUDA out of memory. Tried"):
-        detect.predict(Path("w.pt"), gt, tmp_path, TrainConfig(), tmp_path)
-
-
 # --- a real training (needs the 'detect' extra) ---------------------------------------------------
-
-TINY = ("--epochs", "1", "--imgsz", "64", "--batch", "4", "--workers", "0", "--device", "cpu", "--no-plots",
-        "--quiet")
-
-
-def _need_detect_extra():
-    # not imported here: Ultralytics writes settings on import
-    if importlib.util.find_spec("ultralytics") is None or importlib.util.find_spec("pycocotools") is None:
-        pytest.skip("the 'detect' extra (Ultralytics, pycocotools) is not installed")
-
 
 @pytest.mark.detect
 def test_real_ultralytics_failure_is_one_line_exit_1(tmp_path):
     """#19: Ultralytics refusing the data (every training image of one level undecodable:
     'No valid images found') ends the study with one line naming the model, exit 1."""
-    _need_detect_extra()
+    need_detect_extra()
     ds = make_dataset(tmp_path / "ds3", frames=3)
     for frame in (ds / "splits" / "clear_train.txt").read_text().split():
         (ds / "images" / "clear" / Path(frame).name).write_bytes(b"not a png")
@@ -335,7 +231,7 @@ def test_real_ultralytics_failure_is_one_line_exit_1(tmp_path):
 @pytest.mark.detect
 @pytest.mark.slow
 def test_tiny_real_training_resume_and_shards(dataset, tmp_path):
-    _need_detect_extra()
+    need_detect_extra()
     before = tree_digest(dataset)
     out = tmp_path / "study"
     r = driver("--out", out, "--dataset", dataset, *TINY)
@@ -385,48 +281,3 @@ def test_tiny_real_training_resume_and_shards(dataset, tmp_path):
     assert (sharded / "report" / "report.md").is_file()
     # same seed, same data: the same weights, so the same predictions (CPU training is deterministic)
     assert json.loads((sharded / "predictions" / "mixed" / "beta0.06.json").read_text()) == preds["mixed", "beta0.06"]
-
-
-@pytest.mark.detect
-@pytest.mark.slow
-def test_interrupted_training_resumes_from_last_checkpoint(dataset, tmp_path, monkeypatch):
-    """SIGKILL between epochs (last.pt still holds its optimizer), then rerun: training resumes
-    at the next epoch instead of starting again."""
-    _need_detect_extra()
-    from fogsim.detection.yolo import _resumable, load_ultralytics
-
-    monkeypatch.setenv("YOLO_CONFIG_DIR", str(tmp_path / "config"))
-    load_ultralytics(tmp_path / "config")  # imported now, not while racing the training below
-
-    out = tmp_path / "study"
-    args = [sys.executable, str(ROOT / "scripts" / "train_per_density.py"), "--out", str(out), "--dataset",
-            str(dataset), "--epochs", "3", *TINY[2:]]
-    last = out / "runs" / "clear" / "weights" / "last.pt"
-    proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        caught = False
-        while not caught and proc.poll() is None:
-            time.sleep(0.02)
-            try:
-                caught = last.is_file() and _resumable(last)  # epoch 1 saved in full
-            except Exception:  # still being written
-                pass
-        proc.kill()
-    finally:
-        proc.wait()
-    assert last.is_file() and _resumable(last), "the run was not caught between its two epochs"
-    assert not (out / "runs" / "clear" / "fogsim_done.json").exists()
-    r = driver("--out", out, "--dataset", dataset, "--epochs", "3", *TINY[2:])
-    assert r.returncode == 0, r.stderr[-3000:]
-    results = (out / "runs" / "clear" / "results.csv").read_text().splitlines()[1:]
-    epochs = [line.split(",")[0].strip() for line in results]
-    # the resumed run went on from the killed one's checkpoint, not from scratch (an epoch whose
-    # row was written just before the kill, but not its checkpoint, is run again: Ultralytics' way)
-    assert epochs[0] == "1" and epochs.count("1") == 1 and epochs[-1] == "3" and set(epochs) == {"1", "2", "3"}
-    assert not _resumable(last) and (out / "report" / "report.md").is_file()
-    assert json.loads((out / "runs" / "clear" / "fogsim_done.json").read_text())["state"] == "resumed"
-    # a checkpoint cut short by a kill: a clear error naming it, not a traceback
-    (out / "runs" / "clear" / "fogsim_done.json").unlink()
-    last.write_bytes(last.read_bytes()[:1000])
-    r = driver("--out", out, "--dataset", dataset, "--epochs", "3", *TINY[2:])
-    assert r.returncode == 1 and "last.pt: unreadable checkpoint" in r.stderr and "Traceback" not in r.stderr
