@@ -14,8 +14,19 @@ study), ``bench`` (the benchmarks) and ``cli``.
 
 from fogsim._version import __version__
 from fogsim.camera import Intrinsics, StereoCamera, planar_to_ray
-from fogsim.fog import (Fogger, FogLevel, Kernel, beta_from_visibility, estimate_airlight, koschmieder,
-                        koschmieder_extended, load_preset, parse_levels, transmission, visibility_from_beta)
+from fogsim.fog import (
+                        Fogger,
+                        FogLevel,
+                        Kernel,
+                        beta_from_visibility,
+                        estimate_airlight,
+                        koschmieder,
+                        koschmieder_extended,
+                        load_preset,
+                        parse_levels,
+                        transmission,
+                        visibility_from_beta,
+)
 
 __all__ = ["__version__", "FogLevel", "Fogger", "Intrinsics", "Kernel", "StereoCamera", "beta_from_visibility",
            "estimate_airlight", "koschmieder", "koschmieder_extended", "load_preset", "parse_levels",

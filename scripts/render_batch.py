@@ -21,8 +21,8 @@ def _bootstrap() -> None:
     """Make fogsim and its dependencies importable, also inside Debian's Blender binary."""
     sys.path.insert(0, str(ROOT))
     try:
-        import numpy  # noqa: F401
         import cv2  # noqa: F401
+        import numpy  # noqa: F401
         return
     except ImportError:
         pass

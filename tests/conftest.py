@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsim.camera import Intrinsics, encode_disparity_png, depth_to_disparity
+from fogsim.camera import Intrinsics, depth_to_disparity, encode_disparity_png
 from fogsim.fileio import write_depth, write_image
 from fogsim.readers.waymo import tfrecord
 

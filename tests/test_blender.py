@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from conftest import expected_yolo_lines
-from fogsim.fileio import read_depth_file, read_image, read_uint16_map
 from fogsim.boxes import parse_yolo_line
+from fogsim.fileio import read_depth_file, read_image, read_uint16_map
 
 pytestmark = pytest.mark.blender
 slow = pytest.mark.slow  # over ~10 s on 2 cores: several render runs, or building the add-on zips
@@ -352,12 +352,11 @@ def test_stereo_pair_in_cityscapes_layout(tmp_path):
     assert main(["fog", "--cityscapes", str(cs), "--split", split, "--levels", "0.06", "--out", str(tmp_path / "fog"),
                  "--quiet"]) == 0
     # the depth benchmark on this frame: classical completions scored against exact depth
+    from fogsim.bench.depth import CLASSICAL, complete, evaluate_frame
     from fogsim.dataset.layout import DatasetLayout
     from fogsim.dataset.reader import read_stereo_frame
-    from fogsim.bench.depth import CLASSICAL, complete, evaluate_frame
-    from fogsim.fog.levels import load_preset
-
     from fogsim.depth.stereo import wls_disparity
+    from fogsim.fog.levels import load_preset
 
     frame = read_stereo_frame(DatasetLayout(out), "000000")
     done = {m: complete(frame, m) for m in CLASSICAL}

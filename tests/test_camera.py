@@ -5,8 +5,14 @@ import math
 import numpy as np
 import pytest
 
-from fogsim.camera import (Intrinsics, decode_disparity_png, depth_to_disparity, disparity_to_depth,
-                           encode_disparity_png, planar_to_ray)
+from fogsim.camera import (
+    Intrinsics,
+    decode_disparity_png,
+    depth_to_disparity,
+    disparity_to_depth,
+    encode_disparity_png,
+    planar_to_ray,
+)
 from fogsim.errors import InputError
 from fogsim.readers.cityscapes import load_cityscapes_camera
 from fogsim.readers.paper import paper_distance_from_8bit

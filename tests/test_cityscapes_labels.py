@@ -5,13 +5,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cityscapes_tree import BASES, make_tree, scene
+from cityscapes_tree import BASES, hand_distance, make_tree, scene
 from fogsim.errors import InputError
 from fogsim.fileio import write_image
 from fogsim.readers.base import Labels
 from fogsim.readers.cityscapes import cityscapes_samples
 from fogsim.readers.cityscapes_labels import CITYSCAPES_CLASSES, instance_records, png_size
-from cityscapes_tree import hand_distance
 
 
 @pytest.fixture

@@ -8,8 +8,8 @@ import pytest
 from conftest import tree_digest
 from fogsim.camera import Intrinsics, decode_disparity_png, disparity_to_depth, planar_to_ray
 from fogsim.cli import main
-from fogsim.fog.fill import fill_holes
 from fogsim.fileio import read_depth_file, read_image, read_uint16_map, write_depth, write_image
+from fogsim.fog.fill import fill_holes
 
 
 def fog_args(ds, out, *extra):

@@ -5,7 +5,7 @@ import pytest
 pytestmark = pytest.mark.detect
 pytest.importorskip("pycocotools")
 
-from fogsim.detection.coco_eval import evaluate, match, mark_far_ignored, yolo_predictions  # noqa: E402
+from fogsim.detection.coco_eval import evaluate, mark_far_ignored, match, yolo_predictions  # noqa: E402
 
 
 def gt_dict(boxes, distances, cats=None, size=(200, 100)):

@@ -5,8 +5,16 @@ import numpy as np
 import pytest
 
 from fogsim.colour import linear_to_srgb, srgb_to_linear
-from fogsim.fog.model import (Fogger, Kernel, density_field, estimate_airlight, koschmieder,
-                        koschmieder_extended, smooth_transmission, transmission)
+from fogsim.fog.model import (
+    Fogger,
+    Kernel,
+    density_field,
+    estimate_airlight,
+    koschmieder,
+    koschmieder_extended,
+    smooth_transmission,
+    transmission,
+)
 
 
 @pytest.fixture

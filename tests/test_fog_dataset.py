@@ -254,8 +254,7 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 
 from fogsim.dataset.reader import dataset_classes, val_ground_truth  # noqa: E402
-from fogsim.detection.class_map import (BUILTIN, ClassMap, load_class_map, map_detections,  # noqa: E402
-                                        map_ground_truth)
+from fogsim.detection.class_map import BUILTIN, ClassMap, load_class_map, map_detections, map_ground_truth  # noqa: E402
 from fogsim.detection.coco_eval import distance_coverage, ignore_policy  # noqa: E402
 from fogsim.detection.study import Study, sim_class_map  # noqa: E402
 from fogsim.detection.yolo import MIXED_MODEL, TrainConfig, training_view  # noqa: E402

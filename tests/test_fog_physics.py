@@ -5,9 +5,16 @@ import math
 import numpy as np
 import pytest
 
-from fogsim.fog.physics import (BIN_NAMES, Comparison, Model, horizon_radiance, interior_mask, koschmieder_linear,
-                                noisy_render)
 from fogsim.bench.fog_physics_report import markdown, write_report
+from fogsim.fog.physics import (
+    BIN_NAMES,
+    Comparison,
+    Model,
+    horizon_radiance,
+    interior_mask,
+    koschmieder_linear,
+    noisy_render,
+)
 
 H, W, SKY = 100, 90, 15
 BETA = 0.06

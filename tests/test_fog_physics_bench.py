@@ -11,12 +11,12 @@ import numpy as np
 import OpenEXR
 import pytest
 
+from fogsim.bench.fog_physics import analyse, linear_path, read_linear_rgb, render_commands
 from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.colour import srgb_to_linear
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.fileio import read_image
 from fogsim.fog.physics import Model, koschmieder_linear, noisy_render
-from fogsim.bench.fog_physics import analyse, linear_path, read_linear_rgb, render_commands
 
 W, H, EXPOSURE = 96, 64, 0.35
 

@@ -5,8 +5,16 @@ import pytest
 pytestmark = pytest.mark.torch
 torch = pytest.importorskip("torch")
 
-from fogsim.depth.ila import (ILAConfig, build_unet, fill_targets, load_model, load_stereo_set, masked_loss,  # noqa: E402
-                        predict_depth, train_rounds)
+from fogsim.depth.ila import (  # noqa: E402
+    ILAConfig,
+    build_unet,
+    fill_targets,
+    load_model,
+    load_stereo_set,
+    masked_loss,
+    predict_depth,
+    train_rounds,
+)
 
 
 def test_masked_loss_ignores_holes():

@@ -6,16 +6,16 @@ import numpy as np
 import pytest
 import trimesh
 
+from fogsim.boxes import boxes_from_mask, median_distance, parse_yolo_line, yolo_line
 from fogsim.camera import Intrinsics
+from fogsim.dataset.coco import coco_annotation, coco_categories
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import contact_sheet, finalize, split_frames, write_frame_labels
 from fogsim.fileio import read_image, write_image, write_json
-from fogsim.boxes import boxes_from_mask, median_distance, parse_yolo_line, yolo_line
-from fogsim.dataset.coco import coco_annotation, coco_categories
-from fogsim.render.labels import object_records
 from fogsim.fog.levels import FogLevel
-from fogsim.scene.classes import CLASS_ID, LABELLED
+from fogsim.render.labels import object_records
 from fogsim.render.silhouette import NEAR, clip_near, covered_pixels, project_points, silhouette_areas
+from fogsim.scene.classes import CLASS_ID, LABELLED
 
 
 def demo_mask():

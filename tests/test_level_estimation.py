@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from fogsim.fog.synthetic import demo_scene
-from fogsim.fog.model import Fogger
 from fogsim.camera import planar_to_ray
 from fogsim.detection.level_estimation import LevelEstimator, confusion, image_features, route
+from fogsim.fog.model import Fogger
+from fogsim.fog.synthetic import demo_scene
 
 LEVELS = {"clear": 0.0, "beta0.03": 0.03, "beta0.06": 0.06, "beta0.09": 0.09, "beta0.12": 0.12}
 

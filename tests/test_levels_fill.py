@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 
 from fogsim.fog.fill import HolesError, fill_holes, fill_methods
-from fogsim.fog.levels import (beta_from_visibility, load_preset, parse_levels, preset_names,
-                           visibility_from_beta)
+from fogsim.fog.levels import beta_from_visibility, load_preset, parse_levels, preset_names, visibility_from_beta
 
 
 def test_visibility_conversion():

@@ -6,9 +6,9 @@ import json
 import numpy as np
 import pytest
 
+from fogsim.bench.lidar import synthetic_scan
 from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.depth.complete import complete, holdout_split, sky_mask, sparse_image
-from fogsim.bench.lidar import synthetic_scan
 from fogsim.depth.lidar_source import LidarDepth, parse_lidar, read_holdout, write_holdout
 from fogsim.depth.score import BINS, binned_metrics, pool
 from fogsim.errors import InputError
@@ -428,7 +428,7 @@ def test_synthetic_scan_has_the_real_density():
 @pytest.mark.torch
 def test_ila_prediction_is_aligned_to_the_points(tmp_path):
     pytest.importorskip("torch")
-    from fogsim.depth.ila import ILAConfig, build_unet, predict_depth, save_checkpoint, load_model
+    from fogsim.depth.ila import ILAConfig, build_unet, load_model, predict_depth, save_checkpoint
 
     config = ILAConfig(width=2, size=(32, 32))
     ck = tmp_path / "round_0.pt"

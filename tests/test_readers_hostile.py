@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from conftest import tree_digest
+from fogsim import fileio
 from fogsim.camera import Intrinsics
 from fogsim.cli import main
-from fogsim import fileio
 from fogsim.errors import InputError
 from fogsim.fileio import decode_image, encode_image, read_depth_file, read_image, write_depth, write_image
 from fogsim.readers.folder import find_depth, folder_samples

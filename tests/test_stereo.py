@@ -3,9 +3,15 @@ import numpy as np
 import pytest
 
 from fogsim.camera import Intrinsics, StereoCamera
+from fogsim.depth.stereo import (
+    SGBMParams,
+    disparity_range,
+    hole_fraction,
+    right_world_to_camera,
+    sgbm_disparity,
+    wls_disparity,
+)
 from fogsim.scene.pose import camera_to_world, world_to_camera
-from fogsim.depth.stereo import (SGBMParams, disparity_range, hole_fraction, right_world_to_camera, sgbm_disparity,
-                           wls_disparity)
 
 
 def test_sgbm_recovers_a_known_shift():

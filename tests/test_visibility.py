@@ -9,8 +9,13 @@ import pytest
 from fogsim.dataset.coco import coco_dataset, visibility_fields
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.fog.model import Fogger
-from fogsim.fog.visibility import (LUMINANCE_FLOOR, VISIBLE_CONTRAST, attach_visibility, frame_visibility,
-                                   object_visibility)
+from fogsim.fog.visibility import (
+    LUMINANCE_FLOOR,
+    VISIBLE_CONTRAST,
+    attach_visibility,
+    frame_visibility,
+    object_visibility,
+)
 
 
 def lin(v8):

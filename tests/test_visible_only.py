@@ -72,8 +72,6 @@ def test_study_report_recall_both_ways_on_a_dataset_with_visibility(tmp_path):
     """A synthetic dataset whose metas get per-object visibility from its own images (box-based),
     finalized again: COCO carries ``visible``; a detector that finds only the visible objects has
     recall_visible = 1 and recall < 1 at the thick levels; report.md and the PNG show both."""
-    from synthetic_dataset import make_dataset
-
     from fogsim.dataset.layout import DatasetLayout
     from fogsim.dataset.reader import read_meta
     from fogsim.dataset.writer import finalize
@@ -82,6 +80,7 @@ def test_study_report_recall_both_ways_on_a_dataset_with_visibility(tmp_path):
     from fogsim.fileio import read_image, write_json
     from fogsim.fog.levels import parse_levels
     from fogsim.fog.visibility import attach_visibility
+    from synthetic_dataset import make_dataset
 
     root = make_dataset(tmp_path / "ds", frames=6, train_fraction=0.5)
     layout, levels = DatasetLayout(root), parse_levels("paper")

@@ -18,12 +18,10 @@ from fogsim.colour import linear_to_srgb8
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.errors import InputError
 from fogsim.fileio import read_depth_file, read_image, read_rgb_exr, read_uint16_map
-from fogsim.render.preset import frame_volumetric, load_render_preset, volumetric_settings
-from fogsim.fog.physics import interior_mask
 from fogsim.fog.model import koschmieder
-from fogsim.fog.physics import far_luminance
+from fogsim.fog.physics import far_luminance, interior_mask
+from fogsim.render.preset import frame_volumetric, load_render_preset, volumetric_settings
 from fogsim.render.volumetric import auto_exposure
-
 from test_blender import KINDS, ROOT, SCRIPTS, dataset_digest, run, runner
 
 LEVELS = ["beta0.03", "beta0.06", "beta0.09", "beta0.12"]

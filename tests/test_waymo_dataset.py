@@ -7,14 +7,13 @@ import numpy as np
 import pytest
 
 import waymo_lidar_fixtures as lfx
-from waymo_fixtures import Box2D, camera_label, camera_labels_message
-
 from fogsim.cli import main
 from fogsim.dataset.layout import DatasetLayout, frame_from_key
 from fogsim.fileio import encode_image, write_depth
 from fogsim.readers.waymo import protobuf_wire as pw
-from fogsim.readers.waymo.tfrecord import write_tfrecord
 from fogsim.readers.waymo.labels import WAYMO_CLASSES
+from fogsim.readers.waymo.tfrecord import write_tfrecord
+from waymo_fixtures import Box2D, camera_label, camera_labels_message
 
 STAMPS = (1_000_000, 2_000_000)
 LEVELS = ("clear", "beta0.06")

@@ -9,20 +9,40 @@ import numpy as np
 import pytest
 
 from fogsim.errors import InputError
-from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.base import Labels
-from fogsim.readers.waymo.tfrecord import index_tfrecord, write_tfrecord
+from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.waymo import waymo_samples, waymo_v1_samples, waymo_v2_samples
 from fogsim.readers.waymo.address import V1Record, V2Frame
 from fogsim.readers.waymo.label_distance import distance_from_points, match_projected, pixel_box
-from fogsim.readers.waymo.labels import (SOURCE_ASSOCIATION, SOURCE_MATCH, SOURCE_POINTS, SOURCE_UNKNOWN, WAYMO_CLASSES,
-                                         camera_label_id)
+from fogsim.readers.waymo.labels import (
+    SOURCE_ASSOCIATION,
+    SOURCE_MATCH,
+    SOURCE_POINTS,
+    SOURCE_UNKNOWN,
+    WAYMO_CLASSES,
+    camera_label_id,
+)
 from fogsim.readers.waymo.labels import Box2D as ReaderBox
 from fogsim.readers.waymo.labels_v1 import WaymoV1Labels
 from fogsim.readers.waymo.labels_v2 import WaymoV2Labels, camera_enum
-from waymo_fixtures import (TYPE_CYCLIST, TYPE_PEDESTRIAN, TYPE_SIGN, TYPE_VEHICLE, Box2D, Box3D, Camera,
-                            LabelFrame, StaticPoints, camera_labels_message, extrinsic, frame_message,
-                            label_message, write_v1, write_v2)
+from fogsim.readers.waymo.tfrecord import index_tfrecord, write_tfrecord
+from waymo_fixtures import (
+    TYPE_CYCLIST,
+    TYPE_PEDESTRIAN,
+    TYPE_SIGN,
+    TYPE_VEHICLE,
+    Box2D,
+    Box3D,
+    Camera,
+    LabelFrame,
+    StaticPoints,
+    camera_labels_message,
+    extrinsic,
+    frame_message,
+    label_message,
+    write_v1,
+    write_v2,
+)
 
 CONTEXT = "10023947602400723454_1120_000_1140_000"
 T0, T1 = 1557855896237535, 1557855896337535
@@ -356,12 +376,11 @@ def test_v1_box_without_laser_label_gets_its_distance_from_the_frames_lidar(tmp_
     """The wiring of the two decoders: a camera box with no laser label takes the near cluster
     of the frame's own LiDAR points (the wall fixture: a plane at x = 20 m)."""
     import waymo_lidar_fixtures as lfx
-    from waymo_fixtures import Box2D, camera_label, camera_labels_message
-
-    from fogsim.readers.waymo.lidar_geometry import camera_points
-    from fogsim.readers.waymo.lidar_v1 import parse_v1_lidar
     from fogsim.fileio import encode_image
     from fogsim.readers.waymo import waymo_samples
+    from fogsim.readers.waymo.lidar_geometry import camera_points
+    from fogsim.readers.waymo.lidar_v1 import parse_v1_lidar
+    from waymo_fixtures import Box2D, camera_label, camera_labels_message
 
     scene = lfx.wall_scene()
     image = encode_image(np.full((lfx.IMAGE_H, lfx.IMAGE_W, 3), 90, np.uint8), ".png")

@@ -17,12 +17,23 @@ from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.waymo.address import V2Frame
 from fogsim.readers.waymo.lidar import LidarPoints, lidar_points_for_sample
 from fogsim.readers.waymo.lidar_frame import LaserCalibration, LidarFrame
-from fogsim.readers.waymo.lidar_geometry import (beam_inclinations, camera_points, camera_ray_depth,
-                                                 filter_bleed_through, range_image_to_points, sparse_ray_depth)
+from fogsim.readers.waymo.lidar_geometry import (
+    beam_inclinations,
+    camera_points,
+    camera_ray_depth,
+    filter_bleed_through,
+    range_image_to_points,
+    sparse_ray_depth,
+)
 from fogsim.readers.waymo.lidar_v1 import parse_v1_lidar, read_v1_lidar
 from fogsim.readers.waymo.lidar_v2 import read_v2_lidar
-from fogsim.readers.waymo.matrix import (decode_matrix, decode_varints, decode_varints_int32, encode_matrix,
-                                         encode_varints)
+from fogsim.readers.waymo.matrix import (
+    decode_matrix,
+    decode_varints,
+    decode_varints_int32,
+    encode_matrix,
+    encode_varints,
+)
 from fogsim.readers.waymo.tfrecord import index_tfrecord, write_tfrecord
 
 

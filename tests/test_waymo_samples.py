@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from fogsim.camera import Intrinsics
-from fogsim.readers.waymo import protobuf_wire as pw
-from fogsim.readers.base import DepthSpec
-from fogsim.readers.waymo.tfrecord import (index_tfrecord, write_tfrecord)
-from fogsim.readers.waymo import waymo_v1_samples, waymo_v2_samples
 from fogsim.errors import InputError, MissingDependency, exit_code
 from fogsim.fileio import encode_image
+from fogsim.readers.base import DepthSpec
+from fogsim.readers.waymo import protobuf_wire as pw
+from fogsim.readers.waymo import waymo_v1_samples, waymo_v2_samples
+from fogsim.readers.waymo.tfrecord import index_tfrecord, write_tfrecord
 
 CONTEXT = "1005081002024129653_5313_150_5333_150"
 TIMESTAMPS = (1510593602340000, 1510593602440000)

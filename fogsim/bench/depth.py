@@ -18,9 +18,9 @@ import numpy as np
 from fogsim.camera import depth_to_disparity, disparity_to_depth, planar_to_ray
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.reader import StereoFrame, frame_count, read_stereo_frame, stereo_frames
-from fogsim.fog.fill import fill_holes
 from fogsim.depth.metrics import depth_metrics, laplacian_variance, reference_accuracy
 from fogsim.depth.stereo import wls_disparity
+from fogsim.fog.fill import fill_holes
 from fogsim.fog.model import Fogger
 
 CLASSICAL = ("sgbm", "inpaint", "ipbasic", "wls")
@@ -156,8 +156,8 @@ def run_benchmark(out, frames: int = 12, resolution: str = "512x256", samples: i
     levels = load_preset("paper")
     methods, ila_log = list(CLASSICAL), []
     if ila_config is not None:
-        from fogsim.fog.fill import register_fill
         from fogsim.depth.ila import ila_fill
+        from fogsim.fog.fill import register_fill
 
         ila_log = train_ila(layout.cityscapes_root(), out / "ila", ila_config)
         for entry in ila_log:

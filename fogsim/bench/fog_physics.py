@@ -32,15 +32,22 @@ from pathlib import Path
 
 import numpy as np
 
+from fogsim.bench.fog_physics_report import markdown, write_report
 from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.colour import srgb_to_linear
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.reader import read_meta
 from fogsim.errors import InputError
-from fogsim.fileio import (atomic_write_bytes, read_depth_file, read_exr_channels, read_image, read_json,
-                           read_uint16_map, write_json)
+from fogsim.fileio import (
+    atomic_write_bytes,
+    read_depth_file,
+    read_exr_channels,
+    read_image,
+    read_json,
+    read_uint16_map,
+    write_json,
+)
 from fogsim.fog.physics import Comparison, default_models
-from fogsim.bench.fog_physics_report import markdown, write_report
 from fogsim.presets import preset_path
 
 RUNS = {"clear": None, "volumetric_seed0": 0, "volumetric_seed1": 1}

@@ -15,7 +15,6 @@ ratios are printed.
 """
 from __future__ import annotations
 
-
 import cv2
 import numpy as np
 

@@ -27,8 +27,13 @@ import numpy as np
 from fogsim.bench.timing import elapsed_ms
 from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.waymo.lidar_frame import LaserCalibration
-from fogsim.readers.waymo.lidar_geometry import (beam_inclinations, camera_points, filter_bleed_through,
-                                                 range_image_to_points, sparse_ray_depth)
+from fogsim.readers.waymo.lidar_geometry import (
+    beam_inclinations,
+    camera_points,
+    filter_bleed_through,
+    range_image_to_points,
+    sparse_ray_depth,
+)
 from fogsim.readers.waymo.lidar_v1 import FRAME_LASERS, RI_POSE, RI_PROJECTION, RI_RANGE, parse_v1_lidar
 from fogsim.readers.waymo.matrix import MATRIX_DATA, decode_matrix, encode_matrix
 

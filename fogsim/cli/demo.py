@@ -24,12 +24,12 @@ def add_parsers(sub) -> None:
 def cmd_demo(args) -> int:
     import numpy as np
 
-    from fogsim.fog.batch import FogJob, check_run_file, run
-    from fogsim.readers.folder import folder_samples
-    from fogsim.readers.base import DepthSpec
-    from fogsim.fog.synthetic import demo_scene
     from fogsim.fileio import read_image, write_depth, write_image
+    from fogsim.fog.batch import FogJob, check_run_file, run
     from fogsim.fog.levels import parse_levels
+    from fogsim.fog.synthetic import demo_scene
+    from fogsim.readers.base import DepthSpec
+    from fogsim.readers.folder import folder_samples
     from fogsim.runs import check_output
     from fogsim.viz import colorize_depth, strip
 

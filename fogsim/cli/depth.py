@@ -30,14 +30,13 @@ def add_parsers(sub) -> None:
 
 def cmd_score(args) -> int:
     """Everything is read and scored first; the report is written only when all of it worked."""
-    from fogsim.camera import Intrinsics
-    from fogsim.depth.score import score_dataset, score_holdout, table, write_report
-    from fogsim.fileio import read_json
-    from fogsim.runs import check_output
-
     from pathlib import Path
 
+    from fogsim.camera import Intrinsics
+    from fogsim.depth.score import score_dataset, score_holdout, table, write_report
     from fogsim.errors import InputError
+    from fogsim.fileio import read_json
+    from fogsim.runs import check_output
 
     # the report may go inside the fog output or dataset it scores (e.g. OUT/score), not over it
     target = check_output(args.out, {"--pred": args.pred, "--intrinsics": args.intrinsics})

@@ -115,8 +115,8 @@ def _samples(args):
     from dataclasses import replace
 
     from fogsim.camera import Intrinsics
-    from fogsim.readers.base import DepthSpec
     from fogsim.fileio import read_json
+    from fogsim.readers.base import DepthSpec
 
     if args.depth_encoding == "disparity" and not args.cityscapes:
         raise ValueError("--depth-encoding disparity needs each image's Cityscapes camera JSON (baseline, fx), "
@@ -210,8 +210,8 @@ def _with_depth_from(samples, depth_from: str | None, out: str | None = None, ho
 
 def _job(args, out: str, classes: tuple[str, ...] = ()):
     from fogsim.fog.batch import FogJob
-    from fogsim.fog.model import Kernel
     from fogsim.fog.levels import parse_levels
+    from fogsim.fog.model import Kernel
 
     levels = tuple(parse_levels(args.levels, args.visibility))
     if args.airlight.strip().lower() == "estimate":

@@ -128,9 +128,9 @@ def _ila_fill(args) -> int:
     A frame that cannot be read is named and skipped (exit 1 at the end)."""
 
     from fogsim.camera import depth_to_disparity, encode_disparity_png
-    from fogsim.fog.fill import fill_holes, register_fill
     from fogsim.depth.ila import ila_fill
     from fogsim.fileio import read_image, write_image
+    from fogsim.fog.fill import fill_holes, register_fill
     from fogsim.readers.cityscapes import cityscapes_samples, read_cityscapes_depth
 
     fill = ila_fill(args.checkpoint)  # loads and checks the checkpoint before anything is written

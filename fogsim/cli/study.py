@@ -119,11 +119,10 @@ def render(dataset: Path, args) -> None:
 
 
 def cmd_study(args) -> int:
+    from fogsim.detection.class_map import load_class_map
     from fogsim.detection.study import Study
     from fogsim.detection.yolo import TrainConfig
     from fogsim.runs import check_output, parse_shard
-
-    from fogsim.detection.class_map import load_class_map
 
     check_output(args.out, {"--dataset": args.dataset, "--sim-dataset": args.sim_dataset},
                  allow_inside_out=("--dataset", "--sim-dataset"))  # read through a view

@@ -26,8 +26,8 @@ from fogsim.dataset.layout import MIXED_SPLIT, PARTS, DatasetLayout
 from fogsim.dataset.reader import read_meta, read_metas
 from fogsim.fileio import atomic_write_bytes, read_image, write_image, write_json
 from fogsim.runs import split_key
-from fogsim.viz import strip
 from fogsim.scene.classes import LABELLED
+from fogsim.viz import strip
 
 __all__ = ["PALETTE", "TRAIN_FRACTION", "check_train_fraction", "contact_sheet", "data_yaml", "finalize",
            "frame_split", "split_frames", "write_frame_labels"]

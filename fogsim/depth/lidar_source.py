@@ -31,8 +31,7 @@ from typing import Callable
 import numpy as np
 
 from fogsim.camera import Intrinsics
-from fogsim.depth.complete import (DEFAULT_METHOD, METHODS, SKY_RULES, complete, holdout_split, pixel_index,
-                                   sparse_image)
+from fogsim.depth.complete import DEFAULT_METHOD, METHODS, SKY_RULES, complete, holdout_split, pixel_index, sparse_image
 from fogsim.errors import InputError
 
 PointsSource = Callable[[], "tuple[np.ndarray, np.ndarray]"]

@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsim.errors import FogsimError, InputError
 from fogsim.boxes import box_convert, coco_category, yolo_to_xywh
+from fogsim.errors import FogsimError, InputError
 
 BINS = ((0.0, 25.0), (25.0, 50.0), (50.0, 100.0))
 

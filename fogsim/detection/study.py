@@ -41,8 +41,7 @@ from tqdm import tqdm
 
 from fogsim.dataset.layout import MIXED_MODEL, DatasetLayout
 from fogsim.dataset.reader import dataset_classes, dataset_levels, missing_files, read_split, val_ground_truth
-from fogsim.detection.class_map import (BUILTIN, ClassMap, identity, map_detections, map_ground_truth,
-                                        restriction)
+from fogsim.detection.class_map import BUILTIN, ClassMap, identity, map_detections, map_ground_truth, restriction
 from fogsim.detection.coco_eval import BINS, UNKNOWN_DISTANCE, distance_coverage
 from fogsim.detection.layout import StudyLayout
 from fogsim.detection.level_estimation import LevelEstimator, confusion, image_features, route

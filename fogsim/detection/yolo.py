@@ -24,11 +24,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from fogsim.boxes import coco_category, xyxy_to_xywh
-from fogsim.errors import FogsimError, InputError
 from fogsim.dataset.layout import MIXED_MODEL, PARTS, DatasetLayout
 from fogsim.dataset.reader import dataset_classes, read_split
 from fogsim.dataset.writer import data_yaml
 from fogsim.detection.layout import DONE_FILE
+from fogsim.errors import FogsimError, InputError
 from fogsim.fileio import atomic_write_bytes, write_json
 
 MIN_ULTRALYTICS = (8, 4, 37)  # earlier releases inflate mAP (PR curve extended to recall 1)

@@ -4,11 +4,28 @@ whole datasets.
 
 Pure numpy + OpenCV: no bpy, torch or Ultralytics.
 """
-from fogsim.fog.levels import (FogLevel, beta_from_visibility, level_from_beta, load_preset, parse_levels,
-                               visibility_from_beta)
-from fogsim.fog.model import (KERNELS, PAPER_KERNEL, SPACES, Fogger, Kernel, airlight_rgb, density_field,
-                              estimate_airlight, koschmieder, koschmieder_extended, smooth_transmission,
-                              transmission)
+from fogsim.fog.levels import (
+                               FogLevel,
+                               beta_from_visibility,
+                               level_from_beta,
+                               load_preset,
+                               parse_levels,
+                               visibility_from_beta,
+)
+from fogsim.fog.model import (
+                               KERNELS,
+                               PAPER_KERNEL,
+                               SPACES,
+                               Fogger,
+                               Kernel,
+                               airlight_rgb,
+                               density_field,
+                               estimate_airlight,
+                               koschmieder,
+                               koschmieder_extended,
+                               smooth_transmission,
+                               transmission,
+)
 
 __all__ = ["FogLevel", "Fogger", "KERNELS", "Kernel", "PAPER_KERNEL", "SPACES", "airlight_rgb",
            "beta_from_visibility", "density_field", "estimate_airlight", "koschmieder", "koschmieder_extended",

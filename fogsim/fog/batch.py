@@ -36,17 +36,16 @@ import numpy as np
 
 from fogsim._version import __version__
 from fogsim.dataset.layout import DatasetLayout, frame_from_key
-from fogsim.readers.base import Sample
-from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
-from fogsim.errors import InputError
-from fogsim.runs import claim_output, sample_seed
-from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
-from fogsim.fileio import (TO_8BIT, atomic_write_bytes, encode_image, read_json, remove_stale_parts, to_8bit,
-                           write_json)
-from fogsim.fog.levels import FogLevel
-from fogsim.fog.labelled import check_labelled, checked_records
-from fogsim.fog.visibility import attach_visibility
 from fogsim.dataset.writer import TRAIN_FRACTION, check_train_fraction, finalize, write_frame_labels
+from fogsim.errors import InputError
+from fogsim.fileio import TO_8BIT, atomic_write_bytes, encode_image, read_json, remove_stale_parts, to_8bit, write_json
+from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
+from fogsim.fog.labelled import check_labelled, checked_records
+from fogsim.fog.levels import FogLevel
+from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
+from fogsim.fog.visibility import attach_visibility
+from fogsim.readers.base import Sample
+from fogsim.runs import claim_output, sample_seed
 
 RUN_FILE = "fogsim_run.json"
 

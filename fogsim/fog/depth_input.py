@@ -6,10 +6,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsim.camera import NO_HIT_DEPTH, Intrinsics, planar_to_ray
-from fogsim.readers.base import Sample
 from fogsim.errors import InputError
 from fogsim.fog.fill import HolesError, fill_holes, hole_mask
-
+from fogsim.readers.base import Sample
 
 NO_INTRINSICS = ("planar depth needs the camera intrinsics to become ray distance: "
                  "give --intrinsics FILE.json or --hfov DEG, or --depth-kind ray")

@@ -17,8 +17,7 @@ from pathlib import Path
 
 from fogsim.errors import InputError
 from fogsim.readers.base import DepthSpec, Sample
-from fogsim.readers.cityscapes_files import (load_cityscapes_camera, read_cityscapes_depth,
-                                             read_cityscapes_disparity)
+from fogsim.readers.cityscapes_files import load_cityscapes_camera, read_cityscapes_depth, read_cityscapes_disparity
 from fogsim.readers.files import ImageFile
 
 __all__ = ["SUFFIX", "cityscapes_samples", "load_cityscapes_camera", "read_cityscapes_depth",

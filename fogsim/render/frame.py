@@ -19,18 +19,18 @@ from fogsim.camera import Intrinsics, StereoCamera, encode_disparity_png, planar
 from fogsim.colour import linear_to_srgb8
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import frame_split, write_frame_labels
+from fogsim.depth.stereo import SGBMParams, hole_fraction, sgbm_disparity
 from fogsim.errors import InputError
+from fogsim.fileio import write_depth, write_image, write_json
 from fogsim.fog.model import Fogger
 from fogsim.fog.visibility import attach_visibility
-from fogsim.fileio import write_depth, write_image, write_json
 from fogsim.render.labels import MIN_PIXELS, MIN_VISIBLE_FRACTION, object_records
 from fogsim.render.preset import RenderConfig, fog_settings
+from fogsim.render.silhouette import silhouette_areas
 from fogsim.runs import frame_seed
 from fogsim.scene.classes import is_labelled
 from fogsim.scene.geometry import world_parts
 from fogsim.scene.layout import sample_scene
-from fogsim.render.silhouette import silhouette_areas
-from fogsim.depth.stereo import SGBMParams, hole_fraction, sgbm_disparity
 
 
 def frame_name(index: int) -> str:

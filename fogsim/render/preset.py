@@ -31,9 +31,18 @@ from fogsim.fileio import read_json
 from fogsim.fog.levels import FogLevel, parse_levels
 from fogsim.presets import check_component_name, preset_path
 from fogsim.presets.checks import boolean, choice, integer, is_number, json_object, number, pair, prob, string
-from fogsim.render.fog_settings import (FOG_EXPOSURES, FOG_KINDS, FOG_MEDIA, MAX_FOG_EXTENT_M, MAX_SAMPLES,
-                                        VOLUMETRIC_DEFAULTS, fog_overrides, fog_settings, frame_volumetric,
-                                        volumetric_settings)
+from fogsim.render.fog_settings import (
+    FOG_EXPOSURES,
+    FOG_KINDS,
+    FOG_MEDIA,
+    MAX_FOG_EXTENT_M,
+    MAX_SAMPLES,
+    VOLUMETRIC_DEFAULTS,
+    fog_overrides,
+    fog_settings,
+    frame_volumetric,
+    volumetric_settings,
+)
 from fogsim.scene.lights import check_lighting
 
 __all__ = ["KEYS", "MAX_PIXELS", "MAX_SIDE", "MIN_SIDE", "MAX_SAMPLES", "VEHICLES", "RenderConfig",

@@ -8,8 +8,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from fogsim.scene.assets_parts import (Part, blob, box, cylinder, draw, draw_choice, ellipse, loft, pick_colour, torus,
-                                       tube)
+from fogsim.scene.assets_parts import (
+    Part,
+    blob,
+    box,
+    cylinder,
+    draw,
+    draw_choice,
+    ellipse,
+    loft,
+    pick_colour,
+    torus,
+    tube,
+)
 
 SKIN = {"#f1c7a8": 3, "#e0ac8a": 3, "#c68863": 2, "#8d5a3c": 2, "#5c3a26": 1}
 HAIR = {"#1a1410": 4, "#3b2618": 3, "#6b4a2b": 2, "#b08850": 1, "#8a8a88": 1}

@@ -16,6 +16,7 @@ if kind == "legacy":
 else:
     bpy.ops.extensions.package_install_files(filepath=path, repo="user_default", enable_on_install=True)
 import cv2  # noqa: E402  (from the zip's wheels)
+
 import fogsim  # noqa: E402  (from the zip's lib/)
 
 s = bpy.context.scene.fogsim

@@ -14,8 +14,9 @@ for site in sorted((ROOT / ".venv" / "lib").glob("python3*/site-packages")):
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
-from fogsim.render.blender import build, cycles as render  # noqa: E402
 from fogsim.camera import Intrinsics, planar_to_ray  # noqa: E402
+from fogsim.render.blender import build  # noqa: E402
+from fogsim.render.blender import cycles as render  # noqa: E402
 from fogsim.scene.pose import camera_to_world, transform, world_to_camera  # noqa: E402
 
 out = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else sys.argv[1]

@@ -13,8 +13,18 @@ import math
 import numpy as np
 
 from fogsim.readers.base import Labels
-from fogsim.readers.waymo.labels import (SOURCE_ASSOCIATION, SOURCE_MATCH, SOURCE_POINTS, SOURCE_UNKNOWN, TYPE_CLASS,
-                                         WAYMO_CLASSES, Box2D, CameraFrameLabels, LabelRead, PointsProvider)
+from fogsim.readers.waymo.labels import (
+    SOURCE_ASSOCIATION,
+    SOURCE_MATCH,
+    SOURCE_POINTS,
+    SOURCE_UNKNOWN,
+    TYPE_CLASS,
+    WAYMO_CLASSES,
+    Box2D,
+    CameraFrameLabels,
+    LabelRead,
+    PointsProvider,
+)
 
 #: Projected-box matching thresholds (camera boxes are tight, projected ones amodal and loose).
 MATCH_IOU, MATCH_IOA = 0.3, 0.7

@@ -13,8 +13,17 @@ from fogsim.readers.base import Labels
 from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.waymo.address import V1Record
 from fogsim.readers.waymo.label_distance import build_labels
-from fogsim.readers.waymo.labels import (WAYMO_CLASSES, Box2D, CameraFrameLabels, LabelRead, LaserBox, PointsProvider,
-                                         camera_extrinsic, camera_label_id, finite_floats)
+from fogsim.readers.waymo.labels import (
+    WAYMO_CLASSES,
+    Box2D,
+    CameraFrameLabels,
+    LabelRead,
+    LaserBox,
+    PointsProvider,
+    camera_extrinsic,
+    camera_label_id,
+    finite_floats,
+)
 from fogsim.readers.waymo.sensors import CAMERA_BY_ID
 
 # v1 field numbers (dataset.proto, label.proto)

@@ -21,8 +21,17 @@ from fogsim.readers.base import Labels
 from fogsim.readers.waymo.address import V2Frame
 from fogsim.readers.waymo.images import open_parquet
 from fogsim.readers.waymo.label_distance import build_labels
-from fogsim.readers.waymo.labels import (WAYMO_CLASSES, Box2D, CameraFrameLabels, LabelRead, LaserBox, PointsProvider,
-                                         camera_extrinsic, camera_label_id, finite_floats)
+from fogsim.readers.waymo.labels import (
+    WAYMO_CLASSES,
+    Box2D,
+    CameraFrameLabels,
+    LabelRead,
+    LaserBox,
+    PointsProvider,
+    camera_extrinsic,
+    camera_label_id,
+    finite_floats,
+)
 from fogsim.readers.waymo.sensors import CAMERA_BY_ID, CAMERA_NAMES
 
 # v2 tables and columns (v2/perception/box.py, context.py; v2/component.py names them)

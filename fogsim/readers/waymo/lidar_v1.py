@@ -14,8 +14,14 @@ import numpy as np
 
 from fogsim.errors import InputError
 from fogsim.readers.waymo import protobuf_wire as pw
-from fogsim.readers.waymo.lidar_frame import (LaserCalibration, LaserReturn, LidarFrame, check_shapes, matrix4,
-                                              require_lidar)
+from fogsim.readers.waymo.lidar_frame import (
+    LaserCalibration,
+    LaserReturn,
+    LidarFrame,
+    check_shapes,
+    matrix4,
+    require_lidar,
+)
 from fogsim.readers.waymo.matrix import decode_matrix
 from fogsim.readers.waymo.sensors import laser_name
 from fogsim.readers.waymo.tfrecord import read_record

@@ -16,8 +16,15 @@ import numpy as np
 from fogsim.errors import InputError
 from fogsim.readers.waymo.address import V2Frame
 from fogsim.readers.waymo.images import open_parquet
-from fogsim.readers.waymo.lidar_frame import (LaserCalibration, LaserReturn, LidarFrame, NoLidar, check_shapes, matrix4,
-                                              require_lidar)
+from fogsim.readers.waymo.lidar_frame import (
+    LaserCalibration,
+    LaserReturn,
+    LidarFrame,
+    NoLidar,
+    check_shapes,
+    matrix4,
+    require_lidar,
+)
 from fogsim.readers.waymo.lidar_v1 import LASER_RETURNS
 from fogsim.readers.waymo.sensors import CAMERA_NAMES, LASER_NAMES, laser_name
 

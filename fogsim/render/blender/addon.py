@@ -62,10 +62,9 @@ class FOGSIM_OT_build_scene(bpy.types.Operator):
 
     def execute(self, context):
         from fogsim.errors import FogsimError
+        from fogsim.render.blender import build
         from fogsim.render.frame import describe_frame, scene_meshes
         from fogsim.scene.classes import STUFF
-
-        from fogsim.render.blender import build
 
         s = context.scene.fogsim
         try:
@@ -112,7 +111,6 @@ class FOGSIM_OT_render_dataset(bpy.types.Operator):
 
     def execute(self, context):
         from fogsim.errors import FogsimError
-
         from fogsim.render.blender.job import RenderJob
         from fogsim.render.loop import FrameLoop
 

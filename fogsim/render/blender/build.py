@@ -13,12 +13,11 @@ import mathutils
 import numpy as np
 
 from fogsim.camera import Intrinsics
-from fogsim.scene.geometry import material_key, world_parts
-from fogsim.scene.pose import blender_camera_matrix, blender_lens
-
 from fogsim.render.blender.compat import set_mesh_polygons, sky_type_physical
 from fogsim.render.blender.lights import add_lights
 from fogsim.render.blender.materials import make_material
+from fogsim.scene.geometry import material_key, world_parts
+from fogsim.scene.pose import blender_camera_matrix, blender_lens
 
 COLLECTION = "fogsim_scene"
 

@@ -8,11 +8,15 @@ import bpy
 import numpy as np
 
 from fogsim.camera import NO_HIT_DEPTH
+from fogsim.render.blender.compat import (
+    PASS_CHANNELS,
+    cycles_device,
+    has_denoiser,
+    set_denoiser_speed,
+    set_multilayer_exr,
+)
 from fogsim.render.exr_reader import read_exr
 from fogsim.render.frame import FramePasses
-
-from fogsim.render.blender.compat import (PASS_CHANNELS, cycles_device, has_denoiser, set_denoiser_speed,
-                                          set_multilayer_exr)
 
 
 def configure(scene, quality: dict, seed: int, gpu: bool = False) -> dict:

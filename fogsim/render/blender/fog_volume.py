@@ -36,8 +36,13 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from fogsim.render.blender.compat import (force_homogeneous, has_denoiser, set_denoiser_speed,
-                                          set_volume_phase, set_volume_unbiased)
+from fogsim.render.blender.compat import (
+    force_homogeneous,
+    has_denoiser,
+    set_denoiser_speed,
+    set_volume_phase,
+    set_volume_unbiased,
+)
 
 DOMAIN_NAME = "fogsim_fog_domain"
 GROUND_MARGIN_M = 1.0  # the box starts this far below the ground (z = 0)

@@ -19,20 +19,18 @@ import numpy as np
 
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import finalize
-from fogsim.render.frame import DescribedFrame, FogRenders, FramePasses, check_scene, commit_frame, frame_name
-from fogsim.fileio import remove_stale_parts
-from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
 from fogsim.deps import package_versions
-from fogsim.errors import InputError
-from fogsim.render.preset import RenderConfig
-from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
 from fogsim.depth.stereo import right_world_to_camera
-
+from fogsim.errors import InputError
+from fogsim.fileio import remove_stale_parts
 from fogsim.render.blender import build as scene_build
 from fogsim.render.blender import fog_volume
 from fogsim.render.blender.compat import has_mie_phase
 from fogsim.render.blender.cycles import configure, render, render_combined
-from fogsim.render.preset import frame_volumetric, volumetric_settings
+from fogsim.render.frame import DescribedFrame, FogRenders, FramePasses, check_scene, commit_frame, frame_name
+from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
+from fogsim.render.preset import RenderConfig, frame_volumetric, volumetric_settings
+from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
 
 RUN_FILE = "render_run.json"
 SCENE_NAME = "fogsim"

@@ -8,9 +8,8 @@ from __future__ import annotations
 
 import bpy
 
-from fogsim.scene.materials import material as catalogue_material
-
 from fogsim.render.blender.compat import principled_inputs
+from fogsim.scene.materials import material as catalogue_material
 
 _NOISE_DETAIL = {"asphalt": (14.0, 0.35), "concrete": (6.0, 0.25), "noise": (4.0, 0.2),
                  "bark": (10.0, 0.45), "foliage": (6.0, 0.5), "fabric": (12.0, 0.25),
