@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fogsim.deps import package_versions
 from fogsim.errors import EXIT_FAILED, EXIT_OK
 
 
@@ -24,6 +23,7 @@ def add_parsers(sub) -> None:
 def cmd_demo(args) -> int:
     import numpy as np
 
+    from fogsim.deps import package_versions
     from fogsim.fileio import read_image, write_depth, write_image
     from fogsim.fog.batch import FogJob, check_run_file, run
     from fogsim.fog.levels import parse_levels

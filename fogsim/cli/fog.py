@@ -7,7 +7,7 @@ from pathlib import Path
 
 from fogsim.dataset.writer import TRAIN_FRACTION, check_train_fraction
 from fogsim.errors import EXIT_FAILED, EXIT_OK, InputError
-from fogsim.fog.batch import SPLIT_BY
+from fogsim.fog.labelled import SPLIT_BY
 from fogsim.fog.model import KERNELS, SPACES, airlight_rgb, check_heterogeneity
 from fogsim.readers.base import DEPTH_ENCODINGS
 

@@ -40,7 +40,7 @@ from fogsim.dataset.writer import TRAIN_FRACTION, check_train_fraction, finalize
 from fogsim.errors import InputError
 from fogsim.fileio import TO_8BIT, atomic_write_bytes, encode_image, read_json, remove_stale_parts, to_8bit, write_json
 from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
-from fogsim.fog.labelled import check_labelled, checked_records
+from fogsim.fog.labelled import SPLIT_BY, check_labelled, checked_records, key_folder
 from fogsim.fog.levels import FogLevel
 from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
 from fogsim.fog.visibility import attach_visibility
@@ -253,24 +253,14 @@ def check_run_wide(samples: list[Sample], job: FogJob | None = None) -> None:
         check_aspect(K, w, h, first.source)
 
 
-#: how the train/val split of a fogged dataset groups frames (``fogsim fog --split-by``)
-SPLIT_BY = ("frame", "folder")
-
-
-def key_folder(key: str) -> str:
-    """The folder of a sample key (its parent path: Waymo ``ctx/ts_CAM`` → the segment ``ctx``;
-    Cityscapes ``leftImg8bit/val/<city>/<name>`` → ``leftImg8bit/val/<city>``; "" at the top)."""
-    return key.rpartition("/")[0]
-
-
 def finalize_dataset(out: str | Path, train_fraction: float | None = None, split_by: str | None = None) -> dict:
     """Write the dataset-wide files of a labelled ``fogsim fog`` run (COCO per level with the
     dataset's classes and ``distance_m`` per annotation, split lists, data YAMLs,
     ``dataset.json``, contact sheet) from its committed frames and ``fogsim_run.json``.
-    ``train_fraction`` and ``split_by`` (one of :data:`SPLIT_BY`): None = the run's own (its
+    ``train_fraction`` and ``split_by`` (one of :data:`~fogsim.fog.labelled.SPLIT_BY`): None = the run's own (its
     recorded inputs), else :data:`~fogsim.dataset.writer.TRAIN_FRACTION` and ``"frame"``.
     The split seed is the run's ``--seed``; ``split_by="folder"`` keeps the frames of one input
-    folder (:func:`key_folder`: a Waymo segment, a Cityscapes city) on one side of the split.
+    folder (:func:`~fogsim.fog.labelled.key_folder`: a Waymo segment, a Cityscapes city) on one side of the split.
     Returns ``dataset.json``'s content."""
     run_file = Path(out) / RUN_FILE
     if not run_file.is_file():

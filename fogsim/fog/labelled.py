@@ -1,8 +1,9 @@
 """The annotations of a labelled ``fogsim fog`` run: the checks a real dataset's labels pass
-before they are written (class list, box inside the image, distance in metres) and the
-run-wide checks of a labelled run. Boxes are ``[x0, y0, x1, y1)`` in pixel-edge coordinates
-(:class:`fogsim.readers.base.Labels`); a box within :data:`BOX_TOLERANCE_PX` of the image is
-clamped, a box farther out is an error naming the label file.
+before they are written (class list, box inside the image, distance in metres), and the
+run-wide checks and the split rule of a labelled run. Boxes are ``[x0, y0, x1, y1)`` in
+pixel-edge coordinates (:class:`fogsim.readers.base.Labels`); a box within
+:data:`BOX_TOLERANCE_PX` of the image is clamped, a box farther out is an error naming the label
+file.
 """
 from __future__ import annotations
 
@@ -17,6 +18,15 @@ from fogsim.readers.base import Labels, Sample
 
 #: how far (pixels) a label box may lie outside the image and still be clamped into it
 BOX_TOLERANCE_PX = 1.0
+#: how the train/val split of a labelled run groups frames (``fogsim fog --split-by``): by frame,
+#: or by the sample key's folder (:func:`key_folder`)
+SPLIT_BY = ("frame", "folder")
+
+
+def key_folder(key: str) -> str:
+    """The folder of a sample key (its parent path: Waymo ``ctx/ts_CAM`` → the segment ``ctx``;
+    Cityscapes ``leftImg8bit/val/<city>/<name>`` → ``leftImg8bit/val/<city>``; "" at the top)."""
+    return key.rpartition("/")[0]
 
 
 def labels_source(sample: Sample) -> str:
