@@ -45,7 +45,7 @@ def _add_batch_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--shard", help="i/N: process every N-th sample starting at i (0-based), "
                                    "e.g. $SLURM_ARRAY_TASK_ID/N")
     g.add_argument("--no-resume", action="store_true", help="redo samples whose outputs exist")
-    g.add_argument("--quiet", action="store_true", help="no progress bar")
+    g.add_argument("--quiet", action="store_true", help="print only errors and the summary line (no progress bar)")
 
 
 def _add_label_options(p: argparse.ArgumentParser) -> None:
@@ -307,22 +307,24 @@ def cmd_fog(args) -> int:
     print(summary.line(job))
     for source, error in summary.failed:
         print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
-    if labelled and is_sharded(shard):
+    if labelled and is_sharded(shard) and not args.quiet:
         print(f"fogsim: shard {shard[0]}/{shard[1]} done; when every shard has finished, write the dataset "
               f"files with: fogsim fog --finalize-only --out {args.out}")
-    elif labelled:
+    elif labelled and not is_sharded(shard):
         if not job.layout.done_frames():
             print(f"fogsim: error: {args.out}: no frame was fogged, so there is no dataset to finalize",
                   file=sys.stderr)
             return EXIT_FAILED
-        _finalize(args.out, job.inputs["train_fraction"], job.inputs["split_by"])
+        _finalize(args.out, job.inputs["train_fraction"], job.inputs["split_by"], quiet=args.quiet)
     return EXIT_FAILED if summary.failed else EXIT_OK
 
 
-def _finalize(out: str, train_fraction: float, split_by: str = "frame") -> None:
+def _finalize(out: str, train_fraction: float, split_by: str = "frame", quiet: bool = False) -> None:
     from fogsim.fog.batch import finalize_dataset
 
     summary = finalize_dataset(out, train_fraction, split_by)
+    if quiet:  # the run's summary line was the last word
+        return
     counts = ", ".join(f"{c} {n}" for c, n in summary["counts"].items())
     print(f"dataset: {summary['frames']} frames ({summary['split']['train']} train / {summary['split']['val']} "
           f"val), objects kept: {counts} → {out}/dataset.json")
