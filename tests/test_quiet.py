@@ -155,6 +155,7 @@ def test_labelled_fog_shards_and_finalize_quiet(tmp_path):
     assert len(printed(res)) == 1 and printed(res)[0].startswith("dataset: 2 frames")
     whole = fogsim("fog", "--cityscapes", root, "--out", tmp_path / "w", "--levels", "clear,0.06", "--quiet")
     assert whole.returncode == 0 and len(printed(whole)) == 1, printed(whole)
+    assert "; dataset: 2 frames" in printed(whole)[0]  # the run's line and the dataset's, joined
     assert (tmp_path / "w" / "dataset.json").is_file()  # quiet finalizes all the same
 
 
