@@ -37,7 +37,7 @@ def flush_all() -> None:
             pass
     try:
         ctypes.CDLL(None).fflush(None)
-    except (OSError, AttributeError):  # no C library to ask (not a POSIX system)
+    except (OSError, AttributeError, TypeError):  # no C library to ask (not a POSIX system)
         pass
 
 

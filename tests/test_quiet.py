@@ -294,3 +294,20 @@ def test_gpu_backends_of_each_blender(kind, tmp_path):
     assert r["record"] == {"device": "CPU", "gpu_requested": True, "gpu_devices": [],
                            "gpu_fallback": r["find_gpu"][2]}
     assert r["scene_device"] == "CPU" and r["no_gpu_record"] == {"device": "CPU", "gpu_requested": False}
+
+
+@pytest.mark.detect
+@pytest.mark.slow
+def test_study_quiet_prints_the_report_line_only(tmp_path):
+    """Ultralytics' log and progress bars off (YOLO_VERBOSE), no table: one line naming the report."""
+    import importlib.util
+
+    if importlib.util.find_spec("ultralytics") is None or importlib.util.find_spec("pycocotools") is None:
+        pytest.skip("the 'detect' extra (Ultralytics, pycocotools) is not installed")
+    from synthetic_dataset import make_dataset
+
+    ds = make_dataset(tmp_path / "ds", frames=4)
+    res = fogsim("study", "--out", tmp_path / "s", "--dataset", ds, "--epochs", "1", "--imgsz", "64", "--batch", "4",
+                 "--workers", "0", "--device", "cpu", "--no-plots", "--quiet", timeout=1500)
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-3000:]
+    assert len(printed(res)) == 1 and printed(res)[0].startswith("report: "), printed(res)[:20]
