@@ -14,13 +14,13 @@ PIP=(.venv/bin/python -m pip)
 # machine kind serves from its disk; where it cannot be had, the CPU build 2.13.0 serves the
 # ILA extra and the detector-training tests skip.
 if "${PIP[@]}" install -q "torch==2.14.1" "torchvision==0.29.1" \
-   && "${PIP[@]}" install -q -e ".[dev,blender,waymo,ila,detect]"; then
+   && "${PIP[@]}" install -q -e ".[dev,blender,waymo,ila,detect,docs]"; then
   :
 else
   echo "note: the 'detect' extra could not be installed: detector-training tests will skip" >&2
   "${PIP[@]}" uninstall -q -y ultralytics torchvision 2>/dev/null || true
   "${PIP[@]}" install -q "torch==2.13.0"
-  "${PIP[@]}" install -q -e ".[dev,blender,waymo,ila]"
+  "${PIP[@]}" install -q -e ".[dev,blender,waymo,ila,docs]"
 fi
 
 # --- OpenCV: the contrib build must be the cv2 in place, whatever was installed in what order.

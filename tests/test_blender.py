@@ -288,6 +288,7 @@ def test_addon_registers_builds_and_renders_through_ops(kind, tmp_path):
     r = json.loads(line[len("RESULT "):])
     assert r["build"] == ["FINISHED"] and r["built_objects"] > 20 and r["left_after_clear"] == 0
     assert r["render"] == ["FINISHED"] and r["status"].startswith("done: 1 frames")
+    assert "Saved:" not in res.stdout + res.stderr and "Fra:" not in res.stdout  # Blender's output captured
     assert r["unregistered"]
     assert (tmp_path / "ds" / "meta" / "000000.json").is_file()
 

@@ -60,7 +60,8 @@ LAYERS = (
     ("presets and their schema", {"fogsim.presets", "fogsim.schema"}),
     ("run bookkeeping", {"fogsim.runs"}),
     ("files, dependencies, camera, pictures", {"fogsim.fileio", "fogsim.deps", "fogsim.camera", "fogsim.viz"}),
-    ("basics", {"fogsim.errors", "fogsim._version", "fogsim.colour", "fogsim.boxes", "fogsim.integrity"}),
+    ("basics", {"fogsim.errors", "fogsim._version", "fogsim.colour", "fogsim.boxes", "fogsim.integrity",
+                "fogsim.console"}),
 )
 
 

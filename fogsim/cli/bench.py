@@ -18,6 +18,7 @@ def add_parsers(sub) -> None:
     fog = bsub.add_parser("fog", help="fog engine speed, 1920×1280, one core, against Eq. 2 in float64 "
                           "and the reference's per-pixel loop")
     fog.add_argument("--repeat", type=int, default=15, help="interleaved repeats (medians)")
+    _quiet_option(fog)
     fog.set_defaults(run=lambda args: _fog(args))
 
     render = bsub.add_parser("render", help="seconds per frame by stage and RSS over many frames (needs bpy), "
@@ -27,6 +28,7 @@ def add_parsers(sub) -> None:
     render.add_argument("--resolution", default="640x426")
     render.add_argument("--baseline-frames", type=int, default=3)
     render.add_argument("--out", help="dataset folder (default: a temporary one)")
+    _quiet_option(render)
     render.set_defaults(run=lambda args: _render(args))
 
     rfog = bsub.add_parser("render-fog", help="a volumetric-fog frame (full + OIDN, hybrid) against a Koschmieder "
@@ -41,6 +43,7 @@ def add_parsers(sub) -> None:
     rfog.add_argument("--fog-samples", type=int, help="fog-render samples (default: the clear render's)")
     rfog.add_argument("--levels", help="fog levels (default: the preset's)")
     rfog.add_argument("--out", help="folder of the three datasets (default: a temporary one)")
+    _quiet_option(rfog)
     rfog.set_defaults(run=lambda args: _render_fog(args))
 
     ila = bsub.add_parser("ila", help="depth completion (classical fills, ILA) scored against exact rendered "
@@ -54,12 +57,14 @@ def add_parsers(sub) -> None:
     from fogsim.cli.ila import add_training_options
 
     add_training_options(ila)  # --rounds 0: classical baselines only
+    _quiet_option(ila)
     ila.set_defaults(run=lambda args: _ila(args))
 
     lidar = bsub.add_parser("lidar", help="LiDAR completion time per 1920×1280 FRONT image (synthetic scan with "
                             "the real density), one core, against the fog step of the same image")
     lidar.add_argument("--repeat", type=int, default=5, help="interleaved repeats (medians)")
     lidar.add_argument("--waymo", help="a Waymo .tfrecord to also time decoding + projection of its first frame")
+    _quiet_option(lidar)
     lidar.set_defaults(run=lambda args: _lidar(args))
 
     fp = bsub.add_parser("fog-physics", help="Koschmieder against Cycles path-traced fog on the same frames: "
@@ -80,8 +85,25 @@ def add_parsers(sub) -> None:
                     "independent noise in the two seeds)")
     fp.add_argument("--gpu", action="store_true", help="render on the GPU when one is available")
     fp.add_argument("--analyse-only", action="store_true", help="only analyse the datasets already under OUT")
-    fp.add_argument("--quiet", action="store_true", help="no progress bars")
+    _quiet_option(fp)
     fp.set_defaults(run=lambda args: _fog_physics(args))
+
+    for p in bsub.choices.values():  # --quiet: only the summary line, which every bench prints last
+        p.set_defaults(run=_summary_only(p.get_default("run")))
+
+
+def _quiet_option(p) -> None:
+    p.add_argument("--quiet", action="store_true", help="print only errors and the summary line (the last line "
+                   "of the report): no table, no progress, no Blender output")
+
+
+def _summary_only(run):
+    def quietly(args) -> int:
+        from fogsim.console import summary_only
+
+        with summary_only(args.quiet):
+            return run(args)
+    return quietly
 
 
 def _positive(**values) -> None:

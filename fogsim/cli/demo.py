@@ -13,7 +13,7 @@ def add_parsers(sub) -> None:
     demo.add_argument("--frames", type=int, default=3)
     demo.add_argument("--seed", type=int, default=0)
     demo.add_argument("--levels", default="paper")
-    demo.add_argument("--quiet", action="store_true")
+    demo.add_argument("--quiet", action="store_true", help="print only errors and the summary line")
 
     demo.set_defaults(run=cmd_demo)
 
@@ -53,7 +53,8 @@ def cmd_demo(args) -> int:
     tiles = [colorize_depth(depth_of(out, first.key))] + [read_image(job.paths(first, lv)[0]) for lv in levels]
     captions = ["depth (m)"] + [lv.name if lv.beta == 0 else f"{lv.name}, b={lv.beta:g}" for lv in levels]
     write_image(out / "fog_strip.png", strip(tiles, captions, width=320))
-    print(f"fog strip: {out / 'fog_strip.png'}")
+    if not args.quiet:
+        print(f"fog strip: {out / 'fog_strip.png'}")
     return EXIT_FAILED if summary.failed else EXIT_OK
 
 

@@ -25,6 +25,7 @@ def add_parsers(sub) -> None:
     sc.add_argument("--intrinsics", help="JSON with fx, fy, cx, cy, width, height for planar predictions "
                                          "against hold-out files without a camera")
     sc.add_argument("--out", required=True, help="report folder: score.json, score.md, score.png")
+    sc.add_argument("--quiet", action="store_true", help="print only errors and the summary line (no table)")
     sc.set_defaults(run=cmd_score)
 
 
@@ -55,6 +56,11 @@ def cmd_score(args) -> int:
             raise ValueError("--intrinsics goes with --holdout: a rendered dataset records each frame's camera")
         result = score_dataset(args.pred, args.dataset, args.pred_kind, args.pred_suffix, args.depth_scale)
     paths = write_report(result, args.out)
+    if args.quiet:
+        r = result["overall"]["all"]
+        print(f"depth {args.pred} vs {result['against']}, {len(result['images'])} images: AbsRel {r['abs_rel']:.4f}, "
+              f"RMSE {r['rmse']:.3f} m, δ<1.25 {r['delta1']:.4f} → {paths['md']}")
+        return EXIT_OK
     print(f"depth {args.pred} ({args.pred_kind}) vs {result['against']}, {len(result['images'])} images")
     print(table(result["overall"]))
     print(f"report: {paths['md']}, {paths['json']}, {paths['png']}")

@@ -47,7 +47,7 @@ def _add_batch_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--shard", help="i/N: process every N-th sample starting at i (0-based), "
                                    "e.g. $SLURM_ARRAY_TASK_ID/N")
     g.add_argument("--no-resume", action="store_true", help="redo samples whose outputs exist")
-    g.add_argument("--quiet", action="store_true", help="no progress bar")
+    g.add_argument("--quiet", action="store_true", help="print only errors and the summary line (no progress bar)")
 
 
 def _add_label_options(p: argparse.ArgumentParser) -> None:
@@ -290,29 +290,32 @@ def cmd_fog(args) -> int:
     shard = parse_shard(args.shard)
     samples = select_shard(everything, shard)
     summary = run(samples, job, args.workers, not args.no_resume, not args.quiet, package_versions())
-    print(summary.line(job))
+    lines = [summary.line(job)]  # --quiet: joined into one summary line
     for source, error in summary.failed:
         print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
     if labelled and is_sharded(shard):
-        print(f"fogsim: shard {shard[0]}/{shard[1]} done; when every shard has finished, write the dataset "
-              f"files with: fogsim fog --finalize-only --out {args.out}")
+        lines.append(f"fogsim: shard {shard[0]}/{shard[1]} done; when every shard has finished, write the dataset "
+                     f"files with: fogsim fog --finalize-only --out {args.out}")
     elif labelled:
         if not job.layout.done_frames():
+            print(lines[0])
             print(f"fogsim: error: {args.out}: no frame was fogged, so there is no dataset to finalize",
                   file=sys.stderr)
             return EXIT_FAILED
-        _finalize(args.out, job.inputs["train_fraction"], job.inputs["split_by"])
+        lines.append(_finalize(args.out, job.inputs["train_fraction"], job.inputs["split_by"]))
+    print("; ".join(lines) if args.quiet else "\n".join(lines))
     return EXIT_FAILED if summary.failed else EXIT_OK
 
 
-def _finalize(out: str, train_fraction: float | None = None, split_by: str | None = None) -> None:
-    """Write the dataset files (None: the run's own train fraction / split rule) and say so."""
+def _finalize(out: str, train_fraction: float | None = None, split_by: str | None = None) -> str:
+    """Write the dataset files (None: the run's own train fraction / split rule); returns the
+    summary line."""
     from fogsim.fog.batch import finalize_dataset
 
     summary = finalize_dataset(out, train_fraction, split_by)
     counts = ", ".join(f"{c} {n}" for c, n in summary["counts"].items())
-    print(f"dataset: {summary['frames']} frames ({summary['split']['train']} train / {summary['split']['val']} "
-          f"val), objects kept: {counts} → {out}/dataset.json")
+    return (f"dataset: {summary['frames']} frames ({summary['split']['train']} train / {summary['split']['val']} "
+            f"val), objects kept: {counts} → {out}/dataset.json")
 
 
 def _finalize_only(args) -> int:
@@ -320,5 +323,5 @@ def _finalize_only(args) -> int:
     if given:
         raise ValueError(f"--finalize-only takes --out (and --train-fraction, --split-by) only, not "
                          f"{', '.join(given)}")
-    _finalize(args.out, args.train_fraction, args.split_by)  # the run file's checks: finalize_dataset's
+    print(_finalize(args.out, args.train_fraction, args.split_by))  # the run file's checks: finalize_dataset's
     return EXIT_OK

@@ -57,7 +57,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-resume", action="store_true", help="re-render committed frames")
     p.add_argument("--gpu", action="store_true", help="render on the GPU when one is available")
     p.add_argument("--finalize-only", action="store_true", help="only rebuild COCO/YAML/manifest/contact sheet")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="print only errors and the summary line (no progress bar, "
+                                                        "no frame log, none of Blender's own output)")
 
 
 def add_parsers(sub) -> None:
@@ -96,7 +97,7 @@ def cmd_render(args) -> int:
 
     if args.finalize_only and not (Path(args.out) / RUN_FILE).is_file():
         raise InputError(args.out, f"no {RUN_FILE} here: not a dataset to finalize")
-    job = RenderJob(config, args.out, shard, resume=not args.no_resume, gpu=args.gpu)
+    job = RenderJob(config, args.out, shard, resume=not args.no_resume, gpu=args.gpu, quiet=args.quiet)
     try:
         return _render(job, args, shard)
     finally:

@@ -20,6 +20,7 @@ from its last.pt. Needs the 'detect' extra. Exit 0 done, 1 failed, 2 bad input.
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -82,7 +83,8 @@ def add_parsers(sub) -> None:
     what = ev.add_mutually_exclusive_group()
     what.add_argument("--report-only", action="store_true", help="only evaluate and write OUT/report")
     what.add_argument("--no-report", action="store_true", help="train and predict only")
-    ev.add_argument("--quiet", action="store_true", help="no progress bar")
+    ev.add_argument("--quiet", action="store_true", help="print only errors and the summary line (no progress bar, "
+                    "no Ultralytics log, no table: it is in OUT/report)")
     p.set_defaults(run=cmd_study)
 
 
@@ -133,6 +135,8 @@ def cmd_study(args) -> int:
                       patience=args.patience, cache=args.cache, plots=not args.no_plots)
     check_args(args)
     shard = parse_shard(args.shard)
+    if args.quiet:  # read when Ultralytics is first imported: its log and progress bars off, errors kept
+        os.environ["YOLO_VERBOSE"] = "False"
     if args.render:
         render(dataset, args)
     class_map = load_class_map(args.class_map) if args.class_map else None
@@ -147,6 +151,7 @@ def cmd_study(args) -> int:
               f"write the report with --report-only")
         return EXIT_OK
     study.report(args.max_distance, visible_only=args.visible_only)
-    print(study.files.report("cross_density.md").read_text())
+    if not args.quiet:
+        print(study.files.report("cross_density.md").read_text())
     print(f"report: {study.files.report('report.md')} (heatmaps: recall_heatmap.png, map50_heatmap.png)")
     return EXIT_OK

@@ -67,28 +67,30 @@ def principled_inputs(node) -> dict:
             "normal": pick("Normal")}
 
 
-def cycles_device(scene, want_gpu: bool) -> str:
-    """Use the GPU when asked and one is configured; returns 'GPU' or 'CPU'."""
-    scene.cycles.device = "CPU"
-    if not want_gpu:
-        return "CPU"
+def cycles_preferences():
+    """The Cycles add-on's preferences (devices live there, not in the scene); KeyError if Cycles is off."""
+    return bpy.context.preferences.addons["cycles"].preferences
+
+
+def compute_devices(prefs, kind: str) -> list | None:
+    """Select the compute backend ``kind`` ("OPTIX", "CUDA", …) and return its devices (the
+    preferences' entries, CPU left out); None when this Blender has no such backend.
+
+    Differences handled: the backends a build offers (Debian's 3.4 has CUDA and HIP, no OptiX;
+    assigning a missing one raises TypeError); ``refresh_devices()`` (3.0+; ``get_devices()``,
+    deprecated, before) and ``get_devices_for_type`` (3.4: ``(kind)``; 5.0: ``(kind, device_list)``,
+    which also appends the CPU entries when a GPU is found, hence the type filter).
+    """
     try:
-        prefs = bpy.context.preferences.addons["cycles"].preferences
-        for kind in ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL"):
-            try:
-                prefs.compute_device_type = kind
-            except TypeError:
-                continue
-            prefs.get_devices()
-            gpus = [d for d in prefs.devices if d.type != "CPU"]
-            if gpus:
-                for d in prefs.devices:
-                    d.use = d.type != "CPU"
-                scene.cycles.device = "GPU"
-                return "GPU"
-    except (KeyError, AttributeError):
-        pass
-    return "CPU"
+        prefs.compute_device_type = kind
+    except TypeError:
+        return None
+    if hasattr(prefs, "refresh_devices"):
+        prefs.refresh_devices()
+    else:
+        prefs.get_devices()
+    found = prefs.get_devices_for_type(kind) if hasattr(prefs, "get_devices_for_type") else prefs.devices
+    return [d for d in found if d.type == kind]
 
 
 def has_mie_phase() -> bool:

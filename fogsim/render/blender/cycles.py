@@ -8,21 +8,18 @@ import bpy
 import numpy as np
 
 from fogsim.camera import NO_HIT_DEPTH
-from fogsim.render.blender.compat import (
-    PASS_CHANNELS,
-    cycles_device,
-    has_denoiser,
-    set_denoiser_speed,
-    set_multilayer_exr,
-)
+from fogsim.render.blender.compat import PASS_CHANNELS, has_denoiser, set_denoiser_speed, set_multilayer_exr
+from fogsim.render.blender.device import use_device
+from fogsim.render.blender.output import blender_output
 from fogsim.render.exr_reader import read_exr
 from fogsim.render.frame import FramePasses
 
 
 def configure(scene, quality: dict, seed: int, gpu: bool = False) -> dict:
-    """Cycles settings from a quality preset; returns what was actually used."""
+    """Cycles settings from a quality preset; returns what was actually used (the device too:
+    :func:`fogsim.render.blender.device.use_device`)."""
     scene.render.engine = "CYCLES"
-    device = cycles_device(scene, gpu)
+    device = use_device(scene, gpu)
     cy = scene.cycles
     cy.samples = int(quality.get("samples", 16))
     cy.use_adaptive_sampling = bool(quality.get("adaptive_threshold", 0.0))
@@ -52,7 +49,7 @@ def configure(scene, quality: dict, seed: int, gpu: bool = False) -> dict:
     layer.use_pass_z = True
     layer.use_pass_object_index = True
     set_multilayer_exr(scene.render.image_settings)
-    return {"device": device, "samples": cy.samples, "denoise": denoise,
+    return {**device, "samples": cy.samples, "denoise": denoise,
             "adaptive_threshold": cy.adaptive_threshold if cy.use_adaptive_sampling else None,
             "max_bounces": cy.max_bounces, "seed": cy.seed}
 
@@ -67,29 +64,30 @@ def _pick(channels: dict, names: list):
     raise KeyError(f"render output lacks {names}; it has {sorted(channels)}")
 
 
-def render(scene, exr_path: str | os.PathLike | None = None) -> FramePasses:
+def render(scene, exr_path: str | os.PathLike | None = None, quiet: bool = False) -> FramePasses:
     """Render ``scene`` to a temporary multilayer EXR and return its passes (the object pass
     index as the instance mask; no right view).
 
     ``exr_path``: where Cycles writes that file (removed once read). A render job gives a path
     in its dataset folder (:data:`fogsim.render.leftovers.TMP_DIR`), so a kill during Cycles
     leaves it where the resumed job removes it; without one (or when the path holds a '#',
-    Blender's frame-number placeholder) it goes to the system temp folder.
+    Blender's frame-number placeholder) it goes to the system temp folder. Blender's own output
+    is captured (:func:`fogsim.render.blender.output.blender_output`; ``quiet``: errors only).
     """
-    ch = _render_channels(scene, exr_path)
+    ch = _render_channels(scene, exr_path, quiet)
     depth = _pick(ch, PASS_CHANNELS["depth"]).astype(np.float32)
     depth[depth >= NO_HIT_DEPTH] = np.inf
     index = np.rint(_pick(ch, PASS_CHANNELS["index"])).astype(np.uint16)
     return FramePasses(_pick(ch, PASS_CHANNELS["rgb"]).astype(np.float32), depth, index)
 
 
-def render_combined(scene, exr_path: str | os.PathLike | None = None) -> np.ndarray:
+def render_combined(scene, exr_path: str | os.PathLike | None = None, quiet: bool = False) -> np.ndarray:
     """Render only the Combined pass (H×W×3 float32, scene-linear): the caller has turned the Z and
     object-index passes off (a fog render's are not valid, ``docs/fog-physics.md``)."""
-    return _pick(_render_channels(scene, exr_path), PASS_CHANNELS["rgb"]).astype(np.float32)
+    return _pick(_render_channels(scene, exr_path, quiet), PASS_CHANNELS["rgb"]).astype(np.float32)
 
 
-def _render_channels(scene, exr_path) -> dict:
+def _render_channels(scene, exr_path, quiet: bool) -> dict:
     path = None if exr_path is None else os.path.abspath(exr_path)
     if path is None or "#" in path:  # Blender would put frame numbers in place of '#'
         fd, path = tempfile.mkstemp(prefix="fogsim_render_", suffix=".exr")
@@ -99,7 +97,8 @@ def _render_channels(scene, exr_path) -> dict:
     try:
         scene.render.filepath = path
         scene.render.use_file_extension = False
-        bpy.ops.render.render(write_still=True, scene=scene.name)
+        with blender_output(quiet):
+            bpy.ops.render.render(write_still=True, scene=scene.name)
         return read_exr(path)
     finally:
         if os.path.exists(path):

@@ -55,11 +55,15 @@ def _legacy_parameters(old: dict) -> dict | None:
 
 
 class RenderJob:
-    """The frames of one shard still to render, and the means to render them."""
+    """The frames of one shard still to render, and the means to render them.
+
+    ``gpu``: render on a GPU when one is found (:mod:`fogsim.render.blender.device`); ``quiet``:
+    Blender's own output shows errors only (:mod:`fogsim.render.blender.output`).
+    """
 
     def __init__(self, config: RenderConfig, out: str | Path, shard: tuple[int, int] = (0, 1),
-                 resume: bool = True, gpu: bool = False):
-        self.config, self.layout, self.gpu = config, DatasetLayout(out), gpu
+                 resume: bool = True, gpu: bool = False, quiet: bool = False):
+        self.config, self.layout, self.gpu, self.quiet = config, DatasetLayout(out), gpu, quiet
         self.fog = volumetric_settings(config)  # None: Koschmieder fog (post-process)
         if self.fog is not None and self.fog["phase"] == "MIE" and not has_mie_phase():
             raise InputError(config.source, f"fog_model.volumetric.phase \"MIE\" needs Blender 4.3 or later "
@@ -94,7 +98,7 @@ class RenderJob:
         tmp = render_tmp_dir(self.layout)
         name = frame_name(index)
         try:
-            passes = render(self.scene, tmp / f"{name}.left.exr")
+            passes = render(self.scene, tmp / f"{name}.left.exr", self.quiet)
             t_clear = time.perf_counter()
             if self.fog is not None:  # one Combined-only render per β > 0, fog layer in place, same seed
                 fog = frame_volumetric(self.fog, desc)
@@ -103,7 +107,7 @@ class RenderJob:
             if self.config.stereo_baseline:  # the right camera of a rectified pair, same scene
                 w2c = right_world_to_camera(desc["camera"]["world_to_camera"], self.config.stereo_baseline)
                 scene_build.set_camera_pose(self.scene, w2c)
-                right = render(self.scene, tmp / f"{name}.right.exr").rgb_linear
+                right = render(self.scene, tmp / f"{name}.right.exr", self.quiet).rgb_linear
         finally:
             scene_build.clear(built)
         t3 = time.perf_counter()
@@ -128,7 +132,7 @@ class RenderJob:
             for lv in self.config.levels:
                 if lv.beta > 0:
                     fog_volume.set_density(domain, lv.beta)
-                    out[lv.key] = render_combined(self.scene, exr_path)
+                    out[lv.key] = render_combined(self.scene, exr_path, self.quiet)
         return out, dict(used, phase=domain.phase)
 
     def _fog_images(self, name: str, desc: dict, passes: FramePasses, fog: dict, fog_linear: dict,
