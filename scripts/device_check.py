@@ -165,7 +165,7 @@ def row_yolo(dry: bool, cpu: bool = False) -> dict:
                           workers=2, plots=False)
         os.environ["YOLO_VERBOSE"] = "False"
         t0 = time.perf_counter()
-        best = train("device_check", data, tmp / "runs", cfg, tmp / "config")
+        best = train("device_check", data, tmp / "runs" / "device_check", cfg, tmp / "config")
         seconds = time.perf_counter() - t0
         if not best.is_file():
             return {"status": "FAILED: no best.pt"}
