@@ -27,7 +27,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 PACKAGE = "fogsim_blender"
-DEPS = ("opencv-contrib-python-headless", "trimesh", "tqdm")
+DEPS = ("opencv-contrib-python-headless", "trimesh", "tqdm",
+        # fogsim.schema (every document fogsim reads); pydantic-core is platform-specific like OpenCV
+        "pydantic", "pydantic-core", "annotated-types", "typing-extensions", "typing-inspection")
 
 
 def download_wheels(dest: Path, platform: str, with_numpy: bool) -> list[Path]:

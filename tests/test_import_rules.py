@@ -47,7 +47,7 @@ FORBIDDEN_IN_CORE = ("fogsim.render.blender", "fogsim.depth.ila", "fogsim.detect
 
 #: The layers, top first: (name, the packages and top-level modules in it). An entry that is a
 #: package holds its whole subtree; ``fogsim`` is the package's own ``__init__`` (the public fog
-#: API it re-exports) alone. ``augment`` and ``schema`` are placed before they exist.
+#: API it re-exports) alone. ``augment`` is placed before it exists.
 LAYERS = (
     ("entry points", {"fogsim", "fogsim.__main__"}),
     ("command line", {"fogsim.cli"}),
@@ -57,7 +57,8 @@ LAYERS = (
     ("fog engine and depth", {"fogsim.fog", "fogsim.depth"}),
     ("dataset format", {"fogsim.dataset"}),
     ("dataset readers and scenes", {"fogsim.readers", "fogsim.scene"}),
-    ("presets and their schema", {"fogsim.presets", "fogsim.schema"}),
+    ("bundled presets", {"fogsim.presets"}),
+    ("document schemas", {"fogsim.schema"}),
     ("run bookkeeping", {"fogsim.runs"}),
     ("files, dependencies, camera, pictures", {"fogsim.fileio", "fogsim.deps", "fogsim.camera", "fogsim.viz"}),
     ("basics", {"fogsim.errors", "fogsim._version", "fogsim.colour", "fogsim.boxes", "fogsim.integrity",

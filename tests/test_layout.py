@@ -64,13 +64,13 @@ def test_camera_follows_preset(config):
 @pytest.mark.parametrize(
     "change, message",
     [
-        ({"resolution": [640]}, "malformed preset"),
-        ({"resolution": [0, 0]}, "at least 8×8"),
-        ({"exposure": "abc"}, "malformed preset"),
-        ({"fog_model": {"extended": True, "kernel": "boxx"}}, "kernel must be"),
+        ({"resolution": [640]}, r"resolution: must be a \[width, height\] list of integers"),
+        ({"resolution": [0, 0]}, r"resolution\[0\]: must be an integer ≥ 8"),
+        ({"exposure": "abc"}, "exposure: must be a finite number"),
+        ({"fog_model": {"extended": True, "kernel": "boxx"}}, "fog_model.kernel: must be one of box, gaussian, guided"),
         ({"fog_model": {"airlight": 300}}, "airlight"),
         ({"labels": {"min_pixels": 0}}, "min_pixels"),
-        ({"fog": [0.03, -1]}, "β must be"),
+        ({"fog": [0.03, -1]}, r"fog\[1\]: must be a number ≥ 0"),
         ({"camera": "nope"}, "unknown camera"),
     ],
 )

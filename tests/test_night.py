@@ -163,13 +163,13 @@ def test_lighting_overrides_reach_the_sources(tmp_path):
 
 
 @pytest.mark.parametrize("lighting, message", [
-    ({"time_of_day": "dusk"}, "lighting.time_of_day must be one of day, night, got 'dusk'"),
-    ({"time_of_day": 1}, "lighting.time_of_day must be one of day, night"),
-    ("night", "lighting must be a JSON object"),
-    ({"time_of_day": "night", "sky_strength": -1}, "lighting.sky_strength must be a number in [0, 10]"),
-    ({"time_of_day": "night", "headlight_power_w": "bright"}, "lighting.headlight_power_w must be a finite number"),
-    ({"time_of_day": "night", "lit_window_fraction": [0.5, 0.2]}, "lighting.lit_window_fraction must be [low, high]"),
-    ({"time_of_day": "night", "lamps": True}, "unknown lighting keys ['lamps']"),
+    ({"time_of_day": "dusk"}, "lighting.time_of_day: must be one of day, night (got 'dusk')"),
+    ({"time_of_day": 1}, "lighting.time_of_day: must be one of day, night"),
+    ("night", "lighting: must be a JSON object"),
+    ({"time_of_day": "night", "sky_strength": -1}, "lighting.sky_strength: must be a number in [0, 10]"),
+    ({"time_of_day": "night", "headlight_power_w": "bright"}, "lighting.headlight_power_w: must be a finite number"),
+    ({"time_of_day": "night", "lit_window_fraction": [0.5, 0.2]}, "lighting.lit_window_fraction: must be [low, high]"),
+    ({"time_of_day": "night", "lamps": True}, "lighting: unknown key ['lamps']"),
     ({"street_lamp_power_w": 900}, "apply only to \"time_of_day\": \"night\""),
 ])
 def test_bad_lighting_is_refused_naming_the_preset(tmp_path, lighting, message):

@@ -73,23 +73,23 @@ def test_defaults_and_overrides():
     assert v["emission"] == "sky"  # resolved per frame: the frame's sky strength
     assert frame_volumetric(v, {"lighting": {"sky_strength": 0.01}})["emission"] == 0.01
     assert frame_volumetric({**v, "emission": 0.8}, {"lighting": {"sky_strength": 0.01}})["emission"] == 0.8
-    with pytest.raises(ValueError, match="--fog must be one of"):
+    with pytest.raises(ValueError, match="--fog: must be one of"):
         load_render_preset("default", fog="mie")
     with pytest.raises(ValueError, match="--fog-medium needs --fog volumetric"):
         load_render_preset("default", fog="koschmieder", fog_medium="ea")
 
 
 @pytest.mark.parametrize("volumetric, message", [
-    ({"medium": "fast"}, "fog_model.volumetric.medium must be one of full, hybrid, ea"),
-    ({"g": 1.0}, "fog_model.volumetric.g must be a number in [-0.99, 0.99]"),
-    ({"layer_height_m": 0}, "fog_model.volumetric.layer_height_m must be a number in [1, 1000]"),
-    ({"extent_m": 3000}, "fog_model.volumetric.extent_m must be a number in [10, 1400]"),
-    ({"volume_bounces": 6.5}, "fog_model.volumetric.volume_bounces must be an integer"),
-    ({"scatter_fraction": 2}, "fog_model.volumetric.scatter_fraction must be a number in [0, 1]"),
-    ({"emission": "moon"}, 'fog_model.volumetric.emission must be "sky" or a number'),
-    ({"exposure": "horizon"}, "fog_model.volumetric.exposure must be one of none, auto"),
-    ({"keep_linear": 1}, "fog_model.volumetric.keep_linear must be true or false"),
-    ({"bounces": 64}, "unknown fog_model.volumetric keys ['bounces']"),
+    ({"medium": "fast"}, "fog_model.volumetric.medium: must be one of full, hybrid, ea"),
+    ({"g": 1.0}, "fog_model.volumetric.g: must be a number in [-0.99, 0.99]"),
+    ({"layer_height_m": 0}, "fog_model.volumetric.layer_height_m: must be a number in [1, 1000]"),
+    ({"extent_m": 3000}, "fog_model.volumetric.extent_m: must be a number in [10, 1400]"),
+    ({"volume_bounces": 6.5}, "fog_model.volumetric.volume_bounces: must be an integer"),
+    ({"scatter_fraction": 2}, "fog_model.volumetric.scatter_fraction: must be a number in [0, 1]"),
+    ({"emission": "moon"}, 'fog_model.volumetric.emission: must be "sky" or a number'),
+    ({"exposure": "horizon"}, "fog_model.volumetric.exposure: must be one of none, auto"),
+    ({"keep_linear": 1}, "fog_model.volumetric.keep_linear: must be true or false"),
+    ({"bounces": 64}, "fog_model.volumetric: unknown key ['bounces']"),
     ({"domain": "world"}, "a world volume cannot be used for fog"),
 ])
 def test_bad_volumetric_blocks_name_the_preset_and_key(tmp_path, volumetric, message):
@@ -100,7 +100,7 @@ def test_bad_volumetric_blocks_name_the_preset_and_key(tmp_path, volumetric, mes
 
 
 def test_bad_kind_refused(tmp_path):
-    with pytest.raises(InputError, match="fog_model.kind must be one of koschmieder, volumetric"):
+    with pytest.raises(InputError, match="fog_model.kind: must be one of koschmieder, volumetric"):
         load_render_preset(preset_file(tmp_path, {"kind": "pathtraced"}))
 
 

@@ -33,7 +33,8 @@ __all__ = ["PALETTE", "TRAIN_FRACTION", "check_train_fraction", "contact_sheet",
            "frame_split", "split_frames", "write_frame_labels"]
 
 #: the share of frames in the train split unless a preset or ``--train-fraction`` says otherwise
-TRAIN_FRACTION = 0.8
+#: (declared with the preset schema, :data:`fogsim.schema.presets.TRAIN_FRACTION`)
+from fogsim.schema.presets import TRAIN_FRACTION  # noqa: E402
 
 #: box colours (RGB) by class id
 PALETTE = ((230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48),

@@ -12,6 +12,8 @@ from pathlib import Path
 
 from fogsim import presets
 from fogsim.errors import InputError
+from fogsim.schema.base import load_json
+from fogsim.schema.presets import FogPreset
 
 LN20 = math.log(20.0)
 #: The densest fog accepted, in 1/m: a visibility of ln 20 / 1000 ≈ 3 mm. Beyond it a level
@@ -84,17 +86,14 @@ def preset_names() -> list[str]:
 
 def load_preset(name_or_path: str) -> list[FogLevel]:
     """Levels of a fog preset given by name (``paper``) or path to a JSON file."""
-    from fogsim.fileio import read_json
-
     path = Path(name_or_path)
     if path.suffix != ".json":
         path = presets.component_path("fog", name_or_path, name_or_path)
-    data = read_json(path)
+    doc = load_json(path, FogPreset)
     try:
-        return [FogLevel(str(d["key"]), str(d.get("name", d["key"])), float(d["beta"]))
-                for d in data["levels"]]
-    except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(path, f"malformed fog preset ({exc})") from None
+        return [FogLevel(d.key, d.name if d.name is not None else d.key, float(d.beta)) for d in doc.levels]
+    except ValueError as exc:
+        raise InputError(path, f"levels: {exc}") from None
 
 
 def parse_levels(levels: str | None = None, visibility: str | None = None) -> list[FogLevel]:

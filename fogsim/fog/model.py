@@ -23,9 +23,7 @@ import cv2
 import numpy as np
 
 from fogsim.colour import from_float, full_scale, linear_to_srgb, srgb_to_linear
-
-SPACES = ("srgb", "linear")
-KERNELS = ("box", "gaussian", "guided")
+from fogsim.schema.presets import KERNELS, SPACES  # noqa: E402  (declared once, with the preset schema)
 
 
 @dataclass(frozen=True)

@@ -7,15 +7,15 @@ user's own preset.
 """
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 from fogsim.errors import InputError
+from fogsim.schema.presets import COMPONENT_NAME as NAME  # a name, never a path (no '/', '..', '.json')
 
 ROOT = Path(__file__).resolve().parent
 COMPONENTS = ("styles", "cameras", "quality", "fog")
-#: What a component name may hold: a name, never a path (no '/', '..', '.json').
-NAME = re.compile(r"[A-Za-z0-9_-]+")
+#: The JSON Schema of a dataset preset (``fogsim schema preset`` writes it; a test checks it is current).
+SCHEMA_FILE = ROOT / "preset.schema.json"
 
 
 def presets_dir() -> Path:
@@ -26,7 +26,7 @@ def presets_dir() -> Path:
 def names(kind: str | None = None) -> list[str]:
     """Bundled dataset presets (``kind=None``) or components of one kind, sorted."""
     folder = ROOT if kind is None else ROOT / kind
-    return sorted(p.stem for p in folder.glob("*.json"))
+    return sorted(p.stem for p in folder.glob("*.json") if p.name != SCHEMA_FILE.name)
 
 
 def _what(kind: str) -> str:

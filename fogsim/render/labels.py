@@ -20,7 +20,7 @@ from fogsim.scene.classes import CLASS_ID, is_labelled
 DISTANCE_STAT = "median ray distance over visible pixels"
 #: the label filters' defaults (a preset's ``labels`` block overrides them): an object with fewer
 #: visible pixels, or a smaller visible fraction of its silhouette, is kept out of the YOLO labels
-MIN_PIXELS, MIN_VISIBLE_FRACTION = 25, 0.1
+from fogsim.schema.presets import MIN_PIXELS, MIN_VISIBLE_FRACTION  # noqa: E402  (the preset's defaults)
 
 
 def object_records(mask: np.ndarray, ray_distance: np.ndarray, objects: list[dict],

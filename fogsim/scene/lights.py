@@ -1,6 +1,6 @@
 """Time of day and the light sources of a night street (pure Python, no bpy).
 
-A preset's ``lighting`` (checked by :func:`check_lighting`) picks the time
+A preset's ``lighting`` (:class:`fogsim.schema.presets.Lighting`, checked when the preset is read) picks the time
 of day. ``"day"`` (the default) leaves the scene description exactly as the layout made it: sun
 and sky, no light sources. ``"night"`` turns it into a night street by :func:`apply_night`, after
 every object is placed, so a night frame has the very same objects, poses and geometry as the
@@ -33,20 +33,14 @@ import math
 
 import numpy as np
 
-from fogsim.presets.checks import choice, json_object, number, pair
+from fogsim.schema.presets import TIMES_OF_DAY, Lighting
 
-TIMES_OF_DAY = ("day", "night")
+__all__ = ["NIGHT", "TIMES_OF_DAY", "apply_night", "night_settings", "street_lamps", "vehicle_lights"]
 VEHICLE_CLASSES = ("car", "van", "truck", "bus")
 
-#: night defaults; every key can be set in a preset's ``lighting`` object
-NIGHT = {
-    "sky_strength": 0.01,           # world background strength (day: 0.3)
-    "moon_strength": 0.0,           # the sun lamp's strength at night (W/m²; day: 3–5); 0 = no moon
-    "street_lamp_power_w": 1500.0,  # per lamp head
-    "headlight_power_w": 1000.0,    # per headlight (low beam)
-    "taillight_power_w": 8.0,       # per tail light
-    "lit_window_fraction": [0.15, 0.45],  # per building, uniform in [low, high]
-}
+#: night defaults (declared in :class:`fogsim.schema.presets.Lighting`): sky and moon strength,
+#: lamp / headlight / tail-light powers (Cycles watts), each building's lit window fraction
+NIGHT = Lighting.night_defaults()
 #: colours, linear RGB: ≈ 3000 K street lamps, ≈ 5500 K LED headlights, red tail lights, ≈ 2700 K rooms
 LAMP_COLOR = [1.0, 0.71, 0.42]
 HEADLIGHT_COLOR = [1.0, 0.95, 0.88]
@@ -64,26 +58,6 @@ HEADLIGHT_CONE_DEG, HEADLIGHT_BLEND, HEADLIGHT_TILT_DEG = 35.0, 0.35, 2.0
 #: emitter reaching into the lens or lamp-head box would be partly shadowed by it
 LENS_GAP = 0.04
 LAMP_RADIUS, CAR_LIGHT_RADIUS = 0.08, 0.03
-
-
-def check_lighting(lighting) -> dict:
-    """The preset's ``lighting``: ``time_of_day`` ("day", the default, or "night") and, for night,
-    overrides of :data:`NIGHT` (sky and moon strength, lamp, headlight and tail-light powers in
-    Cycles watts, the lit fraction of each building's windows). Returns {} for day (a day preset
-    is the preset without lighting), else the object as given. ValueError names the key."""
-    watts = lambda v, k: number(v, k, 0, 1e7)  # noqa: E731
-    night_keys = {"sky_strength": lambda v, k: number(v, k, 0, 10), "moon_strength": lambda v, k: number(v, k, 0, 10),
-                  "street_lamp_power_w": watts, "headlight_power_w": watts, "taillight_power_w": watts,
-                  "lit_window_fraction": lambda v, k: pair(v, k, lo=0, hi=1)}
-    assert set(night_keys) == set(NIGHT)
-    light = json_object(lighting, "lighting", {}, {"time_of_day": lambda v, k: choice(v, k, TIMES_OF_DAY),
-                                                   **night_keys})
-    if light.get("time_of_day", "day") == "day":
-        extra = sorted(set(light) - {"time_of_day"})
-        if extra:
-            raise ValueError(f"lighting keys {extra} apply only to \"time_of_day\": \"night\"")
-        return {}
-    return light
 
 
 def night_settings(lighting: dict | None) -> dict | None:
