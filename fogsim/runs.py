@@ -72,8 +72,11 @@ def claim_output(path: str | os.PathLike, parameters: dict, record: dict | None 
         old = json.loads(path.read_text())
     except (OSError, ValueError) as exc:
         raise InputError(path, f"unreadable run file ({exc}); delete it or use another --out") from None
-    stored = old.get("parameters") if isinstance(old, dict) else None
-    if stored is None and legacy is not None and isinstance(old, dict):
+    if not isinstance(old, dict):  # (the run file's fields are fogsim.schema.documents' to check)
+        raise InputError(path, f"malformed run file: must be a JSON object (got {type(old).__name__}); "
+                               "delete it or use another --out")
+    stored = old.get("parameters")
+    if stored is None and legacy is not None:
         stored = legacy(old)
     if json.loads(json.dumps(parameters, default=str)) != stored:
         raise InputError(path, f"this output folder holds a {what} with other parameters; use another "

@@ -293,6 +293,58 @@ def test_addon_registers_builds_and_renders_through_ops(kind, tmp_path):
     assert (tmp_path / "ds" / "meta" / "000000.json").is_file()
 
 
+@pytest.mark.parametrize("kind", KINDS)
+def test_addon_preview_fog_class_assignment_and_reported_errors(kind, tmp_path):
+    """The panel's new operators through bpy.ops: *Preview fog* shows the clear render fogged at
+    one β (Koschmieder, airlight 255, sRGB: the default preset) within 1 LSB outside the drawn
+    boxes, and volumetric fog at that β when asked; *Assign* sets fogsim_class on the selection
+    only; bad β / visibility lists are reported errors with the reason in the status line, no
+    traceback, nothing written."""
+    res = run(runner(kind)(SCRIPTS / "addon_preview.py", str(tmp_path)))
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "Traceback" not in res.stdout + res.stderr
+    line = next(ln for ln in res.stdout.splitlines() if ln.startswith("RESULT "))
+    r = json.loads(line[len("RESULT "):])
+    assert r["assign"] == [["FINISHED"], None] and r["classes"] == {"a": "pedestrian", "b": "pedestrian", "c": None}
+    assert r["classes_after_unassign"] == {"a": "pedestrian", "b": None}  # "(background)" removes it
+    assert "no object selected" in r["assign_none_selected"][1] and r["status_none_selected"].startswith("error:")
+    for key in ("bad_levels_render", "bad_levels_preview"):
+        assert r[key][0] is None and "'fog' is not a number" in r[key][1]
+    assert r["bad_levels_status"] == "error: β 'fog' is not a number" and not r["bad_output_written"]
+    assert "visibility must be > 0" in r["bad_visibility"][1]
+    assert r["config_levels"] == ["vis50m", "vis100m"] and r["config_night"] == "night"
+    assert r["preview"] == [["FINISHED"], None] and r["image"] == [96, 64]
+    assert r["status"].startswith(f"frame 0: koschmieder, β 0.06/m, V 50 m, {len(r['records'])} boxes")
+    assert r["scenes_after"] == r["scenes_before"] and r["objects_after"] == r["objects_before"]
+    assert r["unregistered"]
+
+    clear = read_image(tmp_path / "clear.png").astype(np.float64)
+    shown = read_image(tmp_path / "preview.png").astype(np.float64)
+    z = np.load(tmp_path / "depth.npy").astype(np.float64)
+    k = json.loads((tmp_path / "intrinsics.json").read_text())
+    v, u = np.mgrid[0:64, 0:96]
+    ray = z * np.sqrt(1 + ((u - k["cx"]) / k["fx"]) ** 2 + ((v - k["cy"]) / k["fy"]) ** 2)
+    t = np.exp(-0.06 * ray)[..., None]  # sky: ray = inf → t = 0 → the airlight
+    expected = clear * t + 255.0 * (1 - t)
+    drawn = np.zeros((64, 96), bool)  # box outlines and the class names above them
+    for rec in r["records"]:
+        x0, y0, x1, y1 = rec["bbox"]
+        drawn[max(0, y0 - 12):y1 + 1, max(0, x0 - 1):x0 + 40] = True
+        drawn[y0:y1 + 1, max(0, x0 - 1):x1 + 1] = True
+    assert r["records"] and (~drawn).mean() > 0.4
+    assert np.abs(shown - expected)[~drawn].max() <= 1.0
+    assert np.abs(shown - expected)[drawn].max() > 20  # the boxes are drawn
+    assert np.isinf(z).any() and np.abs(clear - expected)[~drawn].max() > 20  # fog that shows
+    # volumetric (emission-absorption medium): a render of its own, no boxes drawn this time
+    assert r["volumetric"] == [["FINISHED"], None]
+    assert r["volumetric_status"].startswith("frame 0: volumetric, β 0.06/m, V 50 m")
+    vol, vol_clear = read_image(tmp_path / "volumetric.png"), read_image(tmp_path / "volumetric_clear.png")
+    assert np.array_equal(vol_clear, clear)  # the same clear render (same seed and samples)
+    near, far = ray < 10, ray > 200  # little fog close by, all fog far away: the grey of the medium
+    assert np.abs(vol.astype(float) - clear)[near].mean() < np.abs(vol.astype(float) - clear)[far].mean()
+    assert vol[far].std() < 12 and np.abs(vol.astype(float) - clear)[far].mean() > 20
+
+
 @pytest.fixture(scope="module")
 def addon_zips(tmp_path_factory):
     out = tmp_path_factory.mktemp("dist")

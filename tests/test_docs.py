@@ -159,3 +159,19 @@ def test_mkdocs_build_strict(tmp_path):
         assert f'id="{"-".join(path)}"' in cli, " ".join(path)
     assert "Dependency rules" in (site / "contributing" / "index.html").read_text(encoding="utf-8")
     assert (site / "contact_sheet.png").is_file()
+
+
+def test_extras_are_installed_together_as_the_test_script_does():
+    """The dependency page never tells to install one extra on its own into the bpy venv (pip would
+    then upgrade numpy to 2.x and put opencv-python over the contrib build): every install command
+    there that names an extra beside torch names the blender extra too, and its 'together' line names
+    the extras scripts/test.sh installs (less dev and docs)."""
+    page = (DOCS / "dependencies.md").read_text()
+    script = (ROOT / "scripts" / "test.sh").read_text()
+    tested = set(re.search(r'-e "\.\[([a-z,]+)\]"', script).group(1).split(",")) - {"dev", "docs"}
+    commands = re.findall(r'pip install[^`]*-e "\.\[([a-z,]+)\]"', page)
+    assert commands, "no install command found"
+    for extras in commands:
+        assert "blender" in extras.split(","), f'pip install -e ".[{extras}]" alone would break bpy\'s pins'
+    assert tested in [set(e.split(",")) for e in commands]
+    assert "Install the extras together" in page

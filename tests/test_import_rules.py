@@ -58,6 +58,7 @@ LAYERS = (
     ("dataset format", {"fogsim.dataset"}),
     ("dataset readers and scenes", {"fogsim.readers", "fogsim.scene"}),
     ("bundled presets", {"fogsim.presets"}),
+    ("camera model after the fog", {"fogsim.sensor"}),
     ("document schemas", {"fogsim.schema"}),
     ("run bookkeeping", {"fogsim.runs"}),
     ("files, dependencies, camera, pictures", {"fogsim.fileio", "fogsim.deps", "fogsim.camera", "fogsim.viz"}),

@@ -198,10 +198,10 @@ def test_read_holdout_refuses_pickles_and_missing_fields(tmp_path):
 
     with zipfile.ZipFile(tmp_path / "evil.npz", "w") as z:
         z.write(tmp_path / "obj.npy", "u.npy")
-    with pytest.raises(InputError, match="evil.npz: not a readable LiDAR hold-out file"):
+    with pytest.raises(InputError, match="evil.npz: holds pickled"):
         read_holdout(tmp_path / "evil.npz")
     np.savez(tmp_path / "part.npz", u=np.zeros(2), v=np.zeros(2))
-    with pytest.raises(InputError, match="part.npz: LiDAR hold-out file lacks ray, width, height"):
+    with pytest.raises(InputError, match="part.npz: malformed LiDAR hold-out file: lacks 'ray', 'width', 'height'"):
         read_holdout(tmp_path / "part.npz")
 
 

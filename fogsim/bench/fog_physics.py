@@ -49,6 +49,8 @@ from fogsim.fileio import (
 )
 from fogsim.fog.physics import Comparison, default_models
 from fogsim.presets import preset_path
+from fogsim.schema.base import load_json
+from fogsim.schema.documents import RenderRunFile
 
 RUNS = {"clear": None, "volumetric_seed0": 0, "volumetric_seed1": 1}
 
@@ -153,7 +155,7 @@ def analyse(out: Path, frames: list[str] | None = None, comparison: Comparison |
             timing[name].append(float(t.get("render", float("nan"))) + float(t.get("fog_render", 0.0)))
     seconds = {name: statistics.median(v) for name, v in timing.items()}
     run_file = clear.root / "render_run.json"
-    exposure = read_json(run_file).get("parameters", {}).get("exposure", 1.0) if run_file.is_file() else 1.0
+    exposure = load_json(run_file, RenderRunFile).parameters.exposure if run_file.is_file() else 1.0
     result = write_report(comparison, out / "report")
     result["labels_identical"] = same_labels
     result["preset_exposure"] = exposure  # the clear image has it; the linear fog renders are compared as written

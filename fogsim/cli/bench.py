@@ -28,11 +28,14 @@ def add_parsers(sub) -> None:
     render.add_argument("--resolution", default="640x426")
     render.add_argument("--baseline-frames", type=int, default=3)
     render.add_argument("--out", help="dataset folder (default: a temporary one)")
+    render.add_argument("--no-skies", dest="skies", action="store_false",
+                        help="skip timing the HDRI and overcast skies against the procedural one")
     _quiet_option(render)
     render.set_defaults(run=lambda args: _render(args))
 
-    rfog = bsub.add_parser("render-fog", help="a volumetric-fog frame (full + OIDN, hybrid) against a Koschmieder "
-                           "frame of the same scenes, ratio in the same run (needs bpy)",
+    rfog = bsub.add_parser("render-fog", help="a volumetric-fog frame (full + OIDN, hybrid, cheap hybrid) against a "
+                           "Koschmieder frame of the same scenes, ratio in the same run, and the cheap "
+                           "variant's error against the full-resolution hybrid (needs bpy)",
                            formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     rfog.add_argument("--preset", default="default")
     rfog.add_argument("--resolution", default="160x107", help="small by default to keep the run short; "
@@ -42,7 +45,10 @@ def add_parsers(sub) -> None:
     rfog.add_argument("--samples", type=int, help="clear-render samples (default: the preset's quality)")
     rfog.add_argument("--fog-samples", type=int, help="fog-render samples (default: the clear render's)")
     rfog.add_argument("--levels", help="fog levels (default: the preset's)")
-    rfog.add_argument("--out", help="folder of the three datasets (default: a temporary one)")
+    rfog.add_argument("--fast-scale", type=float, default=0.5,
+                      help="resolution_scale of the cheap hybrid variant (fog renders at this fraction of "
+                           "width and height, rebuilt from the clear render)")
+    rfog.add_argument("--out", help="folder of the five datasets (default: a temporary one)")
     _quiet_option(rfog)
     rfog.set_defaults(run=lambda args: _render_fog(args))
 

@@ -289,7 +289,8 @@ def cmd_fog(args) -> int:
     job = _job(args, args.out, sample_classes(everything) if labelled else ())
     shard = parse_shard(args.shard)
     samples = select_shard(everything, shard)
-    summary = run(samples, job, args.workers, not args.no_resume, not args.quiet, package_versions())
+    summary = run(samples, job, args.workers, not args.no_resume, not args.quiet,
+                  package_versions() | {"samples": len(everything)})  # --finalize-only counts against it
     lines = [summary.line(job)]  # --quiet: joined into one summary line
     for source, error in summary.failed:
         print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
@@ -302,20 +303,28 @@ def cmd_fog(args) -> int:
             print(f"fogsim: error: {args.out}: no frame was fogged, so there is no dataset to finalize",
                   file=sys.stderr)
             return EXIT_FAILED
-        lines.append(_finalize(args.out, job.inputs["train_fraction"], job.inputs["split_by"]))
+        line, skipped = _finalize(args.out, job.inputs["train_fraction"], job.inputs["split_by"])
+        lines.append(line)
     print("; ".join(lines) if args.quiet else "\n".join(lines))
-    return EXIT_FAILED if summary.failed else EXIT_OK
+    return EXIT_FAILED if summary.failed or (labelled and not is_sharded(shard) and skipped) else EXIT_OK
 
 
-def _finalize(out: str, train_fraction: float | None = None, split_by: str | None = None) -> str:
+def _finalize(out: str, train_fraction: float | None = None, split_by: str | None = None) -> tuple[str, list]:
     """Write the dataset files (None: the run's own train fraction / split rule); returns the
-    summary line."""
+    summary line and the meta files skipped (each named on stderr: a per-frame problem)."""
     from fogsim.fog.batch import finalize_dataset
 
     summary = finalize_dataset(out, train_fraction, split_by)
+    skipped = summary.get("skipped_frames", [])
+    for line in skipped:
+        print(f"  skipped: {line}", file=sys.stderr)
     counts = ", ".join(f"{c} {n}" for c, n in summary["counts"].items())
+    extra = f", {len(skipped)} meta files skipped" if skipped else ""
+    if summary.get("absent_frames"):
+        extra += (f"; {summary['absent_frames']} of the run's samples have no frame yet "
+                  "(a shard not finished, or samples that failed)")
     return (f"dataset: {summary['frames']} frames ({summary['split']['train']} train / {summary['split']['val']} "
-            f"val), objects kept: {counts} → {out}/dataset.json")
+            f"val){extra}, objects kept: {counts} → {out}/dataset.json"), skipped
 
 
 def _finalize_only(args) -> int:
@@ -323,5 +332,6 @@ def _finalize_only(args) -> int:
     if given:
         raise ValueError(f"--finalize-only takes --out (and --train-fraction, --split-by) only, not "
                          f"{', '.join(given)}")
-    print(_finalize(args.out, args.train_fraction, args.split_by))  # the run file's checks: finalize_dataset's
-    return EXIT_OK
+    line, skipped = _finalize(args.out, args.train_fraction, args.split_by)  # the run file's checks: finalize_dataset's
+    print(line)
+    return EXIT_FAILED if skipped else EXIT_OK

@@ -46,6 +46,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="volumetric medium (implies --fog volumetric): full = pure scattering (default), "
                         "hybrid = half absorption + emission (cheaper), ea = camera-only emission-absorption "
                         "(exactly Koschmieder in linear light; a check)")
+    p.add_argument("--fog-scale", type=float,
+                   help="cheap volumetric fog (implies --fog volumetric): render the fog levels at this fraction "
+                        "of width and height (0.1-1, e.g. 0.5 = a quarter of the pixels) and rebuild them at full "
+                        "size from the clear render")
     p.add_argument("--stereo", action="store_true",
                    help=f"also render the right camera (preset baseline, else the camera's, else "
                         f"{CITYSCAPES_BASELINE_M} m) "
@@ -57,6 +61,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-resume", action="store_true", help="re-render committed frames")
     p.add_argument("--gpu", action="store_true", help="render on the GPU when one is available")
     p.add_argument("--finalize-only", action="store_true", help="only rebuild COCO/YAML/manifest/contact sheet")
+    g = p.add_argument_group("scene mode (your own Blender scene; docs/own-scenes.md)")
+    g.add_argument("--scene", help="render this .blend file's active scene instead of a preset ('current': the "
+                                   "scene Blender has open, blender -b FILE.blend -P …); the file is never written")
+    g.add_argument("--camera", help="camera object to render through (default: the scene's camera)")
+    g.add_argument("--frame-range", help="START:END[:STEP], Blender frame numbers, END included "
+                                         "(default: the scene's frame range)")
+    g.add_argument("--class-map", help="JSON file (or inline JSON object) of object/collection name glob → class, "
+                                       "e.g. '{\"Car*\": \"car\"}'; a fogsim_class custom property wins over it")
     p.add_argument("--quiet", action="store_true", help="print only errors and the summary line (no progress bar, "
                                                         "no frame log, none of Blender's own output)")
 
@@ -85,12 +97,16 @@ def cmd_render(args) -> int:
     from fogsim.render.preset import load_render_preset
     from fogsim.runs import check_output, parse_shard
 
+    if args.scene:
+        return _cmd_scene(args)
+    if args.camera or args.frame_range or args.class_map:
+        raise ValueError("--camera, --frame-range and --class-map need --scene")
     preset_file = args.preset if args.preset and Path(args.preset).is_file() else None
     check_output(args.out, {"--preset": preset_file})
     config = load_render_preset(args.preset, frames=args.frames, seed=args.seed, train_fraction=args.train_fraction,
                                 resolution=args.resolution, samples=args.samples, levels=args.levels,
                                 stereo=True if args.stereo else None, max_pixels=args.max_pixels,
-                                fog=args.fog, fog_medium=args.fog_medium)
+                                fog=args.fog, fog_medium=args.fog_medium, fog_scale=args.fog_scale)
     shard = parse_shard(args.shard)
     require_bpy()
     from fogsim.render.blender.job import RUN_FILE, RenderJob
@@ -98,6 +114,47 @@ def cmd_render(args) -> int:
     if args.finalize_only and not (Path(args.out) / RUN_FILE).is_file():
         raise InputError(args.out, f"no {RUN_FILE} here: not a dataset to finalize")
     job = RenderJob(config, args.out, shard, resume=not args.no_resume, gpu=args.gpu, quiet=args.quiet)
+    try:
+        return _render(job, args, shard)
+    finally:
+        job.close()
+
+
+def _cmd_scene(args) -> int:
+    """Scene mode: the user's own Blender scene (:mod:`fogsim.render.blender.scene_mode`)."""
+    from fogsim.render.preset import check_overrides
+    from fogsim.render.scene_classes import load_class_map
+    from fogsim.runs import check_output, parse_shard
+
+    for flag, given in (("--preset", args.preset), ("--frames", args.frames), ("--stereo", args.stereo or None),
+                        ("--train-fraction", args.train_fraction)):
+        if given is not None:
+            raise ValueError(f"{flag} is not available with --scene (scene mode: --frame-range, --camera, "
+                             "--class-map, --levels, --samples, --resolution, --seed, --fog, --fog-medium)")
+    check_overrides(seed=args.seed, samples=args.samples, max_pixels=args.max_pixels, fog=args.fog,
+                    fog_medium=args.fog_medium)
+    blend = None if args.scene == "current" else args.scene
+    check_output(args.out, {"--scene": blend})
+    class_map = load_class_map(args.class_map)
+    shard = parse_shard(args.shard)
+    if args.levels is not None:
+        from fogsim.fog.levels import parse_levels
+
+        parse_levels(args.levels)  # a bad --levels is a usage error before Blender starts
+    require_bpy()
+    from fogsim.render.blender.scene_mode import RUN_FILE, open_scene, scene_job
+
+    scene = open_scene(args.scene, args.quiet)
+    if args.finalize_only and not (Path(args.out) / RUN_FILE).is_file():
+        raise InputError(args.out, f"no {RUN_FILE} here: not a dataset to finalize")
+    job = scene_job(scene, args.out, camera=args.camera, frame_range=args.frame_range, class_map=class_map,
+                    levels=args.levels, samples=args.samples, resolution=args.resolution, seed=args.seed or 0,
+                    shard=shard, resume=not args.no_resume, gpu=args.gpu, quiet=args.quiet,
+                    max_pixels=args.max_pixels, fog=args.fog, fog_medium=args.fog_medium)
+    if not args.quiet:
+        print(job.summary)
+        for note in job.notes:
+            print(f"note: {note}")
     try:
         return _render(job, args, shard)
     finally:
@@ -134,7 +191,26 @@ def _render(job, args, shard) -> int:
           f"in {time.perf_counter() - t0:.1f} s → {args.out}")
     for index, error in loop.failed:
         print(f"  failed: frame {index}: {error}", file=sys.stderr)
-    return EXIT_FAILED if loop.failed else EXIT_OK
+    skipped = (loop.summary or {}).get("skipped_frames", [])
+    for line in skipped:
+        print(f"  skipped: {line}", file=sys.stderr)
+    if args.finalize_only and loop.summary is not None:
+        print(finalize_line(loop.summary, job.config.frames, shard))
+    return EXIT_FAILED if loop.failed or skipped else EXIT_OK
+
+
+def finalize_line(summary: dict, frames: int, shard: tuple[int, int]) -> str:
+    """What ``--finalize-only`` found: frames of the run's ``frames``, and the absent ones (with
+    ``--shard i/N``: the shards they belong to, frame k being shard k mod N's)."""
+    found = set(summary.get("frame_seeds", {}))
+    absent = [k for k in range(frames) if f"{k:06d}" not in found]
+    line = f"finalize: {summary['frames']} frames found of the run's {frames}"
+    if absent:
+        shown = ", ".join(str(k) for k in absent[:10]) + (" …" if len(absent) > 10 else "")
+        line += f"; {len(absent)} absent (frames {shown})"
+        if shard[1] > 1:
+            line += f", from shards {', '.join(f'{i}/{shard[1]}' for i in sorted({k % shard[1] for k in absent}))}"
+    return line
 
 
 def main(argv: list[str] | None = None, prog: str = "fogsim render") -> int:

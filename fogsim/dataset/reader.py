@@ -16,6 +16,8 @@ from fogsim.dataset.layout import PARTS, DatasetLayout
 from fogsim.errors import InputError
 from fogsim.fileio import read_depth_file, read_image, read_json
 from fogsim.readers.cityscapes import read_cityscapes_depth
+from fogsim.schema.base import check, load_json
+from fogsim.schema.documents import CocoFile, DatasetManifest, FrameMeta
 
 
 def as_layout(dataset: str | Path | DatasetLayout) -> DatasetLayout:
@@ -31,36 +33,15 @@ def dataset_levels(dataset: str | Path | DatasetLayout) -> list[str]:
         raise InputError(layout.root, "not a fogsim dataset (no dataset.json): render one with "
                                       "scripts/render_batch.py or pass --render, or fog a labelled dataset "
                                       "with fogsim fog (after sharded runs: fogsim fog --finalize-only)")
-    data = read_json(manifest)
-    records = data.get("levels") if isinstance(data, dict) else None
-    if not isinstance(records, list) or not all(isinstance(lv, dict) and isinstance(lv.get("key"), str)
-                                                 and lv["key"] for lv in records):
-        raise InputError(manifest, "malformed fogsim dataset manifest: 'levels' must be a list of "
-                                   "{\"key\": …} records (rewrite it with fogsim render --finalize-only)")
-    levels = [lv["key"] for lv in records]
-    if not levels:
-        raise InputError(manifest, "lists no fog levels")
-    if len(set(levels)) != len(levels) or any(not _safe_key(k) for k in levels):
-        raise InputError(manifest, f"malformed fog level keys {levels} (unique names without '/' or '..')")
-    return levels
+    data = load_json(manifest, DatasetManifest)
+    return [lv.key for lv in data.levels]
 
 
 def dataset_classes(dataset: str | Path | DatasetLayout) -> list[str]:
     """The dataset's own class list (``dataset.json``'s ``classes``; YOLO id = index, COCO id =
     index + 1): fogsim's renderer classes for renders, e.g. Cityscapes' 8 for a fogged Cityscapes."""
     layout = as_layout(dataset)
-    dataset_levels(layout)  # a manifest that exists and is well formed
-    classes = read_json(layout.manifest()).get("classes")
-    if not isinstance(classes, list) or not classes or not all(isinstance(c, str) and c for c in classes) \
-            or len(set(classes)) != len(classes):
-        raise InputError(layout.manifest(), "malformed fogsim dataset manifest: 'classes' must be a list of "
-                                            "distinct class names (rewrite it with --finalize-only)")
-    return classes
-
-
-def _safe_key(key: str) -> bool:
-    """A level key is a folder name under images/ and labels/: no path of its own."""
-    return "/" not in key and "\\" not in key and key not in (".", "..")
+    return list(load_json(layout.manifest(), DatasetManifest).classes)
 
 
 def read_split(dataset: str | Path | DatasetLayout, level: str, part: str) -> list[str]:
@@ -86,14 +67,11 @@ def val_ground_truth(dataset: str | Path | DatasetLayout, level: str) -> dict:
     if not path.is_file():
         raise InputError(path, "missing COCO ground truth: run scripts/render_batch.py --finalize-only")
     gt = read_json(path)
+    check(gt, CocoFile, path)  # the fields the study reads; file names inside the dataset
     val = set(read_split(layout, level, "val"))
-    try:
-        images = [im for im in gt["images"] if Path(im["file_name"]).stem in val]
-        ids = {im["id"] for im in images}
-        annotations = [a for a in gt["annotations"] if a["image_id"] in ids]
-    except (KeyError, TypeError, AttributeError) as exc:
-        raise InputError(path, f"malformed COCO file ({type(exc).__name__}: {exc}): rewrite it with "
-                               "fogsim render --finalize-only") from None
+    images = [im for im in gt["images"] if Path(im["file_name"]).stem in val]
+    ids = {im["id"] for im in images}
+    annotations = [a for a in gt["annotations"] if a["image_id"] in ids]
     return {**gt, "images": images, "annotations": annotations}
 
 
@@ -111,14 +89,53 @@ def missing_files(dataset: str | Path | DatasetLayout, levels: list[str]) -> lis
 
 # --- frames ---------------------------------------------------------------------------------------
 def read_meta(dataset: str | Path | DatasetLayout, frame: str) -> dict:
-    """The frame record ``meta/<frame>.json``."""
-    return read_json(as_layout(dataset).meta(frame))
+    """The frame record ``meta/<frame>.json``, checked (:func:`read_checked_meta`)."""
+    return read_checked_meta(dataset, frame)
 
 
 def read_metas(dataset: str | Path | DatasetLayout, frames: list[str] | None = None) -> list[dict]:
-    """The records of ``frames`` (default: every committed frame, sorted)."""
+    """The records of ``frames`` (default: every committed frame, sorted), each checked
+    (:func:`read_checked_meta`): the first bad one raises."""
     layout = as_layout(dataset)
-    return [read_json(layout.meta(f)) for f in (layout.done_frames() if frames is None else frames)]
+    return [read_checked_meta(layout, f) for f in (layout.done_frames() if frames is None else frames)]
+
+
+def read_checked_meta(dataset: str | Path | DatasetLayout, frame: str, model=FrameMeta) -> dict:
+    """``meta/<frame>.json`` checked against ``model`` (:class:`~fogsim.schema.documents.FrameMeta`,
+    or a fogged run's ``FogFrameMeta``), its ``frame`` equal to the file's name; an
+    :class:`InputError` naming the file otherwise."""
+    path = as_layout(dataset).meta(frame)
+    meta = read_json(path)
+    check(meta, model, path)
+    if meta["frame"] != frame:
+        raise InputError(path, f"frame: names frame {meta['frame']!r}, not this file's {frame!r} "
+                               "(a stray or copied file in meta/?)")
+    return meta
+
+
+@dataclass
+class FrameRecords:
+    """The committed frames whose records pass the schema (sorted), their records, and one line
+    per meta file that does not (skipped: a per-frame document)."""
+
+    frames: list[str]
+    metas: list[dict]
+    skipped: list[str]
+
+
+def frame_records(dataset: str | Path | DatasetLayout, model=FrameMeta) -> FrameRecords:
+    """Every committed frame's record checked against ``model``, a damaged or stray
+    ``meta/*.json`` skipped and named."""
+    layout = as_layout(dataset)
+    frames, metas, skipped = [], [], []
+    for frame in layout.done_frames():
+        try:
+            metas.append(read_checked_meta(layout, frame, model))
+        except InputError as exc:
+            skipped.append(str(exc))
+            continue
+        frames.append(frame)
+    return FrameRecords(frames, metas, skipped)
 
 
 def frame_count(dataset: str | Path | DatasetLayout) -> int:

@@ -23,13 +23,13 @@ from fogsim.boxes import yolo_line
 from fogsim.colour import to_uint8
 from fogsim.dataset.coco import coco_dataset
 from fogsim.dataset.layout import MIXED_SPLIT, PARTS, DatasetLayout
-from fogsim.dataset.reader import read_meta, read_metas
+from fogsim.dataset.reader import FrameRecords, frame_records, read_checked_meta
 from fogsim.fileio import atomic_write_bytes, read_image, write_image, write_json
 from fogsim.runs import split_key
 from fogsim.scene.classes import LABELLED
 from fogsim.viz import strip
 
-__all__ = ["PALETTE", "TRAIN_FRACTION", "check_train_fraction", "contact_sheet", "data_yaml", "finalize",
+__all__ = ["PALETTE", "TRAIN_FRACTION", "check_train_fraction", "contact_sheet", "draw_boxes", "data_yaml", "finalize",
            "frame_split", "split_frames", "write_frame_labels"]
 
 #: the share of frames in the train split unless a preset or ``--train-fraction`` says otherwise
@@ -107,20 +107,23 @@ def _write_lists(layout: DatasetLayout, name: str, split: dict[str, list[Path]],
 
 
 def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: float = TRAIN_FRACTION,
-             seed: int = 0, classes=LABELLED, split_group=None) -> dict:
+             seed: int = 0, classes=LABELLED, split_group=None, records: FrameRecords | None = None) -> dict:
     """Write every dataset-level file from the committed frames; returns ``dataset.json``'s content.
 
     ``classes``: the dataset's own class list (YOLO ids index it, COCO ids are index + 1; it is
     ``dataset.json``'s ``classes``). Renders keep the default, fogsim's LABELLED.
     ``split_group``: None (split by frame name), or ``(description, meta → group name)`` to keep
-    each group's frames on one side (:func:`split_frames`)."""
+    each group's frames on one side (:func:`split_frames`). ``records``: the frames and their
+    checked records (default: :func:`~fogsim.dataset.reader.frame_records`); a meta file that
+    fails its schema is left out and named in ``dataset.json``'s ``skipped_frames``."""
     levels = list(levels)
     if any(lv.key == MIXED_SPLIT for lv in levels):
         raise ValueError(f"fog level key {MIXED_SPLIT!r} is reserved for the mixed-level split")
-    frames = layout.done_frames()
+    records = frame_records(layout) if records is None else records
+    frames, metas = records.frames, records.metas
     if not frames:
-        raise ValueError(f"{layout.root}: no finished frames (meta/*.json) to finalize")
-    metas = read_metas(layout, frames)
+        raise ValueError(f"{layout.root}: no finished frames (meta/*.json) to finalize"
+                         + (f"; {records.skipped[0]}" if records.skipped else ""))
     groups = None if split_group is None else {f: split_group[1](m) for f, m in zip(frames, metas)}
     train, val = split_frames(frames, train_fraction, seed, groups)
     mixed = {part: [] for part in PARTS}
@@ -138,8 +141,10 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
         summary["split"]["rule"] = (f"crc32('{seed}/<group>') % 1000 < {cut} → train, group = "
                                     f"{split_group[0]}")
         summary["split"]["groups"] = len(set(groups.values()))
+    if records.skipped:
+        summary["skipped_frames"] = list(records.skipped)
     write_json(layout.manifest(), summary)
-    write_image(layout.contact_sheet(), contact_sheet(layout, levels, frames))
+    write_image(layout.contact_sheet(), contact_sheet(layout, levels, frames, metas=metas))
     return summary
 
 
@@ -155,11 +160,13 @@ def _summary(metas: list[dict], levels, train: list, val: list, train_fraction: 
 
 
 def contact_sheet(layout: DatasetLayout, levels, frames: list[str], max_frames: int = 4,
-                  tile_width: int = 384) -> np.ndarray:
-    """RGB uint8 overview: one row per frame, one column per level, kept boxes drawn."""
+                  tile_width: int = 384, metas: list[dict] | None = None) -> np.ndarray:
+    """RGB uint8 overview: one row per frame, one column per level, kept boxes drawn
+    (``metas``: the frames' records, if read already)."""
     rows = []
-    for frame in frames[:max_frames]:
-        records = [r for r in read_meta(layout, frame)["objects"] if r["kept"]]
+    for n, frame in enumerate(frames[:max_frames]):
+        meta = metas[n] if metas is not None else read_checked_meta(layout, frame)
+        records = [r for r in meta["objects"] if r["kept"]]
         tiles = [_tile(read_image(layout.image(lv.key, frame)), records, tile_width) for lv in levels]
         captions = [(f"frame {frame}: " if i == 0 else "") + _caption(lv) for i, lv in enumerate(levels)]
         rows.append(strip(tiles, captions))
@@ -173,12 +180,19 @@ def _tile(image: np.ndarray, records: list[dict], width: int) -> np.ndarray:
     """The image resized to ``width`` with class-coloured boxes and class names."""
     s = width / image.shape[1]
     tile = cv2.resize(to_uint8(image), (width, round(image.shape[0] * s)), interpolation=cv2.INTER_AREA)
+    return draw_boxes(tile, records, s)
+
+
+def draw_boxes(image: np.ndarray, records: list[dict], scale: float = 1.0) -> np.ndarray:
+    """``image`` (H×W×3 uint8, drawn in place and returned) with each record's box — its
+    ``bbox`` [x0, y0, x1, y1) in pixels, times ``scale`` — outlined 1 px inside, in its class's
+    colour, and the class name above it (within 10 px above the box's top)."""
     for r in records:
-        x0, y0, x1, y1 = (round(v * s) for v in r["bbox"])
+        x0, y0, x1, y1 = (round(v * scale) for v in r["bbox"])
         colour = PALETTE[r["class_id"] % len(PALETTE)]
-        cv2.rectangle(tile, (x0, y0), (max(x0, x1 - 1), max(y0, y1 - 1)), colour, 1)
-        cv2.putText(tile, r["class"], (x0, max(8, y0 - 2)), cv2.FONT_HERSHEY_SIMPLEX, 0.3, colour, 1, cv2.LINE_AA)
-    return tile
+        cv2.rectangle(image, (x0, y0), (max(x0, x1 - 1), max(y0, y1 - 1)), colour, 1)
+        cv2.putText(image, r["class"], (x0, max(8, y0 - 2)), cv2.FONT_HERSHEY_SIMPLEX, 0.3, colour, 1, cv2.LINE_AA)
+    return image
 
 
 def _caption(level) -> str:

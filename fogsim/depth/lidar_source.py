@@ -33,6 +33,8 @@ import numpy as np
 from fogsim.camera import Intrinsics
 from fogsim.depth.complete import DEFAULT_METHOD, METHODS, SKY_RULES, complete, holdout_split, pixel_index, sparse_image
 from fogsim.errors import InputError
+from fogsim.schema.base import load_npz
+from fogsim.schema.documents import Holdout as HoldoutFile
 
 PointsSource = Callable[[], "tuple[np.ndarray, np.ndarray]"]
 HOLDOUT_DIR, DEPTH_DIR = "lidar_holdout", "lidar_depth"
@@ -160,22 +162,15 @@ class Holdout:
 
 def read_holdout(path) -> Holdout:
     """Read a hold-out file (never unpickling); any problem is an InputError naming it."""
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, EOFError) as exc:
-        raise InputError(path, f"not a readable LiDAR hold-out file ({exc})") from None
-    missing = [k for k in ("u", "v", "ray", "width", "height") if k not in data]
-    if missing:
-        raise InputError(path, f"LiDAR hold-out file lacks {', '.join(missing)}")
-    u, v, ray = (np.asarray(data[k], np.float64).reshape(-1) for k in ("u", "v", "ray"))
+    doc = load_npz(path, HoldoutFile)  # never unpickles; a truncated or non-zip file is one line
+    u, v, ray = (np.asarray(x, np.float64) for x in (doc.u, doc.v, doc.ray))
     if not len(u) == len(v) == len(ray):
         raise InputError(path, f"LiDAR hold-out file: u, v, ray differ in length ({len(u)}, {len(v)}, {len(ray)})")
-    width, height = int(data["width"]), int(data["height"])
+    width, height = doc.width, doc.height
     camera = None
-    if all(k in data for k in ("fx", "fy", "cx", "cy")):
+    if None not in (doc.fx, doc.fy, doc.cx, doc.cy):
         try:
-            camera = Intrinsics(*(float(data[k]) for k in ("fx", "fy", "cx", "cy")), width, height)
+            camera = Intrinsics(doc.fx, doc.fy, doc.cx, doc.cy, width, height)
         except ValueError as exc:
             raise InputError(path, f"LiDAR hold-out file: unusable camera ({exc})") from None
     return Holdout(np.stack([u, v], 1), ray.astype(np.float32), width, height, camera)

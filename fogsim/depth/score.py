@@ -152,7 +152,9 @@ def score_dataset(pred, dataset, pred_kind: str = "planar", suffix: str = "",
     """Score the prediction folder ``pred`` against the exact depth of every frame of the
     rendered dataset ``dataset`` (:class:`fogsim.dataset.layout.DatasetLayout`)."""
     from fogsim.dataset.layout import DatasetLayout
-    from fogsim.fileio import read_depth_file, read_json
+    from fogsim.fileio import read_depth_file
+    from fogsim.schema.base import load_json
+    from fogsim.schema.documents import FrameCamera
 
     _check_kind(pred_kind)
     pred_dir = _pred_dir(pred)
@@ -170,11 +172,8 @@ def score_dataset(pred, dataset, pred_kind: str = "planar", suffix: str = "",
         depth, pfile = read_prediction(pred_dir, frame, suffix, png_scale, listings)
         _size_check(depth, pfile, gt.shape[1], gt.shape[0], gfile)
         if pred_kind == "ray":
-            meta = read_json(layout.meta(frame))
-            try:
-                K = Intrinsics.from_dict(meta["camera"]["intrinsics"], str(layout.meta(frame)))
-            except (KeyError, TypeError):
-                raise InputError(layout.meta(frame), "frame record has no camera.intrinsics") from None
+            meta = load_json(layout.meta(frame), FrameCamera)
+            K = Intrinsics.from_dict(meta.camera.intrinsics, str(layout.meta(frame)))
             gt = planar_to_ray(gt, _camera(K, gt.shape[1], gt.shape[0], layout.meta(frame)))
         images.append({"key": frame, "pred_file": str(pfile), "truth_file": str(gfile),
                        "bins": binned_metrics(depth, gt)})

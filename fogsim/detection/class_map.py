@@ -34,6 +34,8 @@ from fogsim.errors import InputError
 from fogsim.readers.cityscapes_labels import CITYSCAPES_CLASSES
 from fogsim.readers.waymo.labels import WAYMO_CLASSES
 from fogsim.scene.classes import LABELLED
+from fogsim.schema.base import check
+from fogsim.schema.documents import ClassMapFile
 
 
 @dataclass(frozen=True)
@@ -115,19 +117,20 @@ def load_class_map(text: str) -> ClassMap:
     try:
         data = json.loads(text)
     except ValueError as exc:
-        raise InputError(source if len(source) < 80 else "--class-map", f"class map is not JSON ({exc})") from None
-    mapping = data.get("map", data) if isinstance(data, dict) else None
-    if not isinstance(mapping, dict) or not all(isinstance(k, str) and (v is None or isinstance(v, str))
-                                                for k, v in mapping.items()):
-        raise InputError(source if len(source) < 80 else "--class-map",
-                         'a class map is {"map": {"source class": "target class" or null, …}, "classes": […]}')
-    targets = data.get("classes") if isinstance(data, dict) and "map" in data else None
+        raise InputError(source if source != text or len(source) < 80 else "--class-map",
+                         f"class map is not JSON ({exc})") from None
+    where = source if source != text else "--class-map"  # the file, or the flag that gave the JSON text
+    if isinstance(data, dict) and "map" not in data:  # the flat form {source: target}
+        data = {"map": data}
+    doc = check(data, ClassMapFile, where)
+    mapping = doc.map
+    targets = doc.classes
     if targets is None:
         targets = list(dict.fromkeys(v for v in mapping.values() if v is not None))
     try:
         return ClassMap(Path(source).name if source != text else "json", dict(mapping), tuple(targets))
     except ValueError as exc:
-        raise InputError(source if len(source) < 80 else "--class-map", str(exc)) from None
+        raise InputError(where, str(exc)) from None
 
 
 def map_ground_truth(gt: dict, cmap: ClassMap, source_classes) -> dict:

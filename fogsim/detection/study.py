@@ -51,6 +51,8 @@ from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes, read_image, read_json, write_image, write_json
 from fogsim.fog.visibility import INVISIBLE_RULE
 from fogsim.runs import claim_output
+from fogsim.schema.base import check, load_json
+from fogsim.schema.documents import DoneFile, Predictions, StudyFile
 
 ESTIMATORS = ("features", "dark-channel")
 ESTIMATOR_TRAIN_IMAGES = 200  # per level: enough for centroids, bounded time on large datasets
@@ -114,11 +116,11 @@ class Study:
         path = self.files.study_file()
         if not path.is_file():
             raise InputError(path, "no study here: train the models first")
-        stored = read_json(path).get("parameters", {})
+        stored = load_json(path, StudyFile).parameters
         keys = ("dataset", "levels", "validation_images_sha256")
-        if {k: stored.get(k) for k in keys} != self._dataset_parameters(gts):
+        if {k: getattr(stored, k) for k in keys} != self._dataset_parameters(gts):
             raise InputError(path, f"this study was run on another dataset or validation split than {self.dataset}")
-        return TrainConfig(**stored["train"])
+        return TrainConfig(**stored.train.model_dump())
 
     def ground_truth(self) -> dict:
         return {lv: val_ground_truth(self.layout, lv) for lv in self.levels}
@@ -186,7 +188,7 @@ class Study:
                     for m, by in rows.items()}
         if self.sim is not None:
             for m in self.sim.models:
-                rows[f"sim {m}"] = {lv: map_detections(read_json(self.sim_prediction(m, lv)), self.sim_map,
+                rows[f"sim {m}"] = {lv: map_detections(read_predictions(self.sim_prediction(m, lv)), self.sim_map,
                                                        self.sim.classes) for lv in self.levels}
         return gts, rows
 
@@ -207,7 +209,8 @@ class Study:
                                          "run the remaining models (shards) first")
         gts = self.ground_truth()
         cfg = self.stored_config(gts)
-        preds = {m: {lv: read_json(self.prediction(m, lv)) for lv in self.levels} for m in self.models}
+        training = self.training_records()  # every document read (and checked) before a report file is written
+        preds = {m: {lv: read_predictions(self.prediction(m, lv)) for lv in self.levels} for m in self.models}
         rows = dict(preds)
         rows["oracle"] = {lv: preds[lv][lv] for lv in self.levels}
         levels_out = {}
@@ -232,7 +235,7 @@ class Study:
                     for i, t in enumerate(self.levels)}
             write_image(out / f"fog_level_{method}.png",
                         heatmap(grid, "share", title=f"fog level, {method}: share (row: true, column: estimated)"))
-        md = self.report_markdown(table, levels_out, max_distance_m, cfg, coverage, visible_only)
+        md = self.report_markdown(table, levels_out, max_distance_m, cfg, coverage, visible_only, training)
         atomic_write_bytes(out / "report.md", md.encode())
         return table
 
@@ -270,8 +273,17 @@ class Study:
             out[method] = ([v[0] for v in val], predicted, estimates)
         return out
 
+    def training_records(self) -> dict[str, DoneFile]:
+        """Each model's ``fogsim_done.json`` (checked), an empty record for a model without one."""
+        records = {}
+        for m in self.models:
+            done = self.files.run_done(m)
+            records[m] = load_json(done, DoneFile) if done.is_file() else DoneFile()
+        return records
+
     def report_markdown(self, table: dict, levels_out: dict, max_distance_m: float, cfg: TrainConfig,
-                        coverage: dict | None = None, visible_only: bool = False) -> str:
+                        coverage: dict | None = None, visible_only: bool = False,
+                        training: dict[str, DoneFile] | None = None) -> str:
         n_train = len(read_split(self.layout, self.levels[0], "train"))
         n_val = len(read_split(self.layout, self.levels[0], "val"))
         ignored = (f"farther ones, and invisible ones ({INVISIBLE_RULE}), are ignored in map50 and by distance"
@@ -297,10 +309,11 @@ class Study:
                 lines.append(f"| {row} | {lv} | " + " | ".join(vals) + " |")
         lines += ["", "**training** (seconds of the run that finished each model)", "",
                   "| model | epochs | seconds | state |", "|---|---|---|---|"]
+        training = self.training_records() if training is None else training
         for m in self.models:
-            done = self.files.run_done(m)
-            info = read_json(done) if done.is_file() else {}
-            seconds, state = info.get("seconds_this_run", "—"), info.get("state", "—")
+            info = training[m]
+            seconds = "—" if info.seconds_this_run is None else info.seconds_this_run
+            state = info.state or "—"
             lines.append(f"| {m} | {cfg.epochs_for(m)} | {seconds} | {state} |")
         lines += ["", "**fog-level estimators** on the validation images (rows: true, columns: estimated)", ""]
         for method, conf in levels_out.items():
@@ -310,6 +323,13 @@ class Study:
                       for lv, row in zip(self.levels, conf["matrix"])]
             lines.append("")
         return "\n".join(lines)
+
+
+def read_predictions(path: Path) -> list[dict]:
+    """A prediction file (COCO results), checked against :class:`~fogsim.schema.documents.Predictions`."""
+    dets = read_json(path)
+    check(dets, Predictions, path)
+    return dets
 
 
 def _coverage_lines(coverage: dict | None, policy: str, max_distance_m: float) -> list[str]:

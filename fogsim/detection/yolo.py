@@ -74,7 +74,8 @@ def load_ultralytics(config_dir: str | Path):
         import ultralytics
     except ImportError as exc:
         raise FogsimError(f"detector training needs the 'detect' extra ({exc.name} is missing): "
-                          "pip install torch==2.14.1 torchvision==0.29.1 -e '.[detect]'") from None
+                          "pip install torch==2.14.1 torchvision==0.29.1, then pip install -e '.[blender,detect]' "
+                          "(every extra of this venv in one command: docs/dependencies.md)") from None
     if _version_tuple(ultralytics.__version__) < MIN_ULTRALYTICS:
         raise FogsimError(f"ultralytics {ultralytics.__version__} inflates mAP; install >= 8.4.37")
     fonts = Path(os.environ["YOLO_CONFIG_DIR"]) / "Ultralytics"

@@ -36,6 +36,7 @@ import numpy as np
 
 from fogsim._version import __version__
 from fogsim.dataset.layout import DatasetLayout, frame_from_key
+from fogsim.dataset.reader import frame_records
 from fogsim.dataset.writer import TRAIN_FRACTION, check_train_fraction, finalize, write_frame_labels
 from fogsim.errors import InputError
 from fogsim.fileio import TO_8BIT, atomic_write_bytes, encode_image, read_json, remove_stale_parts, to_8bit, write_json
@@ -46,6 +47,8 @@ from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
 from fogsim.fog.visibility import attach_visibility
 from fogsim.readers.base import Sample
 from fogsim.runs import claim_output, sample_seed
+from fogsim.schema.base import load_json
+from fogsim.schema.documents import FogFrameMeta, FogRunFile
 
 RUN_FILE = "fogsim_run.json"
 
@@ -261,28 +264,34 @@ def finalize_dataset(out: str | Path, train_fraction: float | None = None, split
     recorded inputs), else :data:`~fogsim.dataset.writer.TRAIN_FRACTION` and ``"frame"``.
     The split seed is the run's ``--seed``; ``split_by="folder"`` keeps the frames of one input
     folder (:func:`~fogsim.fog.labelled.key_folder`: a Waymo segment, a Cityscapes city) on one side of the split.
-    Returns ``dataset.json``'s content."""
+    Returns ``dataset.json``'s content (with ``absent_frames``, not written: how many of the
+    run's samples have no frame yet, when the run file knows how many it has)."""
     run_file = Path(out) / RUN_FILE
     if not run_file.is_file():
         raise InputError(out, f"no {RUN_FILE} here: not a fogsim fog output to finalize")
-    params = read_json(run_file).get("parameters") or {}
-    if not isinstance(params.get("labels"), dict):
+    run = load_json(run_file, FogRunFile)
+    params = read_json(run_file)["parameters"]  # as written (checked above), for dataset.json
+    if run.parameters.labels is None:
         raise InputError(run_file, "this run wrote images without labels (--no-labels): there is no "
                                    "dataset to finalize")
-    inputs = params.get("inputs") or {}
+    inputs = run.parameters.inputs
     if train_fraction is None:
         train_fraction = inputs.get("train_fraction", TRAIN_FRACTION)
     train_fraction = check_train_fraction(train_fraction, "--train-fraction")
     split_by = split_by or inputs.get("split_by", "frame")
     if split_by not in SPLIT_BY:
         raise ValueError(f"--split-by must be one of {', '.join(SPLIT_BY)}, got {split_by!r}")
-    levels = [FogLevel(lv["key"], lv["name"], lv["beta"]) for lv in params["levels"]]
-    classes = tuple(params["labels"]["classes"])
+    levels = [FogLevel(lv.key, lv.name, lv.beta) for lv in run.parameters.levels]
+    classes = tuple(run.parameters.labels.classes)
     manifest = {"source": "fogsim fog", "fog": {k: v for k, v in params.items() if k != "inputs"},
-                "inputs": inputs, "seed": params.get("seed", 0)}
+                "inputs": inputs, "seed": run.parameters.seed}
     group = None if split_by == "frame" else ("the sample key's folder", lambda meta: key_folder(meta["key"]))
-    return finalize(DatasetLayout(out), levels, manifest, train_fraction, seed=params.get("seed", 0),
-                    classes=classes, split_group=group)
+    records = frame_records(out, FogFrameMeta)
+    summary = finalize(DatasetLayout(out), levels, manifest, train_fraction, seed=run.parameters.seed,
+                       classes=classes, split_group=group, records=records)
+    if run.samples is not None and len(records.frames) < run.samples:
+        summary["absent_frames"] = max(0, run.samples - len(records.frames) - len(records.skipped))
+    return summary
 
 
 def _init_worker(parent_pid: int):

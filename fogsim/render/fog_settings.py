@@ -32,17 +32,18 @@ __all__ = ["FOG_EXPOSURES", "FOG_KINDS", "FOG_MEDIA", "MAX_FOG_EXTENT_M", "MAX_S
 VOLUMETRIC_DEFAULTS = Volumetric().model_dump()
 
 
-def fog_overrides(fog_model: dict, fog: str | None, medium: str | None) -> dict:
-    """The preset's fog_model with ``--fog`` (a kind) / ``--fog-medium`` (a medium, implying
-    ``--fog volumetric``) applied, as a new dict; the values are checked by the caller."""
+def fog_overrides(fog_model: dict, fog: str | None, medium: str | None, scale: float | None = None) -> dict:
+    """The preset's fog_model with ``--fog`` (a kind), ``--fog-medium`` (a medium) and
+    ``--fog-scale`` (the fog renders' resolution_scale) applied, as a new dict (either of the last
+    two implies ``--fog volumetric``); the values are checked by the caller."""
     fog_model = dict(fog_model)
-    if medium is not None:
+    given = {k: v for k, v in (("medium", medium), ("resolution_scale", scale)) if v is not None}
+    if given:
         fog = "volumetric"
+        spec = fog_model.get("volumetric", {})
+        fog_model["volumetric"] = {**(spec if isinstance(spec, dict) else {}), **given}
     if fog is not None:
         fog_model["kind"] = fog
-    if medium is not None:
-        spec = fog_model.get("volumetric", {})
-        fog_model["volumetric"] = {**(spec if isinstance(spec, dict) else {}), "medium": medium}
     return fog_model
 
 

@@ -115,6 +115,40 @@ def write_stereo(layout: DatasetLayout, config: RenderConfig, name: str, K: Intr
             "matcher": {"method": "OpenCV StereoSGBM (3-way)", **asdict(params)}}
 
 
+#: the noise generator of level i of a frame: default_rng([frame seed, i, SENSOR_STREAM])
+SENSOR_STREAM = 0x5E7502
+
+
+def camera_model(config: RenderConfig, desc: dict, K: Intrinsics, foggy: dict, mask: np.ndarray,
+                 depth: np.ndarray, ray: np.ndarray, records: list[dict]) -> tuple:
+    """The preset's ``sensor`` (:mod:`fogsim.sensor`) applied to every level's image; with lens
+    distortion the mask and depth are resampled through it (nearest neighbour: exact values) and
+    the records re-measured on the distorted mask. Returns (foggy, mask, depth, records, meta)."""
+    from fogsim.render.labels import relabel_distorted
+    from fogsim.sensor import Sensor, apply_sensor, distort_nearest
+
+    sensor = Sensor.from_dict(config.sensor)
+    seed = int(desc.get("seed") or 0)
+    foggy = {lv.key: apply_sensor(foggy[lv.key], K, sensor, np.random.default_rng([seed, i, SENSOR_STREAM]))
+             for i, lv in enumerate(config.levels)}
+    if sensor.distorts:
+        lab = config.labels
+        mask = distort_nearest(mask, K, sensor.distortion, 0)
+        depth = distort_nearest(depth, K, sensor.distortion, np.inf)
+        records = relabel_distorted(records, mask, distort_nearest(ray, K, sensor.distortion, np.inf),
+                                    min_pixels=int(lab.get("min_pixels", MIN_PIXELS)),
+                                    min_visible_fraction=float(lab.get("min_visible_fraction", MIN_VISIBLE_FRACTION)))
+    meta = {"settings": config.sensor, "order": "distortion, vignetting, exposure, noise (linear light), "
+            "8-bit sRGB, JPEG; after the fog", "vignetting_law": "cos(theta)^a",
+            "distortion": {"model": "opencv", "coefficients": list(sensor.distortion), "K": K.to_dict(),
+                           "masks_and_depth": "resampled nearest-neighbour into the distorted image; "
+                                              "outside the render: mask 0, depth inf"} if sensor.distorts else None,
+            "noise": {"full_well_e": sensor.full_well_e, "read_noise_e": sensor.read_noise_e,
+                      "seed_rule": "numpy default_rng([frame seed, level index, 0x5E7502])"}
+            if sensor.full_well_e else None, "jpeg_quality": sensor.jpeg_quality}
+    return foggy, mask, depth, records, meta
+
+
 def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFrame, passes: FramePasses,
                  fog: FogRenders | None = None, *, timings: dict | None = None,
                  render_info: dict | None = None) -> dict:
@@ -153,6 +187,9 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
             raise ValueError(f"foggy images lack levels {sorted({lv.key for lv in config.levels} - set(foggy))}")
         fog_meta = dict(fog.info)
     attach_visibility(records, rgb, foggy, {lv.key: lv.beta for lv in config.levels}, mask)  # per object, level
+    sensor = None
+    if config.sensor:  # the camera sees the fogged scene: lens, exposure, noise, JPEG after the fog
+        foggy, mask, depth, records, sensor = camera_model(config, desc, K, foggy, mask, depth, ray, records)
     t2 = time.perf_counter()
     for lv in config.levels:
         write_image(layout.image(lv.key, name), foggy[lv.key])
@@ -168,7 +205,7 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
             "fog": {"levels": [lv.to_dict() for lv in config.levels], **fog_meta},
             "depth": {"file": str(layout.depth(name).relative_to(layout.root)), "kind": "planar Z, metres",
                       "no_hit": "inf"},
-            "stereo": stereo,
+            "stereo": stereo, "sensor": sensor,
             "render": render_info or {}, "timings_s": {k: round(v, 4) for k, v in timings.items()},
             "scene": desc, "fogsim_version": __version__}
     write_json(layout.meta(name), meta)

@@ -63,3 +63,26 @@ def object_records(mask: np.ndarray, ray_distance: np.ndarray, objects: list[dic
             "distance_m": None if np.isnan(d) else round(d, 3), "distance_stat": DISTANCE_STAT,
             "kept": reason is None, "reason": reason})
     return records
+
+
+def relabel_distorted(records: list[dict], mask: np.ndarray, ray_distance: np.ndarray,
+                      min_pixels: int = MIN_PIXELS, min_visible_fraction: float = MIN_VISIBLE_FRACTION) -> list[dict]:
+    """The records of the pinhole render re-measured on the lens-distorted ``mask`` (and ray
+    distance resampled with it, :func:`fogsim.sensor.distort_nearest`): box, pixels, truncated
+    flag, distance and ``kept`` come from the distorted mask (what the image shows); the scene's
+    ``visible_fraction`` and ``truncation`` stay those of the pinhole render. Objects the lens
+    pushes out of the image are dropped."""
+    h, w = mask.shape
+    runs = MaskRuns.of(mask)
+    boxes = runs.boxes()
+    out = [dict(r) for r in records if r["id"] in boxes]
+    dist = runs.median_distance(ray_distance, [r["id"] for r in out])
+    for r in out:
+        box = boxes[r["id"]]
+        x0, y0, x1, y1 = box["bbox"]
+        d = dist[r["id"]]
+        reason = ("too few pixels" if box["pixels"] < min_pixels
+                  else "too occluded" if r["visible_fraction"] < min_visible_fraction else None)
+        r.update(bbox=box["bbox"], pixels=box["pixels"], truncated=x0 == 0 or y0 == 0 or x1 == w or y1 == h,
+                 distance_m=None if np.isnan(d) else round(d, 3), kept=reason is None, reason=reason)
+    return out

@@ -23,6 +23,7 @@ class FrameLoop:
     job: object
     failed: list[tuple[int, str]] = field(default_factory=list)
     done: int = 0
+    summary: dict | None = None
 
     def __post_init__(self):
         self.total = len(self.job.todo)
@@ -54,10 +55,11 @@ class FrameLoop:
                 on_frame(*result)
 
     def finish(self, sharded: bool) -> bool:
-        """Write the dataset-wide files unless this is a shard; True when they were written."""
+        """Write the dataset-wide files unless this is a shard; True when they were written
+        (``summary``: what ``job.finish()`` returned, ``dataset.json``'s content)."""
         if sharded or not self.job.layout.done_frames():
             return False
-        self.job.finish()
+        self.summary = self.job.finish()
         return True
 
 

@@ -83,6 +83,7 @@ class RenderConfig:
     stereo_baseline: float | None = None  # metres; None = no right camera
     train_fraction: float = TRAIN_FRACTION  # share of frames in the train split (fogsim.dataset.writer's rule)
     lighting: dict = field(default_factory=dict)  # checked "lighting" object; {} = day (see check_lighting)
+    sensor: dict = field(default_factory=dict)  # checked "sensor" object; {} = a perfect pinhole (fogsim.sensor)
 
     def to_dict(self) -> dict:
         d = {"name": self.name, "source": self.source, "style": self.style, "camera": self.camera,
@@ -92,6 +93,8 @@ class RenderConfig:
              "stereo_baseline_m": self.stereo_baseline, "train_fraction": self.train_fraction}
         if self.lighting:  # absent for day, so datasets rendered before lighting existed still resume
             d["lighting"] = self.lighting
+        if self.sensor:  # absent without a sensor model, likewise
+            d["sensor"] = self.sensor
         return d
 
 
@@ -106,6 +109,7 @@ class Overrides(Closed):
     train_fraction: number_in(0, 1, lo_open=True, hi_open=True) | None = None
     fog: Literal[FOG_KINDS] | None = None
     fog_medium: Literal[FOG_MEDIA] | None = None
+    fog_scale: number_in(0.1, 1) | None = None
 
 
 def check_overrides(**flags) -> Overrides:
@@ -116,8 +120,9 @@ def check_overrides(**flags) -> Overrides:
     except ValueError as exc:
         key, _, rest = str(exc).partition(": ")
         raise ValueError(f"--{key.replace('_', '-')}: {rest}") from None
-    if ov.fog_medium is not None and ov.fog == "koschmieder":
-        raise ValueError("--fog-medium needs --fog volumetric")
+    for flag, value in (("--fog-medium", ov.fog_medium), ("--fog-scale", ov.fog_scale)):
+        if value is not None and ov.fog == "koschmieder":
+            raise ValueError(f"{flag} needs --fog volumetric")
     return ov
 
 
@@ -163,16 +168,18 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
                        samples: int | None = None, levels: str | None = None,
                        stereo: bool | None = None, train_fraction: float | None = None,
                        max_pixels: int = MAX_PIXELS, fog: str | None = None,
-                       fog_medium: str | None = None) -> RenderConfig:
+                       fog_medium: str | None = None, fog_scale: float | None = None) -> RenderConfig:
     """Read a dataset preset, check all of it and apply overrides; every problem of the
     preset names the preset file (and the key), every bad override its flag.
 
     ``fog`` (``--fog``): "koschmieder" | "volumetric", sets ``fog_model.kind``;
     ``fog_medium`` (``--fog-medium``): "full" | "hybrid" | "ea", sets
-    ``fog_model.volumetric.medium`` (and implies ``--fog volumetric``)."""
+    ``fog_model.volumetric.medium`` (and implies ``--fog volumetric``); ``fog_scale``
+    (``--fog-scale``): ``fog_model.volumetric.resolution_scale`` (implies ``--fog volumetric``)."""
     # command-line overrides first: their errors are usage errors, not the preset's
     ov = check_overrides(frames=frames, seed=seed, samples=samples, max_pixels=max_pixels,
-                         train_fraction=train_fraction, fog=fog, fog_medium=fog_medium)
+                         train_fraction=train_fraction, fog=fog, fog_medium=fog_medium,
+                         fog_scale=fog_scale)
     res_override = parse_resolution(resolution) if resolution else None
     if res_override and (why := check_size(*res_override, ov.max_pixels)):
         raise ValueError(f"--resolution {why}")
@@ -182,6 +189,26 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
     if not path.is_file():
         raise InputError(path, "preset not found")
     return _compose(load_json(path, DatasetPreset), path, ov, res_override, lv_override, stereo)
+
+
+def _hdri_paths(lighting: dict, source: Path) -> dict:
+    """``lighting`` with every HDRI path made absolute (relative: to the preset's folder); a
+    missing file is the preset's problem. Blender world HDRI names stay names."""
+    from fogsim.schema.presets import WORLD_HDRIS
+
+    spec = lighting.get("hdri")
+    if spec is None:
+        return lighting
+    out = []
+    for item in [spec] if isinstance(spec, str) else spec:
+        if item not in WORLD_HDRIS:
+            p = Path(item).expanduser()
+            p = p if p.is_absolute() else source.parent / p
+            if not p.is_file():
+                raise InputError(source, f"lighting.hdri: no such file {str(p)!r}")
+            item = str(p.resolve())
+        out.append(item)
+    return {**lighting, "hdri": out[0] if isinstance(spec, str) else out}
 
 
 def _compose(d: DatasetPreset, path: Path, ov: Overrides, res_override, lv_override,
@@ -207,11 +234,12 @@ def _compose(d: DatasetPreset, path: Path, ov: Overrides, res_override, lv_overr
     if (bool(spec) if stereo is None else stereo):
         b = spec.get("baseline_m") if isinstance(spec, dict) else None
         baseline = float(b if b is not None else camera.get("stereo_baseline_m", CITYSCAPES_BASELINE_M))
-    fog_model = fog_overrides(d.fog_model.given(), ov.fog, ov.fog_medium)
+    fog_model = fog_overrides(d.fog_model.given(), ov.fog, ov.fog_medium, ov.fog_scale)
     cfg = RenderConfig(
         name=d.name if d.name is not None else path.stem, source=str(path),
         style=style, camera=camera, resolution=(int(res[0]), int(res[1])), quality=quality, levels=tuple(lv),
-        fog_model=fog_model, labels=d.labels.given(), lighting=check_lighting(d.lighting.given()),
+        fog_model=fog_model, labels=d.labels.given(), lighting=_hdri_paths(check_lighting(d.lighting.given()), path),
+        sensor=d.sensor.given() if d.sensor is not None else {},
         exposure=d.exposure, frames=ov.frames if ov.frames is not None else d.frames,
         seed=ov.seed if ov.seed is not None else d.seed, stereo_baseline=baseline,
         train_fraction=ov.train_fraction if ov.train_fraction is not None else d.train_fraction)

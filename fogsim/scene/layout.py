@@ -16,6 +16,7 @@ from fogsim.camera import Intrinsics
 from fogsim.scene.assets import asset_extent, sample_asset
 from fogsim.scene.lights import apply_night, night_settings
 from fogsim.scene.pose import camera_to_world, transform, world_to_camera
+from fogsim.scene.sky import apply_sky
 
 SIDEWALK_HEIGHT = 0.15
 VERSION = 1
@@ -248,4 +249,6 @@ def sample_scene(rng: np.random.Generator, style: dict, camera: dict,
                      "sun_strength": 3.0 + 2.0 * math.sin(math.radians(elevation)), "sky_strength": 0.3},
         "objects": b.objects,
     }
-    return apply_night(desc, lighting, rng) if night_settings(lighting) else desc
+    if night_settings(lighting):
+        return apply_night(desc, lighting, rng)
+    return apply_sky(desc, lighting, rng)  # a day sky other than the default: HDRI, overcast (fogsim.scene.sky)

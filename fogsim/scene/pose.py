@@ -69,3 +69,35 @@ def blender_lens(K_fx: float, K_fy: float, K_cx: float, K_cy: float, width: int,
             "lens": K_fx * sensor_width_mm / width,
             "shift_x": ((width - 1) / 2.0 - K_cx) / width,
             "shift_y": (K_cy - (height - 1) / 2.0) / width}
+
+
+def blender_intrinsics(lens_mm: float, sensor_width_mm: float, sensor_height_mm: float, sensor_fit: str,
+                       shift_x: float, shift_y: float, width: int, height: int,
+                       pixel_aspect_x: float = 1.0, pixel_aspect_y: float = 1.0) -> dict:
+    """OpenCV intrinsics ``{fx, fy, cx, cy, width, height}`` of a Blender perspective camera, as
+    Blender defines it (``BKE_camera_params_compute_viewplane``; Cycles agrees).
+
+    ``sensor_fit`` "AUTO" fits the sensor *width* to the larger side (pixel aspect included),
+    "HORIZONTAL" the width to the image width, "VERTICAL" the sensor *height* to the image height.
+    Shifts are fractions of that fitted side (in pixels, ``viewfac``); a pixel is
+    ``pixel_aspect_y / pixel_aspect_x`` times as tall as wide, so fy = fx · aspect_x / aspect_y.
+    The inverse, for square pixels and horizontal fit, is :func:`blender_lens`.
+    """
+    ycor = pixel_aspect_y / pixel_aspect_x
+    horizontal = (sensor_fit == "HORIZONTAL"
+                  or (sensor_fit == "AUTO" and pixel_aspect_x * width >= pixel_aspect_y * height))
+    sensor = sensor_height_mm if sensor_fit == "VERTICAL" else sensor_width_mm
+    viewfac = width if horizontal else ycor * height  # the fitted side, in pixel widths
+    fx = lens_mm * viewfac / sensor
+    return {"fx": fx, "fy": fx / ycor, "cx": (width - 1) / 2.0 - shift_x * viewfac,
+            "cy": (height - 1) / 2.0 + shift_y * viewfac / ycor, "width": int(width), "height": int(height)}
+
+
+def opencv_world_to_camera(blender_matrix_world) -> np.ndarray:
+    """OpenCV world→camera (4×4) of a Blender camera object's ``matrix_world`` (scale removed):
+    the inverse of :func:`blender_camera_matrix`."""
+    M = np.asarray(blender_matrix_world, dtype=np.float64)
+    R = M[:3, :3] / np.linalg.norm(M[:3, :3], axis=0)
+    cam_to_world = np.eye(4)
+    cam_to_world[:3, :3], cam_to_world[:3, 3] = R, M[:3, 3]
+    return world_to_camera(cam_to_world @ CV_TO_BLENDER)

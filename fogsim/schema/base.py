@@ -295,6 +295,9 @@ def check(obj: Any, model: type[M], source: str | os.PathLike | None = None, pre
         return model.model_validate(obj)
     except ValidationError as exc:
         line = one_line(exc, prefix)
+        document = getattr(model, "document", None)  # a fogsim document's name: "malformed <it>: …"
+        if isinstance(document, str):
+            line = f"malformed {document}: {line}"
         if source is None:
             raise ValueError(line) from None
         raise InputError(source, line) from None

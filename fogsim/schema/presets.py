@@ -212,6 +212,9 @@ class Volumetric(Closed):
     extent_m: number_in(10, MAX_FOG_EXTENT_M) | None = None  # None = max(400, 12/β_min) capped at 1400 m
     volume_bounces: int_in(1, 1024) = 64
     samples: int_in(1, MAX_SAMPLES) | None = None  # None = the quality preset's samples
+    # fog renders at this fraction of width and height, rebuilt at full size from the clear
+    # render (fogsim.render.fog_rebuild): 0.5 = a quarter of the pixels; 1 = full resolution
+    resolution_scale: number_in(0.1, 1) = 1.0
     denoise: Bool = True  # OpenImageDenoise where this Blender has it
     exposure: Literal[FOG_EXPOSURES] = "none"  # none | auto (median luminance of the clear render)
     keep_linear: Bool = False  # also write linear/<level>/<frame>.exr
@@ -248,8 +251,42 @@ class FogModel(Closed):
         return self
 
 
+SKIES = ("procedural", "hdri")
+#: The CC0 world HDRIs shipped with Blender (``datafiles/studiolights/world/<name>.exr``, in the
+#: bpy module and the Debian binary alike; :func:`fogsim.scene.sky.hdri_file` resolves a name).
+WORLD_HDRIS = ("city", "courtyard", "forest", "interior", "night", "studio", "sunrise", "sunset")
+#: The file types an HDRI may be (Blender reads both).
+HDRI_SUFFIXES = (".exr", ".hdr")
+NIGHT_KEYS = ("sky_strength", "moon_strength", "street_lamp_power_w", "headlight_power_w", "taillight_power_w",
+              "lit_window_fraction")
+#: The outdoor-light keys (day only): the sky, its strength and rotation, the sun, overcast.
+SKY_KEYS = ("sky", "hdri", "strength", "rotation_deg", "sun_elevation_deg", "sun_azimuth_deg", "overcast")
+
+
+def _hdri(v: str) -> str:
+    if v in WORLD_HDRIS or v.lower().endswith(HDRI_SUFFIXES):
+        return v
+    raise ValueError(f"must be a Blender world HDRI ({', '.join(WORLD_HDRIS)}) or a path to an "
+                     f"{' or '.join(HDRI_SUFFIXES)} file, got {v!r}")
+
+
+HdriName = Annotated[str, StringConstraints(strict=True, min_length=1), AfterValidator(_hdri)]
+_HDRI = "an HDRI name or path, or a non-empty list of them"
+Hdri = Annotated[Annotated[HdriName, Tag("<one>")]
+                 | Annotated[Annotated[list[HdriName], Field(min_length=1)], Tag("<list>")],
+                 by_type({"<one>": lambda v: isinstance(v, str), "<list>": is_list}, _HDRI)]
+_OVERCAST = "true, false or a probability in [0, 1]"
+Overcast = Annotated[Annotated[Bool, Tag("<bool>")] | Annotated[Prob, Tag("<p>")],
+                     by_type({"<bool>": lambda v: isinstance(v, bool), "<p>": lambda v: True}, _OVERCAST)]
+
+
 class Lighting(Closed):
-    """``lighting``: the time of day; for night, the light sources' settings (defaults below)."""
+    """``lighting``: the time of day; for night, the light sources' settings (defaults below);
+    by day, the sky (:mod:`fogsim.scene.sky`): procedural (Blender's sky texture and a sun lamp,
+    the default) or an HDRI (a Blender world HDRI by name, or the user's .exr/.hdr; a list = one
+    per frame, seeded), its strength and rotation (uniform in the ranges, per frame), the sun's
+    elevation and azimuth ranges, and ``overcast`` (a probability per frame, true = 1): an
+    overcast frame has no sun and a CIE overcast sky (soft shadows — what a foggy day looks like)."""
 
     time_of_day: Literal[TIMES_OF_DAY] = "day"
     sky_strength: number_in(0, 10) = 0.01  # world background strength (day: 0.3)
@@ -258,27 +295,73 @@ class Lighting(Closed):
     headlight_power_w: number_in(0, 1e7) = 1000.0  # per headlight (low beam)
     taillight_power_w: number_in(0, 1e7) = 8.0  # per tail light
     lit_window_fraction: pair(number_in(0, 1)) = [0.15, 0.45]  # per building, uniform in [low, high]
+    sky: Literal[SKIES] = "procedural"
+    hdri: Hdri = "city"  # sky "hdri": a name in WORLD_HDRIS or a path (relative: to the preset's folder)
+    #: world strength (uniform per frame); None = procedural 0.3, HDRI 1.0, overcast [1.0, 1.6]
+    strength: pair(number_in(0, 100)) | None = None
+    rotation_deg: pair(number_in(-360, 360)) = [0.0, 360.0]  # HDRI turn about the vertical axis
+    sun_elevation_deg: pair(number_in(-90, 90)) | None = None  # None = the style's range
+    sun_azimuth_deg: pair(number_in(-360, 360)) = [0.0, 360.0]
+    overcast: Overcast = False  # probability per frame (true = every frame)
 
     @model_validator(mode="after")
     def _night_keys(self):
-        extra = sorted(set(self.model_fields_set) - {"time_of_day"})
-        if self.time_of_day == "day" and extra:
+        given = set(self.model_fields_set) - {"time_of_day"}
+        if self.time_of_day == "day" and (extra := sorted(given & set(NIGHT_KEYS))):
             raise ValueError(f"lighting keys {extra} apply only to \"time_of_day\": \"night\"")
+        if self.time_of_day == "night" and (extra := sorted(given & set(SKY_KEYS))):
+            raise ValueError(f"lighting keys {extra} apply only to \"time_of_day\": \"day\" (the night has "
+                             f"its own sky and lights)")
+        if self.sky == "procedural" and "hdri" in given:
+            raise ValueError('lighting.hdri needs "sky": "hdri"')
         return self
 
     @classmethod
     def night_defaults(cls) -> dict:
-        """The night settings when a preset sets none (every key but ``time_of_day``)."""
-        return {k: f.default for k, f in cls.model_fields.items() if k != "time_of_day"}
+        """The night settings when a preset sets none."""
+        return {k: cls.model_fields[k].default for k in NIGHT_KEYS}
 
 
 def check_lighting(lighting) -> dict:
-    """A preset's ``lighting`` object checked: {} for day (a day preset is the preset without
-    lighting), else the keys as given (the defaults: :meth:`Lighting.night_defaults`)."""
+    """A preset's ``lighting`` object checked: {} for the default day (a day preset is the preset
+    without lighting), else the keys as given (the defaults: :meth:`Lighting.night_defaults`,
+    :mod:`fogsim.scene.sky`)."""
     from fogsim.schema.base import check
 
     light = lighting if isinstance(lighting, Lighting) else check(lighting, Lighting, prefix="lighting")
-    return {} if light.time_of_day == "day" else light.given()
+    given = light.given()
+    return {} if light.time_of_day == "day" and not set(given) - {"time_of_day"} else given
+
+
+class Noise(Closed):
+    """``sensor.noise``: shot noise (Poisson in electrons, white = ``full_well_e``) + Gaussian read noise."""
+
+    full_well_e: number_in(1, 1e7) = 1000.0  # electrons at linear white
+    read_noise_e: number_in(0, 1e5) = 2.0  # electrons (standard deviation)
+
+
+class MotionBlur(Closed):
+    """``sensor.motion_blur``: Cycles motion blur over the shutter time; the camera moves forward
+    at the ego speed, every driving vehicle along its heading (speeds uniform per frame, m/s)."""
+
+    shutter_s: number_in(0, 1, lo_open=True) = 1 / 60
+    ego_speed_mps: pair(number_in(0, 100)) = [8.0, 14.0]
+    traffic_speed_mps: pair(number_in(0, 100)) = [5.0, 14.0]
+
+
+class SensorSpec(Closed):
+    """``sensor`` (off when absent): the camera model applied to every fog level's image after the
+    fog (:mod:`fogsim.sensor`): exposure in EV, vignetting exponent (cos^a law; 4 = natural),
+    OpenCV lens distortion ``[k1, k2, p1, p2, k3]`` (1–5 coefficients, the rest 0; masks and
+    depth are resampled with it, boxes come from the distorted mask), sensor noise, JPEG quality, and
+    Cycles motion blur (:mod:`fogsim.scene.motion`)."""
+
+    exposure_ev: number_in(-16, 16) = 0.0
+    vignetting: number_in(0, 16) = 0.0
+    distortion: Annotated[list[number_in(-1, 1)], Field(min_length=1, max_length=5)] | None = None
+    noise: Noise | None = None
+    jpeg_quality: int_in(1, 100) | None = None
+    motion_blur: MotionBlur | None = None  # a second, Combined-only Cycles render (labels stay sharp)
 
 
 class FogLevelSpec(Closed):
@@ -324,6 +407,7 @@ class DatasetPreset(_Meta):
     fog_model: FogModel = FogModel()
     labels: Labels = Labels()
     lighting: Lighting = Lighting()
+    sensor: SensorSpec | None = None  # the camera model after the fog; None = a perfect pinhole
     exposure: number_in(0, lo_open=True) = 1.0
     frames: int_in(1) = 8
     seed: int_in(0) = 0

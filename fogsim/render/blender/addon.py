@@ -2,14 +2,21 @@
 
 Panel: 3D Viewport ▸ Sidebar ▸ fogsim. "Build scene" puts frame N of the chosen preset in the
 viewport; "Render dataset" renders the preset's frames with a progress bar (Esc or "Cancel"
-stops after the current frame; a later run resumes).
+stops after the current frame; a later run resumes). The panel overrides the preset's fog levels
+(β or visibility list), fog model and medium and time of day; "Preview fog" renders frame N at one
+β and shows it, boxes drawn, in an Image Editor; "Assign" sets ``fogsim_class`` on the selected
+objects. Every operator reports its errors in the panel (status line and Blender's report), never
+as a traceback.
 """
 from __future__ import annotations
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-_state = {"built": None, "job": None, "loop": None, "timer": None, "cancel": False}
+from fogsim.scene.classes import LABELLED
+
+_state = {"built": None, "job": None, "loop": None, "timer": None, "cancel": False, "preview": None}
+CLASS_PROPERTY = "fogsim_class"  # the custom property scene mode reads an object's class from
 _PRESET_ITEMS: list = []  # Blender needs Python to keep dynamic enum items alive
 
 
@@ -40,17 +47,61 @@ class FogsimSettings(bpy.types.PropertyGroup):
         ("full", "Full", "Pure scattering, white, Henyey-Greenstein g"),
         ("hybrid", "Hybrid", "Half absorption + emission, half scattering: cheaper, lamps still glow"),
         ("ea", "Emission-absorption", "Camera-only emission-absorption: Koschmieder in linear light")])
+    levels_kind: EnumProperty(name="Levels", default="PRESET", items=[
+        ("PRESET", "Preset's", "The preset's fog levels (the paper's five unless it says otherwise)"),
+        ("beta", "β list", "Comma-separated extinction coefficients β in 1/m (\"clear\" or 0 = no fog)"),
+        ("visibility", "Visibility list", "Comma-separated visibilities in metres (V = ln 20 / β)")])
+    levels: StringProperty(name="Values", default="clear,0.03,0.06",
+                           description="β in 1/m or visibilities in metres, comma-separated")
+    time_of_day: EnumProperty(name="Time of day", default="PRESET", items=[
+        ("PRESET", "Preset's", "The preset's lighting (day unless it says night)"),
+        ("day", "Day", "Procedural sky and sun"),
+        ("night", "Night", "Street lamps, vehicle lights, lit windows, no sun (the night preset's lights; "
+                           "its airlight 50 comes only with the night preset)")])
+    preview_beta: FloatProperty(name="Preview β", default=0.06, min=0.0, max=1000.0, precision=3, step=1,
+                                description="Fog density of the preview, 1/m (visibility ln 20 / β)")
+    preview_boxes: BoolProperty(name="Boxes", default=True, description="Draw the kept objects' boxes")
+    assign_class: EnumProperty(name="Class", default=LABELLED[0], description="Class for the selected objects",
+                               items=[(c, c, f"fogsim_class = \"{c}\"") for c in LABELLED]
+                               + [("NONE", "(background)", "Remove fogsim_class: the object becomes background")])
     progress: IntProperty(name="Progress", default=0, min=0, max=100, subtype="PERCENTAGE")
     status: StringProperty(name="Status", default="")
 
 
 def _config(s: FogsimSettings, frames: int | None = None):
-    from fogsim.render.preset import load_render_preset
+    """The panel's preset with its overrides, checked (a ValueError or InputError names the problem)."""
+    from dataclasses import replace
+
+    from fogsim.fog.levels import parse_levels
+    from fogsim.render.preset import check_lighting, load_render_preset
 
     volumetric = s.fog_model == "volumetric"
-    return load_render_preset(s.preset, frames=frames, seed=s.seed, resolution=s.resolution or None,
-                              samples=s.samples or None, fog=None if s.fog_model == "PRESET" else s.fog_model,
-                              fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None)
+    config = load_render_preset(
+        s.preset, frames=frames, seed=s.seed, resolution=s.resolution or None, samples=s.samples or None,
+        levels=s.levels if s.levels_kind == "beta" else None,
+        fog=None if s.fog_model == "PRESET" else s.fog_model,
+        fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None)
+    if s.levels_kind == "visibility":
+        config = replace(config, levels=tuple(parse_levels(visibility=s.levels or "-")))
+    if s.time_of_day != "PRESET":
+        config = replace(config, lighting=check_lighting({"time_of_day": s.time_of_day}))
+    return config
+
+
+def _fail(op, s, message: str):
+    """Report ``message`` in Blender's report and the panel's status line; the operator's result."""
+    op.report({"ERROR"}, message)
+    s.status = f"error: {message}"
+    return {"CANCELLED"}
+
+
+def _problem(exc: Exception) -> str:
+    """One line for the user: fogsim's and the checks' own messages as they are, others with their type."""
+    from fogsim.errors import FogsimError
+
+    if isinstance(exc, (FogsimError, ValueError, OSError)):
+        return str(exc)
+    return f"{type(exc).__name__}: {exc}"
 
 
 class FOGSIM_OT_build_scene(bpy.types.Operator):
@@ -61,7 +112,6 @@ class FOGSIM_OT_build_scene(bpy.types.Operator):
     bl_options = {"REGISTER"}  # no UNDO: an undo would leave _state["built"] pointing at freed data
 
     def execute(self, context):
-        from fogsim.errors import FogsimError
         from fogsim.render.blender import build
         from fogsim.render.frame import describe_frame, scene_meshes
         from fogsim.scene.classes import STUFF
@@ -69,12 +119,11 @@ class FOGSIM_OT_build_scene(bpy.types.Operator):
         s = context.scene.fogsim
         try:
             config = _config(s, frames=s.frame + 1)
-        except (FogsimError, ValueError) as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        _clear_built()
-        desc = describe_frame(config, s.frame)
-        _state["built"] = build.build(desc, context.scene, scene_meshes(desc))
+            _clear_built()
+            desc = describe_frame(config, s.frame)
+            _state["built"] = build.build(desc, context.scene, scene_meshes(desc))
+        except Exception as exc:
+            return _fail(self, s, _problem(exc))
         n = sum(o["class"] not in STUFF for o in desc["objects"])
         s.status = f"frame {s.frame}: {n} objects, style {desc['style']}"
         return {"FINISHED"}
@@ -110,7 +159,6 @@ class FOGSIM_OT_render_dataset(bpy.types.Operator):
         return self.execute(context)
 
     def execute(self, context):
-        from fogsim.errors import FogsimError
         from fogsim.render.blender.job import RenderJob
         from fogsim.render.loop import FrameLoop
 
@@ -120,9 +168,8 @@ class FOGSIM_OT_render_dataset(bpy.types.Operator):
             return {"CANCELLED"}
         try:
             job = RenderJob(_config(s, frames=s.frames), bpy.path.abspath(s.output), gpu=s.use_gpu)
-        except (FogsimError, ValueError, OSError) as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
+        except Exception as exc:
+            return _fail(self, s, _problem(exc))
         loop = FrameLoop(job)
         _state.update(job=job, loop=loop, cancel=False)
         if bpy.app.background or context.window is None:  # no event loop: run to the end
@@ -182,6 +229,56 @@ class FOGSIM_OT_cancel(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class FOGSIM_OT_preview_fog(bpy.types.Operator):
+    """Render frame N of the preset and show it fogged at the preview β, boxes drawn, in an Image Editor"""
+
+    bl_idname = "fogsim.preview_fog"
+    bl_label = "Preview fog"
+
+    def execute(self, context):
+        from fogsim.render.blender.preview import open_in_image_editor, render_preview, show_image
+
+        s, wm = context.scene.fogsim, context.window_manager
+        if _state["job"] is not None:
+            return _fail(self, s, "a render is running: preview after it (or cancel it)")
+        wm.progress_begin(0, 100)
+        try:
+            config = _config(s, frames=s.frame + 1)
+            preview = render_preview(config, s.frame, s.preview_beta, gpu=s.use_gpu, boxes=s.preview_boxes,
+                                     progress=lambda f: wm.progress_update(int(100 * f)))
+            img = show_image(preview.image)
+        except Exception as exc:
+            return _fail(self, s, _problem(exc))
+        finally:
+            wm.progress_end()
+        _state["preview"] = preview
+        shown = open_in_image_editor(context, img)
+        s.status = f"frame {s.frame}: {preview.caption}" + ("" if shown else f" (image \"{img.name}\")")
+        return {"FINISHED"}
+
+
+class FOGSIM_OT_assign_class(bpy.types.Operator):
+    """Set the fogsim_class custom property of the selected objects (what scene mode labels them as)"""
+
+    bl_idname = "fogsim.assign_class"
+    bl_label = "Assign"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        s = context.scene.fogsim
+        objects = list(context.selected_objects or ())
+        if not objects:
+            return _fail(self, s, "no object selected: select the objects to label first")
+        for obj in objects:
+            if s.assign_class == "NONE":
+                obj.pop(CLASS_PROPERTY, None)
+            else:
+                obj[CLASS_PROPERTY] = s.assign_class
+        what = "background" if s.assign_class == "NONE" else s.assign_class
+        s.status = f"{len(objects)} object{'s' * (len(objects) != 1)} → {what}"
+        return {"FINISHED"}
+
+
 class FOGSIM_PT_panel(bpy.types.Panel):
     bl_label = "fogsim"
     bl_space_type = "VIEW_3D"
@@ -197,14 +294,33 @@ class FOGSIM_PT_panel(bpy.types.Panel):
         row = layout.row(align=True)
         row.operator("fogsim.build_scene", icon="SCENE_DATA")
         row.operator("fogsim.clear_scene", icon="TRASH")
+        layout.prop(s, "time_of_day")
+
         box = layout.box()
+        box.label(text="Fog", icon="MOD_FLUIDSIM")
+        box.prop(s, "levels_kind")
+        if s.levels_kind != "PRESET":
+            box.prop(s, "levels")
+        box.prop(s, "fog_model")
+        if s.fog_model == "volumetric":
+            box.prop(s, "fog_medium")
+        row = box.row(align=True)
+        row.prop(s, "preview_beta", text="Preview β")
+        row.prop(s, "preview_boxes", toggle=True, icon="SELECT_SET", icon_only=True)
+        box.operator("fogsim.preview_fog", icon="IMAGE_DATA")
+
+        box = layout.box()
+        box.label(text="Label selected objects", icon="OBJECT_DATA")
+        row = box.row(align=True)
+        row.prop(s, "assign_class", text="")
+        row.operator("fogsim.assign_class")
+
+        box = layout.box()
+        box.label(text="Dataset", icon="RENDER_ANIMATION")
         box.prop(s, "frames")
         box.prop(s, "resolution")
         box.prop(s, "samples")
         box.prop(s, "use_gpu")
-        box.prop(s, "fog_model")
-        if s.fog_model == "volumetric":
-            box.prop(s, "fog_medium")
         box.prop(s, "output")
         if _state["job"] is None:
             box.operator("fogsim.render_dataset", icon="RENDER_ANIMATION")
@@ -212,11 +328,11 @@ class FOGSIM_PT_panel(bpy.types.Panel):
             box.prop(s, "progress", slider=True)
             box.operator("fogsim.cancel", icon="CANCEL")
         if s.status:
-            layout.label(text=s.status)
+            layout.label(text=s.status, icon="ERROR" if s.status.startswith("error:") else "INFO")
 
 
 CLASSES = (FogsimSettings, FOGSIM_OT_build_scene, FOGSIM_OT_clear_scene, FOGSIM_OT_render_dataset,
-           FOGSIM_OT_cancel, FOGSIM_PT_panel)
+           FOGSIM_OT_cancel, FOGSIM_OT_preview_fog, FOGSIM_OT_assign_class, FOGSIM_PT_panel)
 
 
 def register():
@@ -228,7 +344,7 @@ def register():
 def unregister():
     if _state["timer"] is not None and bpy.context.window_manager is not None:
         bpy.context.window_manager.event_timer_remove(_state["timer"])
-    _state.update(job=None, loop=None, timer=None, built=None)
+    _state.update(job=None, loop=None, timer=None, built=None, preview=None)
     del bpy.types.Scene.fogsim
     for cls in reversed(CLASSES):
         bpy.utils.unregister_class(cls)

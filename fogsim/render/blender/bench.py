@@ -7,7 +7,10 @@ the median seconds per frame for scene description, bpy build, Cycles render, gr
 fog and writing; the share of the frame spent outside Cycles; resident memory after frame
 10 and after the last frame. The baseline, measured in the same run on the first frames'
 scenes, is Blender's factory Cycles light-path and world settings at the same sample count,
-so the ratio shows what fogsim's render settings buy. Targets (``docs/speed.md``): draft ≤ 6 s per
+so the ratio shows what fogsim's render settings buy. The same first scenes are rendered again
+under the procedural sky, an HDRI (``city``) and an overcast sky, interleaved frame by frame, and
+the Cycles seconds of each are printed with their ratio to the procedural sky (``--no-skies``
+skips it). Targets (``docs/speed.md``): draft ≤ 6 s per
 frame; outside Cycles ≤ 15 %; RSS growth frame 10 → 100 ≤ 100 MB.
 """
 from __future__ import annotations
@@ -57,6 +60,38 @@ def factory_render_seconds(job, index: int) -> float:
     return seconds
 
 
+#: the skies ``fogsim bench render`` times against each other (the bundled presets' lighting)
+SKIES = {"procedural": {}, "hdri": {"sky": "hdri", "hdri": "city"}, "overcast": {"overcast": True}}
+
+
+def sky_render_seconds(job, index: int, lighting: dict) -> float:
+    """Cycles seconds of frame ``index``'s scene under ``lighting`` (fogsim's render settings)."""
+    from dataclasses import replace
+
+    from fogsim.render.preset import check_lighting
+
+    config = replace(job.config, lighting=check_lighting(lighting))
+    desc = describe_frame(config, index)
+    scene = bpy.data.scenes.new("sky_bench")
+    cycles.configure(scene, config.quality, frame_seed(config.seed, index))
+    built = build.build(desc, scene, scene_meshes(desc))
+    t0 = time.perf_counter()
+    cycles.render(scene)
+    seconds = time.perf_counter() - t0
+    build.clear(built)
+    bpy.data.scenes.remove(scene)
+    return seconds
+
+
+def sky_costs(job, frames: int) -> dict[str, float]:
+    """Median Cycles seconds per sky over the first ``frames`` scenes, skies interleaved per frame."""
+    times = {name: [] for name in SKIES}
+    for index in range(frames):
+        for name, lighting in SKIES.items():
+            times[name].append(sky_render_seconds(job, index, lighting))
+    return {name: statistics.median(t) for name, t in times.items()}
+
+
 def run(args) -> int:
     """``args``: frames, preset, resolution, baseline_frames, out (see ``fogsim bench render --help``)."""
     from fogsim.render.blender.job import RenderJob
@@ -72,6 +107,7 @@ def run(args) -> int:
         rss.append(rss_mb())
         print(f"frame {i:4d}: {sum(meta['timings_s'].values()):5.2f} s  rss {rss[-1]:7.1f} MB", flush=True)
     base = [factory_render_seconds(job, i) for i in range(min(args.baseline_frames, args.frames))]
+    skies = sky_costs(job, min(args.baseline_frames, args.frames)) if getattr(args, "skies", True) else None
     job.close()
 
     med = {s: statistics.median(t[s] for t in times) for s in STAGES}
@@ -86,6 +122,9 @@ def run(args) -> int:
     print(f"  outside Cycles {outside:.3f} s = {100 * outside / total:.1f} % of the frame")
     print(f"  Cycles render vs factory light paths + world map (same scenes, {len(base)} frames): "
           f"{ours:.2f} s vs {statistics.median(base):.2f} s = {statistics.median(base) / ours:.2f}× faster")
+    if skies:
+        print(f"  Cycles render by sky (same scenes, {len(base)} frames, interleaved): "
+              + ", ".join(f"{k} {v:.2f} s ({v / skies['procedural']:.2f}×)" for k, v in skies.items()))
     at10 = rss[min(9, len(rss) - 1)]
     print(f"  RSS after frame 10: {at10:.0f} MB, after frame {len(rss)}: {rss[-1]:.0f} MB, "
           f"growth {rss[-1] - at10:+.0f} MB")
@@ -96,7 +135,9 @@ def run(args) -> int:
     print(f"bench render: {total:.2f} s per frame, {100 * outside / total:.1f} % outside Cycles, Cycles "
           f"{statistics.median(base) / ours:.2f}× faster than factory light paths; "
           f"RSS growth {rss[-1] - at10:+.0f} MB; "
-          f"{sum(ok for _, ok in checks)}/{len(checks)} targets met")  # the summary line (--quiet)
+          + (f"HDRI {skies['hdri'] / skies['procedural']:.2f}×, overcast "
+             f"{skies['overcast'] / skies['procedural']:.2f}× the procedural sky; " if skies else "")
+          + f"{sum(ok for _, ok in checks)}/{len(checks)} targets met")  # the summary line (--quiet)
     return 0
 
 
@@ -116,11 +157,15 @@ def run_fog(args) -> int:
     """``fogsim bench render-fog``: a volumetric frame against a Koschmieder frame, same scenes.
 
     ``args``: preset, resolution, frames, repeat, samples (clear render), fog_samples (fog
-    renders; default the same), levels, out. After one untimed warm-up frame (Koschmieder), the
-    variants are interleaved frame by frame: Koschmieder
-    (clear render + post-process), volumetric "full" with OIDN (where this Blender has it),
-    volumetric "hybrid" (w = 0.5, OIDN too). Prints median seconds per frame, the fog renders'
-    share, seconds per fog level, and the ratios against the Koschmieder frame of the same run.
+    renders; default the same), levels, fast_scale, out. After one untimed warm-up frame
+    (Koschmieder), the variants are interleaved frame by frame: Koschmieder (clear render +
+    post-process), volumetric "full" with OIDN (where this Blender has it), volumetric "hybrid"
+    (w = 0.5, OIDN too), "hybrid-fast" (the same at ``resolution_scale`` = fast_scale, rebuilt
+    at full size by :mod:`fogsim.render.fog_rebuild`) and "hybrid-seed2" (hybrid with another
+    noise seed: the noise floor). Prints median seconds per frame, the fog renders' share,
+    seconds per fog level, the ratios against the Koschmieder frame of the same run, and per fog
+    level the RMS error (8-bit sRGB) of hybrid-fast against full-resolution hybrid beside the
+    noise floor (hybrid-seed2 against hybrid).
     """
     from fogsim.render.blender.compat import has_denoiser
     from fogsim.render.blender.job import RenderJob
@@ -132,7 +177,11 @@ def run_fog(args) -> int:
     fog_samples = args.fog_samples or base.quality.get("samples")
     variants = {"koschmieder": base,
                 "full+oidn": _fog_variant(base, medium="full", denoise=True, samples=fog_samples),
-                "hybrid": _fog_variant(base, medium="hybrid", denoise=True, samples=fog_samples)}
+                "hybrid": _fog_variant(base, medium="hybrid", denoise=True, samples=fog_samples),
+                "hybrid-fast": _fog_variant(base, medium="hybrid", denoise=True, samples=fog_samples,
+                                            resolution_scale=args.fast_scale),
+                "hybrid-seed2": _fog_variant(base, medium="hybrid", denoise=True, samples=fog_samples,
+                                             noise_seed=1)}
     jobs = {name: RenderJob(cfg, root / name, resume=False) for name, cfg in variants.items()}
     n_fog = sum(lv.beta > 0 for lv in base.levels)
     times = {name: [] for name in variants}
@@ -168,9 +217,42 @@ def run_fog(args) -> int:
         one = (frame - per_level * (n_fog - 1)) / k if n_fog else frame / k
         ratios[name] = frame / k
         print(f"  {name:<12}{frame:9.2f}{frame / k:10.2f}{per_level:13.2f}{one:17.2f}")
-    ok = ratios["hybrid"] <= 3.0
-    print(f"  [{'ok' if ok else 'MISSED'}] hybrid frame ≤ 3× the Koschmieder frame ({ratios['hybrid']:.2f}×)")
+    errors = fast_errors(root, base, args.frames)
+    print(f"  error against full-resolution hybrid, 8-bit sRGB RMS (median over {args.frames} frames):")
+    print(f"  {'level':<10}{'hybrid-fast':>12}{'noise floor':>13}{'ratio':>8}")
+    for key, (fast, floor) in errors.items():
+        print(f"  {key:<10}{fast:12.2f}{floor:13.2f}{fast / floor if floor else float('nan'):8.2f}")
+    fast_rms = max((f for f, _ in errors.values()), default=float("nan"))
+    ok = ratios["hybrid-fast"] <= 3.0
+    print(f"  [{'ok' if ok else 'MISSED'}] hybrid-fast frame ≤ 3× the Koschmieder frame "
+          f"({ratios['hybrid-fast']:.2f}×; full-resolution hybrid {ratios['hybrid']:.2f}×)")
     print(f"  (outputs in {root})")
     print(f"bench render-fog: Koschmieder {k:.2f} s per frame; volumetric full+oidn {ratios['full+oidn']:.2f}×, "
-          f"hybrid {ratios['hybrid']:.2f}× ({'ok' if ok else 'MISSED'}: ≤ 3×)")  # the summary line (--quiet)
+          f"hybrid {ratios['hybrid']:.2f}×, hybrid-fast (scale {args.fast_scale:g}) {ratios['hybrid-fast']:.2f}× "
+          f"({'ok' if ok else 'MISSED'}: ≤ 3×), its worst-level RMS {fast_rms:.2f}/255")  # the summary line (--quiet)
     return 0
+
+
+def fast_errors(root: Path, config, frames: int) -> dict:
+    """Level key → (median RMS of hybrid-fast vs hybrid, median RMS of hybrid-seed2 vs hybrid),
+    8-bit sRGB, over the frames of a :func:`run_fog` run in ``root``."""
+    import numpy as np
+
+    from fogsim.dataset.layout import DatasetLayout
+    from fogsim.fileio import read_image
+    from fogsim.render.frame import frame_name
+
+    lay = {v: DatasetLayout(root / v) for v in ("hybrid", "hybrid-fast", "hybrid-seed2")}
+
+    def rms(variant: str, key: str, name: str) -> float:
+        a = read_image(lay[variant].image(key, name)).astype(np.float64)
+        b = read_image(lay["hybrid"].image(key, name)).astype(np.float64)
+        return float(np.sqrt(np.mean((a - b) ** 2)))
+
+    out = {}
+    for lv in config.levels:
+        if lv.beta > 0:
+            names = [frame_name(i) for i in range(frames)]
+            out[lv.key] = (statistics.median(rms("hybrid-fast", lv.key, n) for n in names),
+                           statistics.median(rms("hybrid-seed2", lv.key, n) for n in names))
+    return out

@@ -13,9 +13,10 @@ import mathutils
 import numpy as np
 
 from fogsim.camera import Intrinsics
-from fogsim.render.blender.compat import set_mesh_polygons, sky_type_physical
+from fogsim.render.blender.compat import set_mesh_polygons
 from fogsim.render.blender.lights import add_lights
 from fogsim.render.blender.materials import make_material
+from fogsim.render.blender.sky import make_world
 from fogsim.scene.geometry import material_key, world_parts
 from fogsim.scene.pose import blender_camera_matrix, blender_lens
 
@@ -84,25 +85,9 @@ def set_camera_pose(scene, world_to_camera) -> None:
 
 
 def _lighting(built: Built, light: dict, scene) -> None:
+    """The world (procedural sky, HDRI or overcast: :mod:`fogsim.render.blender.sky`) and the sun lamp."""
     elev, azim = math.radians(light["sun_elevation_deg"]), math.radians(light["sun_azimuth_deg"])
-    world = bpy.data.worlds.new("fogsim_world")
-    world.use_nodes = True
-    nt = world.node_tree
-    bg = nt.nodes["Background"]
-    sky = nt.nodes.new("ShaderNodeTexSky")
-    chosen = sky_type_physical(sky)
-    if chosen in ("NISHITA", "SINGLE_SCATTERING", "MULTIPLE_SCATTERING"):
-        sky.sun_disc = False  # the sun lamp lights the scene; the sky gives ambient light
-        sky.sun_elevation, sky.sun_rotation = elev, azim
-        sky.altitude = 100.0
-    else:
-        sky.sun_direction = (math.cos(elev) * math.sin(azim), math.cos(elev) * math.cos(azim), math.sin(elev))
-    nt.links.new(sky.outputs["Color"], bg.inputs["Color"])
-    bg.inputs["Strength"].default_value = light.get("sky_strength", 0.25)
-    # a small importance map: building Cycles' default 1024² map costs ~0.7 s per frame
-    world.cycles.sampling_method = "MANUAL"
-    world.cycles.sample_map_resolution = 64
-    scene.world = world
+    scene.world = make_world(built, light)
     sun = bpy.data.lights.new("fogsim_sun", "SUN")
     sun.energy = light.get("sun_strength", 4.0)
     sun.angle = math.radians(light.get("sun_angle_deg", 0.6))
@@ -112,7 +97,7 @@ def _lighting(built: Built, light: dict, scene) -> None:
     sun_obj.rotation_euler = (math.pi / 2 - elev, 0.0, azim + math.pi)
     built.collection.objects.link(sun_obj)
     built.objects.append(sun_obj)
-    built.others += [("worlds", world), ("lights", sun)]
+    built.others += [("lights", sun)]
 
 
 def build(desc: dict, scene=None, meshes: dict | None = None) -> Built:

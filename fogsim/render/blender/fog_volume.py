@@ -24,6 +24,7 @@ Facts this follows (``docs/fog-physics.md``; measured in Blender 3.4 and 5.0):
   scattering), adaptive sampling off (noise must not depend on the pixel), OIDN when this
   Blender has it, 5.0's ``volume_biased`` False where it exists, Z and object-index passes off
   (a scattering fog corrupts them on 25–30 % of pixels: labels come from the clear render),
+  ``resolution_percentage`` from ``resolution_scale`` (cheap fog: :mod:`fogsim.render.fog_rebuild`),
   and ``transparent_max_bounces`` raised by 8: Blender 3.4 counts the domain boundary as a
   transparent bounce of shadow rays, so with draft's 0 the sun and sky never reach a point
   inside the fog (measured: sun-lit walls 0.10 too dark in the EA check).
@@ -194,7 +195,10 @@ def fog_render_settings(scene, settings: dict, quality: dict, seed: int):
     saved_passes = (layer.use_pass_z, layer.use_pass_object_index)
     saved_persistent = scene.render.use_persistent_data
     saved_clip = scene.camera.data.clip_start
+    saved_pct = scene.render.resolution_percentage
     try:
+        # cheap fog: the fog levels at a fraction of the size, rebuilt by fogsim.render.fog_rebuild
+        scene.render.resolution_percentage = max(1, round(100 * float(settings.get("resolution_scale", 1.0))))
         # camera rays start at clip_start: the fog must start at the lens (0.1 m of missing fog
         # left a −0.0036 bias at 0–10 m, β = 0.12, in the EA check)
         scene.camera.data.clip_start = FOG_CLIP_START_M
@@ -220,10 +224,12 @@ def fog_render_settings(scene, settings: dict, quality: dict, seed: int):
                "sample_clamp_indirect": cy.sample_clamp_indirect, "seed": cy.seed,
                "transparent_max_bounces": cy.transparent_max_bounces,
                "clip_start_m": scene.camera.data.clip_start,
-               "volume_biased": biased, "passes": "Combined"}
+               "volume_biased": biased, "passes": "Combined",
+               "resolution_percentage": scene.render.resolution_percentage}
     finally:
         for n, v in saved.items():
             setattr(cy, n, v)
         layer.use_pass_z, layer.use_pass_object_index = saved_passes
         scene.render.use_persistent_data = saved_persistent
         scene.camera.data.clip_start = saved_clip
+        scene.render.resolution_percentage = saved_pct

@@ -11,6 +11,7 @@ own frames there and beside the outputs (:mod:`fogsim.render.leftovers`).
 from __future__ import annotations
 
 import time
+from contextlib import nullcontext
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,6 +19,7 @@ import bpy
 import numpy as np
 
 from fogsim.dataset.layout import DatasetLayout
+from fogsim.dataset.reader import frame_records
 from fogsim.dataset.writer import finalize
 from fogsim.deps import package_versions
 from fogsim.depth.stereo import right_world_to_camera
@@ -27,12 +29,19 @@ from fogsim.render.blender import build as scene_build
 from fogsim.render.blender import fog_volume
 from fogsim.render.blender.compat import has_mie_phase
 from fogsim.render.blender.cycles import configure, render, render_combined
+from fogsim.render.blender.motion import motion_blur
 from fogsim.render.frame import DescribedFrame, FogRenders, FramePasses, check_scene, commit_frame, frame_name
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
 from fogsim.render.preset import RenderConfig, frame_volumetric, volumetric_settings
 from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
+from fogsim.scene.motion import frame_motion
 
 RUN_FILE = "render_run.json"
+
+
+def _is_frame_name(name: str) -> bool:
+    """A rendered frame's name: its index, six digits or more (:func:`frame_name`)."""
+    return len(name) >= 6 and name.isdigit() and name == frame_name(int(name))
 SCENE_NAME = "fogsim"
 
 
@@ -97,12 +106,20 @@ class RenderJob:
         right = fog_linear = fog_cycles = None
         tmp = render_tmp_dir(self.layout)
         name = frame_name(index)
+        motion = frame_motion(self.config.sensor.get("motion_blur"), desc, frame_seed(self.config.seed, index))
+        blurred = (lambda: motion_blur(built, self.scene, motion)) if motion else nullcontext
         try:
             passes = render(self.scene, tmp / f"{name}.left.exr", self.quiet)
+            if motion is not None:  # the image again with motion blur; labels, depth, masks stay sharp
+                with blurred():
+                    passes = replace(passes, rgb_linear=render_combined(self.scene, tmp / f"{name}.blur.exr",
+                                                                        self.quiet))
+                info["motion_blur"] = motion
             t_clear = time.perf_counter()
             if self.fog is not None:  # one Combined-only render per β > 0, fog layer in place, same seed
                 fog = frame_volumetric(self.fog, desc)
-                fog_linear, fog_cycles = self._fog_renders(built, fog, info["seed"], tmp / f"{name}.fog.exr")
+                with blurred():
+                    fog_linear, fog_cycles = self._fog_renders(built, fog, info["seed"], tmp / f"{name}.fog.exr")
             t_fog = time.perf_counter()
             if self.config.stereo_baseline:  # the right camera of a rectified pair, same scene
                 w2c = right_world_to_camera(desc["camera"]["world_to_camera"], self.config.stereo_baseline)
@@ -142,6 +159,7 @@ class RenderJob:
         from fogsim.colour import linear_to_srgb8
         from fogsim.fileio import write_rgb_exr
         from fogsim.fog.physics import far_luminance
+        from fogsim.render.fog_rebuild import RULE, rebuild
         from fogsim.render.volumetric import auto_exposure
 
         s, cfg = fog, self.config
@@ -153,6 +171,8 @@ class RenderJob:
                 img = passes.rgb_linear
             else:
                 img = fog_linear[lv.key]
+                if img.shape != passes.rgb_linear.shape:  # cheap fog: rendered at resolution_scale
+                    img = rebuild(passes.rgb_linear, img, ray, lv.beta)
                 factors[lv.key] = auto_exposure(passes.rgb_linear, img) if s["exposure"] == "auto" else 1.0
                 horizon[lv.key] = far_luminance(img, ray, lv.beta)  # the horizon radiance
                 foggy[lv.key] = linear_to_srgb8(img * np.float32(factors[lv.key]), cfg.exposure)
@@ -168,6 +188,8 @@ class RenderJob:
                 "exposure": s["exposure"], "exposure_rule": "median luminance → the clear render's"
                 if s["exposure"] == "auto" else None, "exposure_factor": factors,
                 "horizon_radiance": horizon, "horizon_rule": "median linear luminance beyond ln(20)/β",
+                "resolution_scale": s["resolution_scale"],
+                "rebuild_rule": RULE if cycles_used["resolution_percentage"] < 100 else None,
                 "seed": cycles_used["seed"], "noise_seed": s["noise_seed"], "cycles": cycles_used,
                 "linear": linear or None, "clear_level": "the clear render (labels, depth, masks come from it)"}
         if "phase" in medium:  # what Blender was given (MIE: the droplet diameter replaces g)
@@ -176,14 +198,26 @@ class RenderJob:
                 info["diameter_um"] = s["diameter_um"]
         return FogRenders(foggy, info)
 
-    def finish(self) -> None:
-        """Write the dataset-level files (COCO, YAMLs, manifest, contact sheet) over all done frames."""
-        frames = self.layout.done_frames()
-        manifest = {"preset": self.config.to_dict(), "seed": self.config.seed,
-                    "frame_seeds": {f: frame_seed(self.config.seed, int(f)) for f in frames},
+    def finish(self) -> dict:
+        """Write the dataset-level files (COCO, YAMLs, manifest, contact sheet) over all done frames
+        whose records pass the schema (the others are skipped and named in ``skipped_frames``);
+        returns ``dataset.json``'s content. ``preset.frames`` is never below the frames the
+        dataset holds (a resume with fewer ``--frames`` does not shrink it)."""
+        records = frame_records(self.layout)
+        records.skipped += [f"{self.layout.meta(f)}: not a frame of a render (frame names are 6 digits)"
+                            for f in records.frames if not _is_frame_name(f)]
+        keep = [n for n, f in enumerate(records.frames) if _is_frame_name(f)]
+        records.frames = [records.frames[n] for n in keep]
+        records.metas = [records.metas[n] for n in keep]
+        preset = self.config.to_dict()
+        if records.frames:
+            preset["frames"] = max(preset["frames"], max(int(f) for f in records.frames) + 1)
+        manifest = {"preset": preset, "seed": self.config.seed,
+                    "frame_seeds": {f: frame_seed(self.config.seed, int(f)) for f in records.frames},
                     "frame_seed_rule": FRAME_SEED_RULE,
                     "blender": bpy.app.version_string, "versions": package_versions()}
-        finalize(self.layout, self.config.levels, manifest, self.config.train_fraction, seed=self.config.seed)
+        return finalize(self.layout, self.config.levels, manifest, self.config.train_fraction,
+                        seed=self.config.seed, records=records)
 
     def close(self) -> None:
         """Remove the scene and this job's temporary renders (the folder too, once empty)."""

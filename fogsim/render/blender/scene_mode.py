@@ -1,0 +1,600 @@
+"""Scene mode: any Blender scene becomes a labelled fog dataset.
+
+    fogsim render --scene FILE.blend [--camera NAME] [--frame-range S:E[:STEP]] [--class-map JSON] --out OUT
+    blender -b FILE.blend -P scripts/render_batch.py -- --scene current --out OUT
+
+The add-on's *Source: current scene* calls :func:`scene_job` (``scene_job(bpy.context.scene, out,
+…)``) and steps the job it returns with :class:`fogsim.render.loop.FrameLoop`, as it does a
+:class:`~fogsim.render.blender.job.RenderJob`; :meth:`SceneJob.close` puts the scene back.
+
+Per frame the user's scene is set to that frame and its evaluated depsgraph walked
+(:func:`realise`): every visible geometry *instance* (plain objects, linked duplicates, collection
+instances, particle and geometry-nodes instances) becomes one realised mesh object — modifiers
+applied, the world matrix of that instance, its materials and ray-visibility flags — in a render
+scene, a copy of the user's scene (its render settings, world, view layer) whose own collection
+holds only those objects, its lights and its camera. An object's pass index is its fogsim id, so
+the mask, the boxes and the silhouettes (:mod:`fogsim.render.silhouette`, from the same realised
+meshes) agree. The user's data is read only (the frame is restored on close); the ``.blend`` on
+disk is never written.
+
+Classes (:mod:`fogsim.render.scene_classes`): ``fogsim_class`` on an object, else the class map's
+match of its name; else inherited from its parents, then from its collections. One labelled
+object is the labelled ancestor with every unlabelled mesh below it (a labelled parent = the union
+of its children); a collection instance is one object per instancer (its class may come from the
+instanced collection); particle and geometry-nodes instances are one object each.
+Hidden (``hide_render``, an excluded or render-disabled collection) objects are left out; holdout
+and camera-invisible objects render as Blender renders them and are never labelled.
+Blender's viewport evaluation is walked, made to see what a render sees (:func:`render_visibility`:
+objects hidden in viewports but not in renders shown, modifiers as in renders; put back after).
+Limits: viewport levels of subdivision and viewport particle amounts apply; volumes, point clouds
+and hair curves are not rendered; motion blur is turned off (the realised objects do not move
+within a frame).
+"""
+from __future__ import annotations
+
+import time
+from collections import Counter
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import bpy
+import mathutils
+import numpy as np
+
+from fogsim.dataset.layout import DatasetLayout
+from fogsim.dataset.writer import finalize
+from fogsim.deps import package_versions
+from fogsim.errors import InputError
+from fogsim.fileio import remove_stale_parts
+from fogsim.fog.levels import parse_levels
+from fogsim.render.blender.compat import has_denoiser, has_mie_phase, set_multilayer_exr
+from fogsim.render.blender.cycles import render
+from fogsim.render.blender.device import use_device
+from fogsim.render.blender.job import RUN_FILE, RenderJob, dataset_parameters
+from fogsim.render.blender.output import blender_output
+from fogsim.render.fog_settings import fog_overrides
+from fogsim.render.frame import DescribedFrame, commit_frame, frame_name
+from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
+from fogsim.render.preset import RenderConfig, check_size, frame_volumetric, parse_resolution, volumetric_settings
+from fogsim.render.scene_classes import PROPERTY, ClassMap
+from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
+from fogsim.scene.classes import is_labelled
+from fogsim.scene.pose import blender_intrinsics, opencv_world_to_camera
+
+GEOMETRY = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+#: object types Blender renders that scene mode does not (counted in the run's summary)
+NOT_RENDERED = {"VOLUME", "POINTCLOUD", "CURVES", "GPENCIL", "GREASEPENCIL"}
+RENDER_SCENE = "fogsim_scene_mode"
+#: what a visible labelled object's ``kind`` says: one object, or one instance
+KINDS = ("object", "instance")
+
+
+def open_blend(path: str | Path, quiet: bool = False):
+    """Load ``path`` into this Blender session (read only: nothing is saved); its active scene."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(path, "no such .blend file")
+    try:
+        with blender_output(quiet):
+            bpy.ops.wm.open_mainfile(filepath=str(p.resolve()), load_ui=False)
+    except RuntimeError as exc:
+        raise InputError(path, f"Blender cannot open it ({str(exc).strip()})") from None
+    return bpy.context.scene
+
+
+def open_scene(arg: str, quiet: bool = False):
+    """``--scene``: "current" = the scene Blender has open (``blender -b FILE.blend -P …``), else a
+    .blend path opened with :func:`open_blend`."""
+    return bpy.context.scene if arg == "current" else open_blend(arg, quiet)
+
+
+def parse_frame_range(text: str | None, scene) -> tuple[int, int, int]:
+    """``--frame-range S:E[:STEP]`` (inclusive, as Blender's) or the scene's own range."""
+    if not text:
+        return scene.frame_start, scene.frame_end, max(1, scene.frame_step)
+    try:
+        parts = [int(v) for v in text.split(":")]
+        start, end, step = (parts + [1])[:3] if len(parts) in (2, 3) else (None, None, None)
+    except ValueError:
+        start = None
+    if start is None or step < 1 or end < start:
+        raise ValueError(f"--frame-range must look like START:END or START:END:STEP with END ≥ START and "
+                         f"STEP ≥ 1, got {text!r}")
+    return start, end, step
+
+
+def scene_camera(scene, name: str | None, source: str):
+    """The camera object to render through: ``name`` or the scene's; refused when missing,
+    orthographic or panoramic."""
+    if name:
+        cam = bpy.data.objects.get(name)
+        if cam is None or cam.type != "CAMERA":
+            raise InputError(source, f"no camera object named {name!r} (cameras: "
+                                     f"{', '.join(o.name for o in bpy.data.objects if o.type == 'CAMERA') or 'none'})")
+    else:
+        cam = scene.camera
+        if cam is None:
+            raise InputError(source, f"scene {scene.name!r} has no active camera; pass --camera NAME")
+    if cam.data.type != "PERSP":
+        kind = {"ORTHO": "orthographic", "PANO": "panoramic"}.get(cam.data.type, cam.data.type)
+        raise InputError(source, f"camera {cam.name!r} is {kind}; fogsim needs a perspective camera "
+                                 "(depth, boxes and fog assume a pinhole)")
+    return cam
+
+
+# ----------------------------------------------------------------------------- classes
+@dataclass
+class _Classes:
+    """Class lookups over one scene: objects, parents and collections (render visibility too)."""
+
+    scene: object
+    class_map: ClassMap
+    parents: dict = field(default_factory=dict)  # collection name → parent collections
+    in_scene: set = field(default_factory=set)   # names of the collections of this view layer
+    hidden: set = field(default_factory=set)     # names of render-hidden collections of this view layer
+    holdout: set = field(default_factory=set)    # names of holdout collections
+
+    def __post_init__(self):
+        for coll in [self.scene.collection, *bpy.data.collections]:
+            for child in coll.children:
+                self.parents.setdefault(child.name, []).append(coll)
+        self._walk(bpy.context.view_layer.layer_collection, False, False)
+
+    def _walk(self, lc, hidden: bool, holdout: bool) -> None:
+        hidden = hidden or lc.exclude or lc.collection.hide_render
+        holdout = holdout or lc.holdout
+        self.in_scene.add(lc.collection.name)
+        if hidden:
+            self.hidden.add(lc.collection.name)
+        if holdout:
+            self.holdout.add(lc.collection.name)
+        for child in lc.children:
+            self._walk(child, hidden, holdout)
+
+    def direct(self, idblock) -> str | None:
+        return self.class_map.direct(idblock.name, idblock.get(PROPERTY), f"{type(idblock).__name__} "
+                                     f"{idblock.name!r} ({PROPERTY})")
+
+    def own_chain(self, obj) -> tuple[object, str] | tuple[None, None]:
+        """The nearest of ``obj`` and its parents that carries a class itself, and that class."""
+        while obj is not None:
+            cls = self.direct(obj)
+            if cls is not None:
+                return obj, cls
+            obj = obj.parent
+        return None, None
+
+    def of_collections(self, collections) -> str | None:
+        """The class of the nearest labelled collection among ``collections`` and their parents."""
+        todo, seen = list(collections), set()
+        while todo:
+            coll = todo.pop(0)
+            if coll.name in seen:
+                continue
+            seen.add(coll.name)
+            cls = self.direct(coll)
+            if cls is not None:
+                return cls
+            todo += self.parents.get(coll.name, [])
+        return None
+
+    def render_hidden(self, obj) -> bool:
+        if obj.hide_render:
+            return True
+        colls = [c.name for c in obj.users_collection if c.name in self.in_scene]
+        return bool(colls) and all(c in self.hidden for c in colls)
+
+    def in_holdout(self, obj) -> bool:
+        return any(c.name in self.holdout for c in obj.users_collection)
+
+
+def _identity(inst, classes: _Classes) -> tuple[tuple, str | None]:
+    """(object key, class) of one depsgraph instance: who it belongs to, and its class (None:
+    background). See the module docstring for the rules."""
+    obj = inst.object.original
+    if not inst.is_instance:
+        owner, cls = classes.own_chain(obj)
+        if owner is not None:
+            return ("object", owner.name), cls
+        return ("object", obj.name), classes.of_collections(obj.users_collection)
+    parent = inst.parent.original
+    if parent.instance_type == "COLLECTION" and parent.instance_collection is not None:
+        group = ("instance", parent.name)
+        inner = [parent.instance_collection]
+    else:  # particles, geometry nodes: every instance its own object
+        pid = list(inst.persistent_id)
+        while pid and pid[-1] == 2**31 - 1:  # the unused levels
+            pid.pop()
+        group = ("instance", parent.name, *pid)
+        inner = []
+    owner, cls = classes.own_chain(obj) if obj != parent else (None, None)
+    if owner is not None:
+        return (*group, owner.name), cls
+    cls = classes.of_collections(inner) if inner else None
+    if cls is None:
+        cls = classes.own_chain(parent)[1] or classes.of_collections(parent.users_collection)
+    if cls is None and obj != parent:
+        cls = classes.of_collections(obj.users_collection)
+    return group, cls
+
+
+# ----------------------------------------------------------------------------- what a render sees
+@contextmanager
+def render_visibility(scene):
+    """Blender's viewport evaluation made to see what a render sees, for the ``with`` block:
+    objects and collections disabled in viewports (monitor) or hidden with the eye, but not
+    hidden from renders, are shown, and every modifier is shown as in renders. Restored after."""
+    undo, eye = [], []
+
+    def put(block, attr, value):
+        if getattr(block, attr) != value:
+            try:
+                old = getattr(block, attr)
+                setattr(block, attr, value)
+                undo.append((block, attr, old))
+            except (AttributeError, TypeError, RuntimeError):  # linked (library) data is read only
+                pass
+
+    layer = bpy.context.view_layer
+    try:
+        for obj in bpy.data.objects:
+            if not obj.hide_render:
+                put(obj, "hide_viewport", False)
+            for mod in obj.modifiers:
+                put(mod, "show_viewport", mod.show_render)
+        for coll in bpy.data.collections:
+            if not coll.hide_render:
+                put(coll, "hide_viewport", False)
+        todo = [layer.layer_collection]
+        while todo:
+            lc = todo.pop()
+            if not lc.collection.hide_render:
+                put(lc, "hide_viewport", False)
+            todo += list(lc.children)
+        for obj in scene.objects:
+            try:
+                if not obj.hide_render and obj.hide_get(view_layer=layer):
+                    obj.hide_set(False, view_layer=layer)
+                    eye.append(obj)
+            except RuntimeError:  # not in this view layer (an excluded collection)
+                pass
+        layer.update()
+        yield
+    finally:
+        for obj in eye:
+            obj.hide_set(True, view_layer=layer)
+        for block, attr, old in reversed(undo):
+            setattr(block, attr, old)
+        layer.update()
+
+
+# ----------------------------------------------------------------------------- one frame
+@dataclass
+class Realised:
+    """One frame's render scene content: what to remove afterwards, and the ground truth."""
+
+    collection: object
+    objects: list = field(default_factory=list)
+    meshes: list = field(default_factory=list)
+    labelled: dict = field(default_factory=dict)   # id → {"class", "key", "kind", "blender_objects"}
+    parts: dict = field(default_factory=dict)      # id → [(world vertices, triangles, "")]
+    others: list = field(default_factory=list)     # (bpy.data collection name, datablock): the fog domain's
+    background: int = 0                            # unlabelled geometry instances rendered
+    skipped: Counter = field(default_factory=Counter)  # object types not rendered
+
+
+def _local_triangles(mesh) -> tuple[np.ndarray, np.ndarray]:
+    mesh.calc_loop_triangles()
+    v = np.empty(len(mesh.vertices) * 3, np.float64)
+    mesh.vertices.foreach_get("co", v)
+    f = np.empty(len(mesh.loop_triangles) * 3, np.int64)
+    mesh.loop_triangles.foreach_get("vertices", f)
+    return v.reshape(-1, 3), f.reshape(-1, 3)
+
+
+def _copy_visibility(src, dst, holdout: bool) -> None:
+    for attr in ("visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
+                 "visible_volume_scatter", "visible_shadow", "is_shadow_catcher", "is_holdout"):
+        if hasattr(src, attr):
+            setattr(dst, attr, getattr(src, attr))
+    dst.is_holdout = dst.is_holdout or holdout
+
+
+def realise(user_scene, render_scene, classes: _Classes, camera) -> Realised:
+    """Every visible geometry instance of ``user_scene`` at its current frame as a realised
+    object (pass index = fogsim id of a labelled object, 0 for background), lights as lights,
+    and ``camera`` placed, all in a fresh collection of ``render_scene``."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    out = Realised(bpy.data.collections.new("fogsim_realised"))
+    render_scene.collection.children.link(out.collection)
+    ids: dict[tuple, int] = {}
+    meshes: dict[tuple, tuple] = {}
+    for inst in depsgraph.object_instances:
+        src, orig = inst.object, inst.object.original
+        if orig.type == "CAMERA" or classes.render_hidden(orig) or (
+                inst.is_instance and classes.render_hidden(inst.parent.original)):
+            continue
+        matrix = mathutils.Matrix(inst.matrix_world)
+        if src.type == "LIGHT":
+            obj = bpy.data.objects.new(f"fogsim_{orig.name}", orig.data)
+        elif src.type in GEOMETRY:
+            mkey = (src.name, src.data.name if src.data is not None else "", src.type)
+            if mkey not in meshes:
+                mesh = bpy.data.meshes.new_from_object(src, preserve_all_data_layers=True, depsgraph=depsgraph)
+                out.meshes.append(mesh)
+                meshes[mkey] = (mesh, None)
+            mesh = meshes[mkey][0]
+            if not len(mesh.polygons):
+                continue
+            obj = bpy.data.objects.new(f"fogsim_{orig.name}", mesh)
+            for i, slot in enumerate(src.material_slots):
+                if i < len(obj.material_slots) and slot.material is not None:
+                    obj.material_slots[i].link = "OBJECT"
+                    obj.material_slots[i].material = slot.material.original
+            holdout = classes.in_holdout(orig) or (inst.is_instance and classes.in_holdout(inst.parent.original))
+            _copy_visibility(orig, obj, holdout)
+            key, cls = _identity(inst, classes)
+            if cls is not None and is_labelled(cls) and obj.visible_camera and not obj.is_holdout:
+                oid = ids.setdefault(key, len(ids) + 1)
+                if oid > 65535:
+                    raise InputError(user_scene.name, "more than 65535 labelled objects (uint16 instance ids)")
+                rec = out.labelled.setdefault(oid, {"class": cls, "key": "/".join(map(str, key)),
+                                                    "kind": KINDS[inst.is_instance], "blender_objects": []})
+                rec["blender_objects"].append(orig.name)
+                if meshes[mkey][1] is None:
+                    meshes[mkey] = (mesh, _local_triangles(mesh))
+                v, f = meshes[mkey][1]
+                M = np.array(matrix, dtype=np.float64)
+                out.parts.setdefault(oid, []).append((v @ M[:3, :3].T + M[:3, 3], f, ""))
+                obj.pass_index = oid
+            else:
+                out.background += 1
+        else:
+            if src.type in NOT_RENDERED:
+                out.skipped[src.type] += 1
+            continue
+        obj.matrix_world = matrix
+        out.collection.objects.link(obj)
+        out.objects.append(obj)
+    cam = bpy.data.objects.new("fogsim_camera", camera.data)
+    loc, rot, _ = camera.evaluated_get(depsgraph).matrix_world.decompose()
+    cam.matrix_world = mathutils.Matrix.Translation(loc) @ rot.to_matrix().to_4x4()
+    out.collection.objects.link(cam)
+    out.objects.append(cam)
+    render_scene.camera = cam
+    return out
+
+
+def clear(realised: Realised) -> None:
+    """Remove what :func:`realise` created (objects, meshes, the collection)."""
+    for obj in realised.objects:
+        bpy.data.objects.remove(obj, do_unlink=True)
+    for mesh in realised.meshes:
+        bpy.data.meshes.remove(mesh)
+    for kind, block in realised.others:
+        getattr(bpy.data, kind).remove(block)
+    bpy.data.collections.remove(realised.collection)
+
+
+def _render_scene(user_scene, resolution):
+    """A copy of the user's scene (render settings, world, first view layer) with an empty collection."""
+    copy = user_scene.copy()
+    copy.name = RENDER_SCENE
+    for child in list(copy.collection.children):
+        copy.collection.children.unlink(child)
+    for obj in list(copy.collection.objects):
+        copy.collection.objects.unlink(obj)
+    for layer in list(copy.view_layers)[1:]:
+        copy.view_layers.remove(layer)
+    copy.view_layers[0].name = "ViewLayer"  # the multilayer EXR's channel prefix (cycles.PASS_CHANNELS)
+    if resolution:
+        copy.render.resolution_x, copy.render.resolution_y = resolution
+        copy.render.resolution_percentage = 100
+    return copy
+
+
+def configure_scene(scene, samples: int | None, seed: int, gpu: bool) -> tuple[dict, list[str]]:
+    """The scene's own Cycles settings, with what fogsim needs (passes, EXR output, seed, device)
+    and ``samples`` if given; returns what was used and the changes worth a message."""
+    notes = []
+    if scene.render.engine != "CYCLES":
+        notes.append(f"render engine {scene.render.engine} switched to CYCLES")
+        scene.render.engine = "CYCLES"
+    device = use_device(scene, gpu)
+    cy = scene.cycles
+    if samples:
+        cy.samples = int(samples)
+    if cy.use_denoising and not has_denoiser():
+        cy.use_denoising = False
+        notes.append("denoising off: this Blender has no OpenImageDenoise")
+    if scene.render.use_motion_blur:
+        scene.render.use_motion_blur = False
+        notes.append("motion blur off (scene mode renders each frame's realised objects)")
+    cy.seed = int(seed) % 2**31
+    cy.use_animated_seed = False
+    scene.render.use_compositing = False
+    scene.render.use_sequencer = False
+    layer = scene.view_layers[0]
+    layer.use_pass_combined = layer.use_pass_z = layer.use_pass_object_index = True
+    set_multilayer_exr(scene.render.image_settings)
+    return {**device, "engine": "CYCLES", "samples": cy.samples, "denoise": cy.use_denoising,
+            "adaptive_threshold": cy.adaptive_threshold if cy.use_adaptive_sampling else None,
+            "max_bounces": cy.max_bounces, "seed": cy.seed}, notes
+
+
+def camera_record(scene, camera_obj) -> dict:
+    """K (Blender's definition: focal, sensor size and fit, shift, pixel aspect, resolution) and
+    the OpenCV pose of the evaluated camera at the scene's current frame."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    ev = camera_obj.evaluated_get(depsgraph)
+    cam, r = ev.data, scene.render
+    w = int(r.resolution_x * r.resolution_percentage / 100)
+    h = int(r.resolution_y * r.resolution_percentage / 100)
+    K = blender_intrinsics(cam.lens, cam.sensor_width, cam.sensor_height, cam.sensor_fit, cam.shift_x,
+                           cam.shift_y, w, h, r.pixel_aspect_x, r.pixel_aspect_y)
+    from fogsim.camera import Intrinsics
+
+    return {"intrinsics": Intrinsics.from_dict(K).to_dict(),
+            "world_to_camera": opencv_world_to_camera(np.array(ev.matrix_world)).tolist(),
+            "blender": {"object": camera_obj.name, "lens_mm": cam.lens, "sensor_mm": [cam.sensor_width,
+                        cam.sensor_height], "sensor_fit": cam.sensor_fit, "shift": [cam.shift_x, cam.shift_y],
+                        "pixel_aspect": [r.pixel_aspect_x, r.pixel_aspect_y],
+                        "clip_m": [cam.clip_start, cam.clip_end]}}
+
+
+# ----------------------------------------------------------------------------- the job
+class SceneJob(RenderJob):
+    """The frames of one shard of a scene-mode dataset (the same ``todo`` / ``step`` / ``finish``
+    / ``close`` as :class:`~fogsim.render.blender.job.RenderJob`, whose volumetric fog renders it
+    shares). Build it with :func:`scene_job`."""
+
+    def __init__(self, scene, out, *, source: str, camera: str | None = None, frame_range: str | None = None,
+                 class_map: ClassMap = ClassMap(), levels: str | None = None, samples: int | None = None,
+                 resolution: str | None = None, seed: int = 0, shard=(0, 1), resume: bool = True,
+                 gpu: bool = False, quiet: bool = False, max_pixels: int | None = None,
+                 fog: str | None = None, fog_medium: str | None = None, fog_model: dict | None = None):
+        self.user_scene, self.quiet, self.gpu, self.samples = scene, quiet, gpu, samples
+        self.frame_before = scene.frame_current
+        self.render_scene = self.scene = None
+        try:
+            self._setup(out, source, camera, frame_range, class_map, levels, resolution, seed, shard, resume,
+                        max_pixels, fog_overrides(dict(fog_model or {}), fog, fog_medium))
+        except BaseException:  # a refusal leaves the user's scene as it was
+            self.close()
+            raise
+
+    def _setup(self, out, source, camera, frame_range, class_map, levels, resolution, seed, shard, resume,
+               max_pixels, fog_model) -> None:
+        from fogsim.render.preset import MAX_PIXELS
+
+        self.layout = DatasetLayout(out)
+        self.camera = scene_camera(self.user_scene, camera, source)
+        scene, samples = self.user_scene, self.samples
+        start, end, step = parse_frame_range(frame_range, scene)
+        self.frames = range(start, end + 1, step)  # Blender frame numbers, by dataset frame index
+        res = parse_resolution(resolution) if resolution else None
+        w = res[0] if res else int(scene.render.resolution_x * scene.render.resolution_percentage / 100)
+        h = res[1] if res else int(scene.render.resolution_y * scene.render.resolution_percentage / 100)
+        if why := check_size(w, h, max_pixels or MAX_PIXELS):
+            raise InputError(source, f"resolution {why}")
+        self.classes = _Classes(scene, class_map)
+        self.config = RenderConfig(
+            name="scene", source=source,
+            style={"scene_mode": {"file": bpy.data.filepath or None, "scene": scene.name, "camera": self.camera.name,
+                                  "frame_range": [self.frames.start, self.frames.stop - 1, self.frames.step],
+                                  "class_map": class_map.to_dict()}},
+            camera={"object": self.camera.name}, resolution=(w, h),
+            quality={"samples": samples} if samples else {},  # {}: the scene's own Cycles settings
+            levels=tuple(parse_levels(levels if levels is not None else "paper")), fog_model=fog_model,
+            frames=len(self.frames), seed=seed)
+        self.fog = volumetric_settings(self.config)  # None: Koschmieder fog (post-process)
+        if self.fog is not None and self.fog["samples"] is None:  # the scene's own samples, not a preset's
+            self.fog = {**self.fog, "samples": samples or scene.cycles.samples}
+        if self.fog is not None and self.fog["phase"] == "MIE" and not has_mie_phase():
+            raise InputError(source, f"fog_model.volumetric.phase \"MIE\" needs Blender 4.3 or later "
+                                     f"(this is {bpy.app.version_string}); use \"HG\" with g = 0.85")
+        i, n = shard
+        mine = [k for k in range(len(self.frames)) if k % n == i]
+        self.summary = self._check(mine[0] if mine else 0, source)  # refusals before anything is written
+        Path(out).mkdir(parents=True, exist_ok=True)
+        claim_output(Path(out) / RUN_FILE, dataset_parameters(self.config),
+                     {"blender": bpy.app.version_string, "config": self.config.to_dict()}, what="dataset")
+        self.mine = {frame_name(k) for k in mine}
+        remove_stale_parts(self.layout.root)
+        remove_render_tmp(self.layout, self.mine)
+        self.todo = [k for k in mine if not (resume and self.layout.frame_done(frame_name(k)))]
+        self.skipped = len(mine) - len(self.todo)
+        self.done: list[dict] = []
+        self.render_scene = self.scene = _render_scene(scene, res)  # self.scene: RenderJob's fog renders
+        self.notes = configure_scene(self.render_scene, samples, 0, self.gpu)[1]
+
+    def _check(self, index: int, source: str) -> str:
+        """Realise frame ``index`` once: a scene with no labelled visible object is refused; returns
+        the per-class count of labelled objects and instances."""
+        self.user_scene.frame_set(self.frames[index])
+        probe = bpy.data.scenes.new("fogsim_probe")
+        try:
+            with render_visibility(self.user_scene):
+                got = realise(self.user_scene, probe, self.classes, self.camera)
+            clear(got)
+        finally:
+            bpy.data.scenes.remove(probe)
+        if not got.labelled:
+            raise InputError(source, f"no labelled object in scene {self.user_scene.name!r} at frame "
+                                     f"{self.frames[index]}: set the custom property {PROPERTY} (e.g. \"car\") on "
+                                     "objects or collections, or pass --class-map")
+        counts = Counter((r["class"], r["kind"]) for r in got.labelled.values())
+        per_class = ", ".join(f"{cls} {counts[cls, 'object']} objects + {counts[cls, 'instance']} instances"
+                              for cls in sorted({c for c, _ in counts}))
+        skipped = "".join(f", {n} {t.lower()} not rendered" for t, n in sorted(got.skipped.items()))
+        return (f"scene {self.user_scene.name!r} frame {self.frames[index]}: labelled {per_class}; "
+                f"{got.background} background instances{skipped}")
+
+    def step(self) -> dict:
+        """Render and commit the next frame; returns its meta record."""
+        index = self.todo.pop(0)
+        t0 = time.perf_counter()
+        frame_no = self.frames[index]
+        self.user_scene.frame_set(frame_no)
+        self.render_scene.frame_current = frame_no  # the shared camera and light data animate with it
+        info, _ = configure_scene(self.render_scene, self.samples, frame_seed(self.config.seed, index), self.gpu)
+        with render_visibility(self.user_scene):
+            got = realise(self.user_scene, self.render_scene, self.classes, self.camera)
+        t1 = time.perf_counter()
+        name = frame_name(index)
+        objects = [{"id": oid, **rec} for oid, rec in got.labelled.items()]
+        desc = {"seed": frame_seed(self.config.seed, index), "objects": objects,
+                "source": {**self.config.style["scene_mode"], "blender_frame": frame_no},
+                "background_instances": got.background}
+        try:
+            desc["camera"] = camera_record(self.render_scene, self.camera)
+            passes = render(self.render_scene, render_tmp_dir(self.layout) / f"{name}.left.exr", self.quiet)
+            t2 = time.perf_counter()
+            if self.fog is not None:  # one Combined-only render per β > 0 with the fog layer, same seed
+                fog = frame_volumetric(self.fog, desc)
+                fog_linear, fog_cycles = self._fog_renders(got, fog, info["seed"],
+                                                           render_tmp_dir(self.layout) / f"{name}.fog.exr")
+        finally:
+            clear(got)
+        t3 = time.perf_counter()
+        info["blender"] = bpy.app.version_string
+        timings = {"scene": t1 - t0, "render": t2 - t1}
+        fog_renders = None
+        if self.fog is not None:
+            timings["fog_render"] = t3 - t2
+            fog_renders = self._fog_images(name, desc, passes, fog, fog_linear, fog_cycles)
+        frame = DescribedFrame(index, desc, got.parts)
+        meta = commit_frame(self.layout, self.config, frame, passes, fog_renders, timings=timings, render_info=info)
+        self.done.append(meta)
+        return meta
+
+    def finish(self) -> None:
+        """Write the dataset-level files (COCO, YAMLs, manifest, contact sheet) over all done frames."""
+        frames = self.layout.done_frames()
+        manifest = {"preset": self.config.to_dict(), "seed": self.config.seed,
+                    "frame_seeds": {f: frame_seed(self.config.seed, int(f)) for f in frames},
+                    "frame_seed_rule": FRAME_SEED_RULE, "blender": bpy.app.version_string,
+                    "versions": package_versions()}
+        finalize(self.layout, self.config.levels, manifest, self.config.train_fraction, seed=self.config.seed)
+
+    def close(self) -> None:
+        """Remove the render scene and temporary renders; the user's scene back at its frame."""
+        if hasattr(self, "mine"):
+            remove_render_tmp(self.layout, self.mine)
+        if self.render_scene is not None and self.render_scene.name in bpy.data.scenes:
+            bpy.data.scenes.remove(self.render_scene)
+        self.render_scene = self.scene = None
+        self.user_scene.frame_set(self.frame_before)
+
+
+def scene_job(scene, out, **options) -> SceneJob:
+    """The add-on's *Source: current scene* (and the CLI's ``--scene``): a :class:`SceneJob` over
+    ``scene`` writing the dataset to ``out``. ``options``: ``source`` (what error messages name;
+    default the .blend path), ``camera``, ``frame_range`` ("S:E[:STEP]"), ``class_map``
+    (:class:`~fogsim.render.scene_classes.ClassMap`), ``levels``, ``samples``, ``resolution``
+    ("WxH"), ``seed``, ``shard``, ``resume``, ``gpu``, ``quiet``, ``fog`` ("koschmieder" | "volumetric"),
+    ``fog_medium``, ``fog_model`` (a preset's ``fog_model`` block). Every refusal (no labelled object,
+    missing / orthographic / panoramic camera …) is an InputError raised before ``out`` is touched."""
+    options.setdefault("source", bpy.data.filepath or f"scene {scene.name!r}")
+    return SceneJob(scene, out, **options)

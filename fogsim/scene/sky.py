@@ -1,0 +1,85 @@
+"""Outdoor light of a day frame: procedural sky, HDRI or overcast, chosen per frame (pure Python).
+
+A day preset's ``lighting`` (:class:`fogsim.schema.presets.Lighting`) may pick the sky. Without
+sky keys the description is exactly what the layout made (procedural sky + sun lamp), so old
+datasets resume unchanged. With them, :func:`apply_sky` rewrites ``desc["lighting"]`` after every
+object is placed, drawing from the layout's generator *after* the layout is done (same objects,
+depth and masks as the default day frame of that seed), in this order: sun elevation and sun
+azimuth (when the preset gives their ranges; else the layout's), overcast or not, then the
+sky's own draws. The record (also in ``meta["scene"]``)::
+
+    {"sky": "procedural" | "hdri" | "overcast",
+     "sun_elevation_deg", "sun_azimuth_deg" (degrees; azimuth from +y toward +x),
+     "sun_strength" (W/m², 0 for HDRI and overcast: an HDRI carries its own sun),
+     "sky_strength" (world background strength; fog_model.volumetric emission "sky" reads it),
+     "hdri": name or absolute path, "hdri_rotation_deg" (HDRI only),
+     "overcast": bool}
+
+Overcast is the CIE standard overcast sky, radiance L(θ) = L_z·(1 + 2 sin θ)/3 at elevation θ
+(a third of the zenith at the horizon), grey-white, and no sun: soft shadows only.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from fogsim.schema.presets import SKY_KEYS, WORLD_HDRIS
+
+__all__ = ["OVERCAST_COLOR", "WORLD_HDRIS", "apply_sky", "hdri_file", "has_sky_keys"]
+
+#: linear RGB of the overcast sky (a slightly cool grey-white) and of the ground under it
+OVERCAST_COLOR = [0.92, 0.95, 1.0]
+#: the default world strength ranges by sky (procedural: the layout's 0.3)
+DEFAULT_STRENGTH = {"procedural": [0.3, 0.3], "hdri": [1.0, 1.0], "overcast": [1.0, 1.6]}
+#: where a Blender keeps its world HDRIs, under its DATAFILES folder
+WORLD_DIR = Path("studiolights") / "world"
+
+
+def has_sky_keys(lighting: dict | None) -> bool:
+    """Whether a (checked) lighting object asks for more than the default day sky."""
+    return bool(set(lighting or {}) & set(SKY_KEYS))
+
+
+def hdri_file(spec: str, datafiles: str | Path) -> Path:
+    """The HDRI file of ``spec``: a Blender world HDRI name → ``DATAFILES/studiolights/world/<name>.exr``
+    of the Blender whose DATAFILES folder is ``datafiles``; anything else is a path (the preset
+    loader made it absolute). The one place a name becomes a file."""
+    if spec in WORLD_HDRIS:
+        return Path(datafiles) / WORLD_DIR / f"{spec}.exr"
+    return Path(spec)
+
+
+def _uniform(rng: np.random.Generator, lo_hi) -> float:
+    lo, hi = (float(v) for v in lo_hi)
+    return lo if lo == hi else float(rng.uniform(lo, hi))
+
+
+def apply_sky(desc: dict, lighting: dict | None, rng: np.random.Generator) -> dict:
+    """Set the frame's outdoor light in ``desc["lighting"]`` (in place; returns ``desc``).
+
+    ``lighting``: the preset's checked day lighting; ``rng``: the layout's generator after the
+    layout. A lighting without sky keys leaves ``desc`` untouched (and draws nothing).
+    """
+    if not has_sky_keys(lighting):
+        return desc
+    light = desc["lighting"]
+    if lighting.get("sun_elevation_deg") is not None:
+        light["sun_elevation_deg"] = _uniform(rng, lighting["sun_elevation_deg"])
+    if lighting.get("sun_azimuth_deg") is not None:
+        light["sun_azimuth_deg"] = _uniform(rng, lighting["sun_azimuth_deg"]) % 360.0
+    p = lighting.get("overcast", False)
+    p = float(p) if not isinstance(p, bool) else (1.0 if p else 0.0)
+    overcast = bool(rng.random() < p)
+    kind = "overcast" if overcast else lighting.get("sky", "procedural")
+    strength = _uniform(rng, lighting.get("strength") or DEFAULT_STRENGTH[kind])
+    elevation = math.radians(light["sun_elevation_deg"])
+    light.update(sky=kind, overcast=overcast, sky_strength=strength,
+                 sun_strength=3.0 + 2.0 * math.sin(elevation) if kind == "procedural" else 0.0)
+    if kind == "hdri":
+        choices = lighting.get("hdri", "city")
+        choices = [choices] if isinstance(choices, str) else list(choices)
+        light["hdri"] = choices[int(rng.integers(0, len(choices)))] if len(choices) > 1 else choices[0]
+        light["hdri_rotation_deg"] = _uniform(rng, lighting.get("rotation_deg", [0.0, 360.0])) % 360.0
+    return desc

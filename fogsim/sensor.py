@@ -1,0 +1,151 @@
+"""A camera that is not a perfect pinhole: lens distortion, vignetting, exposure, sensor noise,
+JPEG — applied to an 8-bit sRGB image after the fog (numpy + OpenCV; no Blender).
+
+The camera sees the fogged scene, so :func:`apply_sensor` runs on each fog level's image, in the
+order light takes: lens (radial distortion, then vignetting), exposure, the sensor (shot + read
+noise, in linear light), the 8-bit sRGB encoding, JPEG. Depth and the instance mask are
+*resampled* through the same distortion by nearest neighbour (:func:`distort_nearest`): their
+values stay exact and line up with the image, so boxes from the distorted mask match it.
+
+Models (pixels: OpenCV convention, integer coordinates are pixel centres; K the pinhole
+intrinsics the scene was rendered with):
+
+* **Radial distortion**, OpenCV's model with coefficients ``[k1, k2, p1, p2, k3]``: a ray through
+  normalised point (x, y) = ((u − cx)/fx, (v − cy)/fy), r² = x² + y², lands at
+  x_d = x·(1 + k1 r² + k2 r⁴ + k3 r⁶) + 2 p1 x y + p2 (r² + 2x²) (y_d likewise), pixel
+  (fx x_d + cx, fy y_d + cy). The distorted image samples the rendered one where
+  ``cv2.undistortPointsIter`` maps each of its pixels; a pixel that sees outside the render is black
+  (mask 0, depth +inf).
+* **Vignetting**, the cos⁴ law generalised: gain(u, v) = cos(θ)^a, cos θ = 1/√(1 + x² + y²)
+  (θ the angle off the optical axis), a = ``vignetting`` (4 = natural vignetting; 0 = off).
+* **Exposure**: linear light × 2^EV (``exposure_ev``).
+* **Noise**: signal in electrons e = linear · ``full_well_e`` (white = full well); shot noise
+  Poisson(e), read noise Normal(0, ``read_noise_e``²); back to linear ÷ full well, so the
+  variance at linear value s is s / full_well + (read_noise / full_well)². Seeded: one
+  ``numpy.random.Generator`` per image.
+* **JPEG**: encoded at ``jpeg_quality`` (1–100) with OpenCV and decoded (the file written stays a
+  lossless PNG that holds the JPEG's artefacts).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+from fogsim.camera import Intrinsics
+from fogsim.colour import linear_to_srgb8, srgb_to_linear
+from fogsim.schema.base import check
+from fogsim.schema.presets import SensorSpec
+
+__all__ = ["Sensor", "apply_sensor", "distort_nearest", "distortion_maps", "distort_points", "jpeg",
+           "shot_read_noise", "vignette_gain"]
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """The camera model of a preset's ``sensor`` block (:class:`fogsim.schema.presets.SensorSpec`)."""
+
+    exposure_ev: float = 0.0
+    vignetting: float = 0.0
+    distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)  # OpenCV k1, k2, p1, p2, k3
+    full_well_e: float | None = None  # None = no noise
+    read_noise_e: float = 0.0
+    jpeg_quality: int | None = None  # None = no JPEG
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Sensor":
+        """The model of a preset's ``sensor`` object, checked (a bad one is a ValueError); the
+        defaults are :class:`~fogsim.schema.presets.SensorSpec`'s."""
+        spec = check(d, SensorSpec, prefix="sensor")
+        dist = list(spec.distortion or [])
+        return cls(exposure_ev=spec.exposure_ev, vignetting=spec.vignetting,
+                   distortion=tuple(dist + [0.0] * (5 - len(dist))),
+                   full_well_e=None if spec.noise is None else spec.noise.full_well_e,
+                   read_noise_e=0.0 if spec.noise is None else spec.noise.read_noise_e,
+                   jpeg_quality=spec.jpeg_quality)
+
+    @property
+    def distorts(self) -> bool:
+        return any(v != 0 for v in self.distortion)
+
+
+def _matrix(K: Intrinsics) -> np.ndarray:
+    return np.array([[K.fx, 0, K.cx], [0, K.fy, K.cy], [0, 0, 1]], np.float64)
+
+
+def distort_points(uv: np.ndarray, K: Intrinsics, coeffs) -> np.ndarray:
+    """Pinhole pixels (N×2) → where the distorting lens puts them (OpenCV's forward model)."""
+    uv = np.asarray(uv, np.float64).reshape(-1, 2)
+    pts = np.column_stack([(uv[:, 0] - K.cx) / K.fx, (uv[:, 1] - K.cy) / K.fy, np.ones(len(uv))])
+    out, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), _matrix(K), np.asarray(coeffs, np.float64))
+    return out.reshape(-1, 2)
+
+
+@lru_cache(maxsize=8)
+def _maps(fx, fy, cx, cy, w, h, coeffs: tuple) -> tuple[np.ndarray, np.ndarray]:
+    K = Intrinsics(fx, fy, cx, cy, w, h)
+    v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+    grid = np.stack([u.ravel(), v.ravel()], axis=1).reshape(-1, 1, 2)
+    src = cv2.undistortPointsIter(grid, _matrix(K), np.asarray(coeffs, np.float64), None, _matrix(K),
+                                  (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-9))
+    src = src.reshape(h, w, 2).astype(np.float32)
+    return np.ascontiguousarray(src[..., 0]), np.ascontiguousarray(src[..., 1])
+
+
+def distortion_maps(K: Intrinsics, coeffs) -> tuple[np.ndarray, np.ndarray]:
+    """For every pixel of the distorted image, the pinhole pixel it sees (map_x, map_y for
+    ``cv2.remap``), from ``cv2.undistortPointsIter`` (50 iterations to 1e-9)."""
+    return _maps(K.fx, K.fy, K.cx, K.cy, K.width, K.height, tuple(float(c) for c in coeffs))
+
+
+def distort_nearest(array: np.ndarray, K: Intrinsics, coeffs, outside) -> np.ndarray:
+    """A mask or depth map resampled into the distorted image by nearest neighbour (values
+    exact); pixels that see outside the render get ``outside`` (mask 0, depth +inf)."""
+    mx, my = distortion_maps(K, coeffs)
+    ui, vi = np.rint(mx).astype(np.int64), np.rint(my).astype(np.int64)
+    inside = (ui >= 0) & (ui < K.width) & (vi >= 0) & (vi < K.height)
+    out = np.full(array.shape, outside, dtype=array.dtype)
+    out[inside] = array[vi[inside], ui[inside]]
+    return out
+
+
+def vignette_gain(K: Intrinsics, a: float) -> np.ndarray:
+    """H×W gain cos(θ)^a, θ the angle of the pixel's ray off the optical axis (a = 4: cos⁴ law)."""
+    v, u = np.mgrid[0:K.height, 0:K.width].astype(np.float64)
+    r2 = ((u - K.cx) / K.fx) ** 2 + ((v - K.cy) / K.fy) ** 2
+    return ((1.0 + r2) ** (-a / 2.0)).astype(np.float32)
+
+
+def shot_read_noise(linear: np.ndarray, full_well_e: float, read_noise_e: float,
+                    rng: np.random.Generator) -> np.ndarray:
+    """Linear light with shot (Poisson in electrons) and read (Gaussian) noise added."""
+    electrons = rng.poisson(np.clip(linear, 0.0, None) * full_well_e).astype(np.float32)
+    if read_noise_e > 0:
+        electrons += rng.normal(0.0, read_noise_e, linear.shape).astype(np.float32)
+    return electrons / np.float32(full_well_e)
+
+
+def jpeg(image: np.ndarray, quality: int) -> np.ndarray:
+    """An 8-bit RGB image through JPEG at ``quality`` (OpenCV's encoder) and back."""
+    ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(image[..., ::-1]), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise RuntimeError("OpenCV could not JPEG-encode the image")
+    return np.ascontiguousarray(cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1])
+
+
+def apply_sensor(image: np.ndarray, K: Intrinsics, sensor: Sensor, rng: np.random.Generator) -> np.ndarray:
+    """An 8-bit sRGB H×W×3 image as this camera records it (lens, exposure, noise, JPEG)."""
+    linear = srgb_to_linear(image.astype(np.float32) / np.float32(255.0))
+    if sensor.distorts:
+        mx, my = distortion_maps(K, sensor.distortion)
+        linear = cv2.remap(linear, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    if sensor.vignetting:
+        linear *= vignette_gain(K, sensor.vignetting)[..., None]
+    if sensor.exposure_ev:
+        linear *= np.float32(2.0 ** sensor.exposure_ev)
+    if sensor.full_well_e:
+        linear = shot_read_noise(linear, sensor.full_well_e, sensor.read_noise_e, rng)
+    out = linear_to_srgb8(linear)
+    return jpeg(out, sensor.jpeg_quality) if sensor.jpeg_quality else out
