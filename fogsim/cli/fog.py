@@ -177,7 +177,7 @@ def _depth_from_path(depth_from: str | None) -> str | None:
 
 
 def _with_depth_from(samples, depth_from: str | None, out: str | None = None, holdout: float | None = None,
-                     seed: int = 0):
+                     seed: int = 0, dataset: str | None = None):
     """``--depth-from ila:CKPT``: every sample's depth is predicted by that model;
     ``--depth-from lidar[:METHOD]``: completed from its LiDAR points
     (:func:`fogsim.depth.lidar_source.lidar_samples`, hold-out files under ``out``).
@@ -190,7 +190,7 @@ def _with_depth_from(samples, depth_from: str | None, out: str | None = None, ho
     if depth_from.startswith("lidar"):
         from fogsim.depth.lidar_source import lidar_samples
 
-        return lidar_samples(samples, depth_from, out, holdout or 0.0, seed)
+        return lidar_samples(samples, depth_from, out, holdout or 0.0, seed, dataset=dataset)
     from dataclasses import replace
 
     from fogsim.depth.ila import ILADepth, cached_model
@@ -280,10 +280,13 @@ def cmd_fog(args) -> int:
     check_output(args.out, {f"--{k.replace('_', '-')}": getattr(args, k)
                             for k in ("input", "depth", "cityscapes", "waymo", "depth_dir", "intrinsics")}
                  | {"--depth-from": _depth_from_path(args.depth_from)})
-    everything = _with_depth_from(_samples(args), args.depth_from, args.out, args.lidar_holdout, args.seed)
+    everything = _with_depth_from(_samples(args), args.depth_from, args.out, args.lidar_holdout, args.seed,
+                                  args.waymo)
     if args.no_labels:
         everything = [replace(s, labels=None) if s.labels is not None else s for s in everything]
     labelled = any(s.labels is not None for s in everything)
+    if not labelled and not args.no_labels:
+        _note_unlabelled(everything)
     if labelled:
         check_labelled(everything, getattr(args, "image_format", "png"))  # every shard: one frame name rule
     job = _job(args, args.out, sample_classes(everything) if labelled else ())
@@ -307,6 +310,16 @@ def cmd_fog(args) -> int:
         lines.append(line)
     print("; ".join(lines) if args.quiet else "\n".join(lines))
     return EXIT_FAILED if summary.failed or (labelled and not is_sharded(shard) and skipped) else EXIT_OK
+
+
+def _note_unlabelled(samples) -> None:
+    """One line on stderr when the dataset has label sources but none for these images (a
+    Waymo segment without camera_labels for the selected cameras): the run writes images only."""
+    missing = [s.meta["labels_missing"] for s in samples if (s.meta or {}).get("labels_missing")]
+    if missing:
+        print(f"fogsim: warning: {missing[0]}; {len(missing)} of {len(samples)} images have no labels, so "
+              "this run writes images only (OUT/<level>/<key>.png + sidecar JSON); choose labelled cameras "
+              "with --cameras, or pass --no-labels", file=sys.stderr)
 
 
 def _finalize(out: str, train_fraction: float | None = None, split_by: str | None = None) -> tuple[str, list]:

@@ -114,6 +114,10 @@ class LidarDepth:
         inside &= np.isfinite(ray) & (ray > 0)
         uv, ray = uv[inside], ray[inside]
         used, held = holdout_split(len(ray), self.holdout_fraction, self.seed)
+        if len(held) and not len(used):
+            raise InputError(self.source, f"every one of the {len(ray)} LiDAR points in the image is held out "
+                                          f"(--lidar-holdout {self.holdout_fraction:g}): none is left to complete "
+                                          "from; hold out a smaller fraction")
         try:
             done = complete(sparse_image(uv[used], ray[used], w, h), self.method, self.sky,
                             image=image, checkpoint=self.checkpoint, camera=self.camera)
@@ -186,9 +190,21 @@ def waymo_points_source(sample) -> PointsSource:
     return partial(lidar_points_for_sample(sample), sample.meta.get("camera", "FRONT"))
 
 
+def waymo_has_lidar(sample) -> bool:
+    """Whether a Waymo sample's frame has LiDAR data (:func:`fogsim.readers.waymo.lidar.frame_has_lidar`)."""
+    from fogsim.readers.waymo.lidar import frame_has_lidar, lidar_points_for_sample
+
+    return frame_has_lidar(lidar_points_for_sample(sample))
+
+
 def lidar_samples(samples, depth_from: str, out: str | None, holdout: float = 0.0, seed: int = 0,
-                  points_source: Callable = waymo_points_source) -> list:
+                  points_source: Callable = waymo_points_source, has_lidar: Callable | None = waymo_has_lidar,
+                  dataset: str | None = None) -> list:
     """Every sample with :class:`LidarDepth` as its depth (``--depth-from lidar[:METHOD]``).
+
+    Data in which no sample's frame has LiDAR (``has_lidar``; None: not checked) is a problem
+    of the whole run: an :class:`InputError` naming ``dataset`` (default: the first sample),
+    raised before anything is written; a frame without LiDAR among others fails on its own.
 
     ``holdout``: fraction of each image's points held out (seed per sample:
     :func:`fogsim.runs.sample_seed` of ``seed`` and the key); with ``out`` the held-out points
@@ -209,6 +225,11 @@ def lidar_samples(samples, depth_from: str, out: str | None, holdout: float = 0.
             cached_model(checkpoint)  # checked once, before the output folder is claimed
         except InputError as exc:
             raise InputError(given, exc.problem) from None  # named as the user gave it
+    if has_lidar is not None and samples and not any(has_lidar(s) for s in samples):
+        raise InputError(dataset or samples[0].source,
+                         f"no LiDAR in this data (none of its {len(samples)} images' frames has range images), "
+                         "which --depth-from lidar completes: give depth maps with --depth-dir, or "
+                         "--depth-from ila:CHECKPOINT")
     result = []
     for s in samples:
         held = out is not None and holdout > 0

@@ -129,6 +129,8 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
               **dist.record, "sample_seed": seed if job.heterogeneity else None,
               "heterogeneity": job.parameters()["heterogeneity"], "fogsim_version": __version__,
               "bit_depth": _bit_depth(image.dtype, job.image_format)}
+    if not job.labels and (sample.meta or {}).get("labels_missing"):
+        common["labels_missing"] = sample.meta["labels_missing"]  # why an images-only sidecar has no labels
     images = {}
     for level in job.levels:
         img_path, meta_path = job.paths(sample, level)

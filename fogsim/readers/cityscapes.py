@@ -53,6 +53,10 @@ def cityscapes_samples(root: str | Path, splits: str | list[str] = "val",
                 raise InputError(root / "gtFine" / split, "missing: the instance labels (gtFine) of split "
                                  f"{split!r} are needed for a labelled dataset; pass --no-labels to fog "
                                  "the images alone")
+            if next((root / "gtFine" / split).glob("*/*_gtFine_instanceIds.png"), None) is None:
+                raise InputError(root / "gtFine" / split, "holds no instance labels (no <city>/*_gtFine_instanceIds"
+                                 f".png): the labels of split {split!r} are needed for a labelled dataset; pass "
+                                 "--no-labels to fog the images alone")
     samples = []
     for split in splits:
         img_root = root / "leftImg8bit" / split

@@ -84,7 +84,7 @@ def instance_records(ids: np.ndarray, ray: np.ndarray | None, min_valid_pixels: 
     ``class``, ``class_id``, ``bbox``, ``pixels``, ``truncated``, ``kept``, ``reason``,
     ``distance_m``, ``distance_source``, ``valid_disparity_pixels``."""
     h, w = ids.shape
-    ids = ids.astype(np.int32, copy=False)
+    ids = ids.astype(np.int64, copy=False)  # group labels 100000·k + class id pass 2³¹ at k ≈ 21,475
     if ray is not None and ray.shape != ids.shape:
         raise InputError(source, f"instanceIds is {w}×{h} but the disparity is {ray.shape[1]}×{ray.shape[0]}")
     cls = np.where(ids >= 1000, ids // 1000, ids)
@@ -93,11 +93,10 @@ def instance_records(ids: np.ndarray, ray: np.ndarray | None, min_valid_pixels: 
     # group pixels (< 1000) get one label per 8-connected component: 100000·(k+1) + class id
     groups = []
     for cid in sorted(c for c in np.unique(regions[(regions > 0) & (regions < 1000)])):
-        n, comp = cv2.connectedComponents((regions == cid).astype(np.uint8), connectivity=8)
-        for k in range(1, n):
-            label = 100000 * k + int(cid)
-            regions[comp == k] = label
-            groups.append(label)
+        mask = regions == cid
+        n, comp = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8, ltype=cv2.CV_32S)
+        regions[mask] = 100000 * comp[mask].astype(np.int64) + int(cid)
+        groups.extend(100000 * k + int(cid) for k in range(1, n))
     boxes = boxes_from_mask(regions)
     valid = np.isfinite(ray) if ray is not None else np.zeros(ids.shape, bool)
     labels, counts = np.unique(regions[valid & (regions > 0)], return_counts=True)

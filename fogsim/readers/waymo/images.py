@@ -32,19 +32,77 @@ IMAGE_NAME, IMAGE_DATA = 1, 2
 V2_IMAGE = "[CameraImageComponent].image"
 
 
-def open_parquet(file: Path, columns: Iterable[str]):
-    """A ``pyarrow.parquet.ParquetFile`` known to hold ``columns``.
+#: The declared kind of the v2 columns fogsim reads, by name (exact) or by the end of the name:
+#: what :func:`open_parquet` checks before any value is read (a list where a key belongs, a
+#: string where a box coordinate does, is refused naming the file and the column). Sensor keys
+#: are integers or strings (some real files store "FRONT" or "1"); values that the column kind
+#: admits but the field does not (a NaN box type) are checked per row where they are decoded.
+V2_COLUMN_KINDS = {
+    "key.segment_context_name": ("string",), "key.frame_timestamp_micros": ("integer",),
+    "key.camera_name": ("integer", "string"), "key.laser_name": ("integer", "string"),
+    "key.camera_object_id": ("string",), "key.laser_object_id": ("string",),
+    V2_IMAGE: ("binary",),
+}
+V2_COLUMN_KIND_ENDINGS = {
+    **{f".box.{a}": ("number",) for a in ("center.x", "center.y", "center.z", "size.x", "size.y", "size.z",
+                                          "heading")},
+    ".type": ("number",), ".width": ("number",), ".height": ("number",), ".transform": ("list",),
+    ".values": ("list",), ".shape": ("list",),
+}
+_KIND_WORDS = {"string": "a string", "integer": "an integer", "number": "a number", "binary": "a binary",
+               "list": "a list"}
+
+
+def _kind_of(arrow_type) -> set[str]:
+    import pyarrow as pa
+
+    t = arrow_type
+    if pa.types.is_dictionary(t):
+        t = t.value_type
+    kinds = set()
+    if pa.types.is_string(t) or pa.types.is_large_string(t):
+        kinds.add("string")
+    if pa.types.is_integer(t):
+        kinds |= {"integer", "number"}
+    if pa.types.is_floating(t):
+        kinds.add("number")
+    if pa.types.is_binary(t) or pa.types.is_large_binary(t):
+        kinds.add("binary")
+    if pa.types.is_list(t) or pa.types.is_large_list(t) or pa.types.is_fixed_size_list(t):
+        kinds.add("list")
+    return kinds
+
+
+def declared_kinds(column: str) -> tuple[str, ...] | None:
+    """The kinds :data:`V2_COLUMN_KINDS` declares for ``column`` (None: not declared)."""
+    if column in V2_COLUMN_KINDS:
+        return V2_COLUMN_KINDS[column]
+    return next((k for end, k in V2_COLUMN_KIND_ENDINGS.items() if column.endswith(end)), None)
+
+
+def open_parquet(file: Path, columns: Iterable[str], optional: Iterable[str] = ()):
+    """A ``pyarrow.parquet.ParquetFile`` known to hold ``columns``, each of its declared kind
+    (:data:`V2_COLUMN_KINDS`).
 
     Raises :class:`~fogsim.errors.MissingDependency` without pyarrow (the ``waymo`` extra) and
-    :class:`~fogsim.errors.InputError` naming ``file`` when it is unreadable or lacks a column."""
+    :class:`~fogsim.errors.InputError` naming ``file`` when it is unreadable, lacks a column or
+    holds one of another kind (``optional`` columns are checked where the file has them)."""
     pq = require("pyarrow.parquet", "waymo")
     try:
         pf = pq.ParquetFile(file)
     except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid is a ValueError
         raise InputError(file, f"not a readable parquet file ({exc})") from None
+    columns = list(columns)
     missing = [c for c in columns if c not in pf.schema_arrow.names]
     if missing:
         raise InputError(file, f"missing column(s) {', '.join(missing)} (not a Waymo v2 file?)")
+    schema = pf.schema_arrow
+    for column in [*columns, *(c for c in optional if c in schema.names)]:
+        want = declared_kinds(column)
+        arrow_type = schema.field(column).type
+        if want and not set(want) & _kind_of(arrow_type):
+            raise InputError(file, f"column {column} holds {arrow_type} values, expected "
+                                   f"{' or '.join(_KIND_WORDS[k] for k in want)} column")
     return pf
 
 

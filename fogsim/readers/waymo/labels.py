@@ -65,6 +65,7 @@ import numpy as np
 
 from fogsim.errors import InputError
 from fogsim.readers.base import Labels
+from fogsim.readers.waymo.lidar_frame import matrix4
 
 #: The Waymo study's class list (YOLO id = index); VEHICLE includes vans, trucks, buses, motorcycles.
 WAYMO_CLASSES = ("vehicle", "pedestrian", "cyclist")
@@ -136,24 +137,34 @@ def camera_extrinsic(values, source: str) -> np.ndarray | None:
     """A camera→vehicle 4×4 from 16 row-major values (None when absent); refused when unusable."""
     if values is None or len(values) == 0:
         return None
-    m = np.asarray(values, dtype=np.float64)
-    if m.size != 16 or not np.all(np.isfinite(m)):
-        raise InputError(source, f"unusable camera extrinsic ({m.size} values, need 16 finite)")
-    m = m.reshape(4, 4)
+    m = matrix4(values, source, "camera extrinsic")
     if abs(np.linalg.det(m[:3, :3])) < 1e-9:
         raise InputError(source, "unusable camera extrinsic (its rotation is singular)")
     return m
 
 
+#: the largest magnitude a label coordinate may have (pixels, or metres for 3D boxes): far beyond
+#: any image or LiDAR range, small enough that box edges (centre ± extent / 2) stay finite
+MAX_LABEL_COORDINATE = 1e7
+
+
 def finite_floats(values, what: str, source: str) -> list[float]:
-    """``values`` as floats; refused (naming ``what``) unless all are finite numbers."""
+    """``values`` as floats; refused (naming ``what``) unless all are finite numbers of magnitude
+    ≤ :data:`MAX_LABEL_COORDINATE`."""
     try:
         out = [float(v) for v in values]
     except (TypeError, ValueError):
         out = [math.nan]
     if not all(math.isfinite(v) for v in out):
-        raise InputError(source, f"malformed {what}: {list(values)!r}")
+        raise InputError(source, f"malformed {what}: {[_python(v) for v in values]!r}")
+    if any(abs(v) > MAX_LABEL_COORDINATE for v in out):
+        raise InputError(source, f"malformed {what}: {out!r} (a value beyond ±{MAX_LABEL_COORDINATE:g}, "
+                                 "far outside any image or LiDAR range)")
     return out
+
+
+def _python(v):
+    return v.item() if isinstance(v, np.generic) else v
 
 
 def camera_label_id(projected_id: str, camera: str) -> str:

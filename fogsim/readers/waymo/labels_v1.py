@@ -69,8 +69,8 @@ def v1_label_index(data: bytes, source: str, labels: bool = True) -> tuple[set[i
     calibrated camera's extrinsic (camera→vehicle, 4×4 row-major nested lists; an unusable one is
     left out)."""
     frame = pw.decode_fields(data, source)
-    labelled = {pw.integer(pw.decode_fields(v, source), CAMERA_LABELS_NAME, 0, source)
-                for v in frame.get(FRAME_CAMERA_LABELS, [])} if labels else set()
+    labelled = {pw.integer(entry, CAMERA_LABELS_NAME, 0, source)
+                for entry in pw.submessages(frame, FRAME_CAMERA_LABELS, source)} if labels else set()
     extrinsics = {}
     for cal in pw.submessages(pw.submessage(frame, FRAME_CONTEXT, source), CONTEXT_CALIBRATIONS, source):
         camera = pw.integer(cal, CALIB_NAME, 0, source)

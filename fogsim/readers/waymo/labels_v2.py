@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+from pydantic import Field
 
 from fogsim.errors import InputError
 from fogsim.readers.base import Labels
@@ -32,7 +33,8 @@ from fogsim.readers.waymo.labels import (
     camera_label_id,
     finite_floats,
 )
-from fogsim.readers.waymo.sensors import CAMERA_BY_ID, CAMERA_NAMES
+from fogsim.readers.waymo.sensors import CAMERA_BY_ID, sensor_enum
+from fogsim.schema.base import Int, Open, check
 
 # v2 tables and columns (v2/perception/box.py, context.py; v2/component.py names them)
 V2_CAMERA_BOX, V2_ASSOCIATION, V2_LIDAR_BOX = "camera_box", "camera_to_lidar_box_association", "lidar_box"
@@ -57,14 +59,7 @@ V2_CAL_SIZE = (f"{_CAL}.width", f"{_CAL}.height")
 
 def camera_enum(value, source: str) -> int:
     """A v2 ``key.camera_name`` (int8, or a string "1" / "FRONT" as some files have) as the enum."""
-    if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
-        return int(value)
-    if isinstance(value, str):
-        if value.strip().isdigit():
-            return int(value)
-        if value.strip().upper() in CAMERA_NAMES:
-            return CAMERA_NAMES[value.strip().upper()]
-    raise InputError(source, f"malformed key.camera_name {value!r}")
+    return sensor_enum(value, source)
 
 
 def _timestamp(value, source: str) -> int:
@@ -99,7 +94,7 @@ def _column_values(column):
 def _load_table(path: str, required: tuple[str, ...], optional: tuple[str, ...], key: tuple[str, ...]) -> _Table:
     """Read the columns of a v2 file column-wise (``optional`` ones where the file has them) and
     group the rows by the ``key`` columns (camera names as enum values, timestamps as int)."""
-    pf = open_parquet(Path(path), required)
+    pf = open_parquet(Path(path), required, optional)
     names = list(required) + [c for c in optional if c in pf.schema_arrow.names]
     try:
         table = pf.read(columns=names)
@@ -124,13 +119,24 @@ def _load_table(path: str, required: tuple[str, ...], optional: tuple[str, ...],
     return _Table(path, columns, groups)
 
 
+class _BoxCodes(Open):
+    """The integer fields of a v2 box row (parquet may store them as floats: 3.0 is 3, NaN refused)."""
+
+    type: Int
+    difficulty: Int | None = Field(None, alias="difficulty_level.detection")
+
+
+def _python(value):
+    return value.item() if isinstance(value, np.generic) else value
+
+
 def _v2_box2d(row: dict, prefix: str, label_id: str, laser_id: str | None, source: str) -> Box2D:
     cx, cy, length, width = finite_floats([row[f"{prefix}.{c}"] for c in V2_BOX2D], "2D box", source)
-    kind = row[f"{prefix}.type"]
-    if kind is None:
-        raise InputError(source, "malformed box (type is null)")
-    difficulty = row.get(V2_CAMERA_BOX_DIFFICULTY) if prefix == _CB else None
-    return Box2D(str(label_id), int(kind), cx, cy, length, width, int(difficulty or 0), laser_id)
+    codes = {"type": _python(row[f"{prefix}.type"])}
+    if prefix == _CB and row.get(V2_CAMERA_BOX_DIFFICULTY) is not None:
+        codes["difficulty_level.detection"] = _python(row[V2_CAMERA_BOX_DIFFICULTY])
+    box = check(codes, _BoxCodes, source, prefix)
+    return Box2D(str(label_id), box.type, cx, cy, length, width, box.difficulty or 0, laser_id)
 
 
 @lru_cache(maxsize=16)

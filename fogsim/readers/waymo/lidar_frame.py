@@ -58,11 +58,17 @@ class LidarFrame:
 
 
 def matrix4(values, source: str, what: str) -> np.ndarray:
-    """A 4×4 float64 transform from 16 row-major values; refused (naming ``what``) unless all are finite."""
+    """A 4×4 float64 rigid transform from 16 row-major values; refused (naming ``what``) unless
+    all are finite and the bottom row is [0, 0, 0, 1] (every Waymo transform is rigid: another
+    bottom row is a damaged matrix, and one of zeros cannot be inverted)."""
     m = np.asarray(values, np.float64)
     if m.size != 16 or not np.isfinite(m).all():
         raise InputError(source, f"malformed {what}: expected 16 finite values, got {m.size}")
-    return m.reshape(4, 4)
+    m = m.reshape(4, 4)
+    if not np.allclose(m[3], (0, 0, 0, 1), atol=1e-6):
+        raise InputError(source, f"malformed {what}: its bottom row is {m[3].tolist()}, not [0, 0, 0, 1] "
+                                 "(not a rigid transform)")
+    return m
 
 
 def require_lidar(frame: LidarFrame, what: str) -> LidarFrame:
@@ -76,10 +82,26 @@ def require_lidar(frame: LidarFrame, what: str) -> LidarFrame:
     return frame
 
 
+#: the ranges a return may have, metres: above any automotive lidar's reach (Waymo's: 75 m TOP,
+#: 20 m the others) and below a millimetre are not measurements (≤ 0 is "no return")
+MIN_RANGE_M, MAX_RANGE_M = 1e-3, 1000.0
+
+
 def check_shapes(image: np.ndarray, proj: np.ndarray | None, pose: np.ndarray | None, where: str) -> None:
-    """Refuse a range image that is not H×W×C, or a camera projection / cell pose not H×W×6 of its size."""
+    """Refuse a range image that is not H×W×C or holds a range that is not a measurement
+    (non-finite, or a return outside [:data:`MIN_RANGE_M`, :data:`MAX_RANGE_M`]), or a camera
+    projection / cell pose not H×W×6 of its size."""
     if image.ndim != 3 or image.shape[2] < 1:
         raise InputError(where, f"range image has shape {list(image.shape)}, expected [H, W, 4]")
+    ranges = image[..., 0]
+    returns = ranges[ranges > 0]
+    bad = ~np.isfinite(ranges).all() or (returns.size and (returns.min() < MIN_RANGE_M or returns.max() > MAX_RANGE_M))
+    if bad:
+        finite = returns[np.isfinite(returns)]
+        span = f"{float(finite.min()):g} … {float(finite.max()):g} m" if finite.size else "none finite"
+        raise InputError(where, f"range image holds ranges that are not measurements (returns {span}"
+                                f"{', and NaN or infinite values' if not np.isfinite(ranges).all() else ''}; "
+                                f"a return lies in [{MIN_RANGE_M:g}, {MAX_RANGE_M:g}] m): a damaged frame")
     for what, m in (("camera projection", proj), ("range image pose", pose)):
         if m is not None and (m.ndim != 3 or m.shape[:2] != image.shape[:2] or m.shape[2] < 6):
             raise InputError(where, f"{what} has shape {list(m.shape)}, expected "

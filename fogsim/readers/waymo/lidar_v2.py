@@ -26,7 +26,7 @@ from fogsim.readers.waymo.lidar_frame import (
     require_lidar,
 )
 from fogsim.readers.waymo.lidar_v1 import LASER_RETURNS
-from fogsim.readers.waymo.sensors import CAMERA_NAMES, LASER_NAMES, laser_name
+from fogsim.readers.waymo.sensors import CAMERA_NAMES, LASER_NAMES, laser_name, sensor_enum
 
 # v2 tables and columns (v2/perception/lidar.py, context.py, pose.py; v2/component.py names them)
 V2_CONTEXT, V2_TIME, V2_LASER, V2_CAMERA = ("key.segment_context_name", "key.frame_timestamp_micros",
@@ -41,18 +41,8 @@ V2_VEHICLE_POSE = "[VehiclePoseComponent].world_from_vehicle.transform"
 
 
 def _sensor_key(value, source: str, names: dict[str, int] = LASER_NAMES) -> int:
-    """A key.laser_name / key.camera_name value as its enum: ints, numeric strings, or names
-    of ``names`` (:data:`LASER_NAMES` or ``CAMERA_NAMES``; "FRONT" is 2 as a laser, 1 as a camera)."""
-    if isinstance(value, str):
-        v = value.strip().upper()
-        if v.lstrip("-").isdigit():
-            return int(v)
-        if v in names:
-            return names[v]
-        raise InputError(source, f"unknown sensor name {value!r}")
-    if value is None:
-        raise InputError(source, "null sensor key")
-    return int(value)
+    """A key.laser_name / key.camera_name value as its enum (:func:`~.sensors.sensor_enum`)."""
+    return sensor_enum(value, source, "key.laser_name" if names is LASER_NAMES else V2_CAMERA, names)
 
 
 def _v2_rows(file: Path, keys: dict[str, object], columns: list[str], source: str) -> list[dict]:

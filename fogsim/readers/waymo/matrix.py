@@ -91,6 +91,54 @@ def _ints(values: list, source: str) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros(0, np.int64)
 
 
+#: the largest range image (beams × columns) a matrix may hold, far above any Waymo lidar (TOP:
+#: 64 × 2650, the others 200 × 600); with the channels (≤ 6) and the bytes a value takes
+#: (float32: 4; an int32 varint: ≤ 10) it bounds what a compressed matrix may inflate to, so a
+#: zlib bomb is refused before it is inflated (:func:`decode_matrix`)
+MAX_BEAMS, MAX_COLUMNS, MAX_CHANNELS = 256, 8192, 6
+MAX_BYTES = {"float": MAX_BEAMS * MAX_COLUMNS * MAX_CHANNELS * 4, "int32": MAX_BEAMS * MAX_COLUMNS * MAX_CHANNELS * 10}
+_SHAPE_SLACK = 1024  # the shape message and field tags beside the values
+
+
+def _bounded_inflate(data: bytes, kind: str, source: str) -> bytes:
+    """zlib-inflate a matrix message, refusing one whose values field declares (or whose stream
+    inflates to) more than :data:`MAX_BYTES` allows: memory stays bounded whatever the stream."""
+    limit = MAX_BYTES.get(kind, MAX_BYTES["int32"]) + _SHAPE_SLACK
+    d = zlib.decompressobj()
+    try:
+        head = d.decompress(data, 16)
+        if head[:1] == b"\x0a":  # field 1 (the values), length-delimited: its declared size comes first
+            size, pos = 0, 1
+            for shift in range(0, 70, 7):
+                if pos >= len(head):
+                    break
+                byte = head[pos]
+                size |= (byte & 0x7F) << shift
+                pos += 1
+                if byte < 0x80:
+                    if size > limit:
+                        raise InputError(source, f"malformed matrix: its values field declares {size:,} bytes, more "
+                                                 f"than a range image holds (≤ {MAX_BEAMS} beams × {MAX_COLUMNS} "
+                                                 f"columns × {MAX_CHANNELS} channels: {limit:,} bytes); not inflated")
+                    break
+        chunks, size = [head], len(head)
+        while not d.eof and size <= limit:  # 1 MiB at a time: the refusal costs ≤ limit
+            chunk = d.decompress(d.unconsumed_tail, 1 << 20)
+            if not chunk and not d.unconsumed_tail:
+                break  # input used up before the end of the stream: truncated
+            chunks.append(chunk)
+            size += len(chunk)
+    except zlib.error as exc:
+        raise InputError(source, f"corrupt zlib data ({exc})") from None
+    if size > limit:
+        raise InputError(source, f"malformed matrix: it inflates to more than {limit:,} bytes, more than a range "
+                                 f"image holds (≤ {MAX_BEAMS} beams × {MAX_COLUMNS} columns × {MAX_CHANNELS} "
+                                 "channels); inflation stopped there")
+    if not d.eof:
+        raise InputError(source, "corrupt zlib data (incomplete or truncated stream)")
+    return b"".join(chunks)
+
+
 def decode_matrix(data: bytes, kind: str, source: str, compressed: bool = True) -> np.ndarray:
     """A serialized ``MatrixFloat`` (``kind="float"``) or ``MatrixInt32`` (``"int32"``) as an array.
 
@@ -98,13 +146,11 @@ def decode_matrix(data: bytes, kind: str, source: str, compressed: bool = True) 
     little-endian float32 (unpacked fixed32 entries are accepted too); MatrixInt32 data is
     varints, packed or not, negative values as 10-byte sign-extended varints. ``shape.dims``
     may be packed or unpacked. Returns float32 or int32 of that shape (read-only for floats).
-    Corrupt zlib, malformed protobuf or a size/shape mismatch → :class:`InputError` (``source``).
+    Corrupt zlib, malformed protobuf, a size/shape mismatch or a matrix larger than any range
+    image (:data:`MAX_BYTES`, checked before inflating) → :class:`InputError` (``source``).
     """
     if compressed:
-        try:
-            data = zlib.decompress(data)
-        except zlib.error as exc:
-            raise InputError(source, f"corrupt zlib data ({exc})") from None
+        data = _bounded_inflate(data, kind, source)
     fields = pw.decode_fields(data, source)
     shape = pw.submessage(fields, MATRIX_SHAPE, source)
     dims = tuple(int(d) for d in _ints(shape.get(SHAPE_DIMS, []), source))

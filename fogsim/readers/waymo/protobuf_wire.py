@@ -63,10 +63,16 @@ def decode_fields(data: bytes | memoryview, source: str = "protobuf message") ->
     return fields
 
 
+_WIRE_WORDS = {int: "a varint (a number)", memoryview: "length-delimited (a message, string or bytes)",
+               bytes: "a fixed-size number"}
+
+
 def _values(fields: Fields, number: int, kind: type, source: str) -> list:
     values = fields.get(number, [])
-    if any(not isinstance(v, kind) for v in values):
-        raise InputError(source, f"malformed protobuf (field {number} has an unexpected wire type)")
+    wrong = next((v for v in values if not isinstance(v, kind)), None)
+    if wrong is not None:
+        raise InputError(source, f"malformed protobuf: field {number} has the wrong wire type, "
+                                 f"{_WIRE_WORDS[type(wrong)]} where {_WIRE_WORDS[kind]} belongs")
     return values
 
 

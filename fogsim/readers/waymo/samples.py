@@ -30,7 +30,14 @@ from fogsim.readers.waymo.images import FRAME_IMAGES, IMAGE_NAME, V2_IMAGE, Parq
 from fogsim.readers.waymo.labels_v1 import WaymoV1Labels, v1_label_index
 from fogsim.readers.waymo.labels_v2 import V2_CAMERA_BOX, WaymoV2Labels, v2_extrinsics
 from fogsim.readers.waymo.lidar import LidarPoints, OptionalPoints
-from fogsim.readers.waymo.sensors import CAMERA_BY_ID, DISTORTION, Calibration, calibration, camera_ids
+from fogsim.readers.waymo.sensors import (
+    CAMERA_BY_ID,
+    DISTORTION,
+    Calibration,
+    calibration,
+    camera_ids,
+    sensor_enum,
+)
 from fogsim.readers.waymo.tfrecord import index_tfrecord
 
 DEFAULT_DEPTH = DepthSpec(path="", encoding="metric", kind="planar")
@@ -184,11 +191,12 @@ def _v2_calibrations(folder: Path) -> dict[tuple[str, int], Calibration]:
     """(context, camera) → calibration from ``camera_calibration/*.parquet`` ({} if absent)."""
     calibrations = {}
     for file in sorted(folder.glob("*.parquet")):
-        pf = open_parquet(file, V2_CAL_KEYS + V2_CAL_PINHOLE + V2_CAL_SIZE)
+        pf = open_parquet(file, V2_CAL_KEYS + V2_CAL_PINHOLE + V2_CAL_SIZE, V2_CAL_DISTORTION)
         distortion = [c for c in V2_CAL_DISTORTION if c in pf.schema_arrow.names]
         cols = pf.read(columns=list(V2_CAL_KEYS + V2_CAL_PINHOLE + V2_CAL_SIZE) + distortion)
         for n, row in enumerate(cols.to_pylist()):
-            calibrations[(row[V2_CAL_KEYS[0]], row[V2_CAL_KEYS[1]])] = calibration(
+            camera = sensor_enum(row[V2_CAL_KEYS[1]], f"{file}#row {n}")
+            calibrations[(row[V2_CAL_KEYS[0]], camera)] = calibration(
                 [row[c] for c in V2_CAL_PINHOLE], *(row[c] for c in V2_CAL_SIZE),
                 {c.rsplit(".", 1)[1]: row[c] for c in distortion}, f"{file}#row {n}")
     return calibrations
@@ -232,6 +240,7 @@ def waymo_v2_samples(root: str | os.PathLike, cameras: Iterable[str] = ("FRONT",
         for group in range(pf.num_row_groups):
             keys = pf.read_row_group(group, columns=list(V2_KEYS)).to_pydict()
             for row, (name, timestamp, camera) in enumerate(zip(*(keys[k] for k in V2_KEYS))):
+                camera = None if camera is None else sensor_enum(camera, f"{file}#row {start + row}")
                 seen.add(camera)
                 if camera in selected:
                     source = f"{file}#row {start + row} {selected[camera]}"

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Iterable
 
+import numpy as np
+
 from fogsim.camera import Intrinsics
 from fogsim.errors import InputError
 
@@ -35,6 +37,22 @@ def camera_ids(cameras: Iterable[str] | str) -> dict[int, str]:
         given = ", ".join(map(repr, unknown)) or "(none given)"
         raise ValueError(f"unknown Waymo camera(s) {given}; valid: {', '.join(CAMERA_NAMES)}")
     return {CAMERA_NAMES[str(n).upper()]: str(n).upper() for n in names}
+
+
+def sensor_enum(value, source: str, column: str = "key.camera_name", names: dict[str, int] = CAMERA_NAMES) -> int:
+    """A v2 sensor key (``key.camera_name`` / ``key.laser_name``) as its enum value: an integer,
+    a numeric string ("1") or a name of ``names`` ("FRONT", as some real files have; "FRONT" is 1
+    as a camera, 2 as a lidar); anything else (null, a list, another word) is refused naming
+    ``column`` and the value."""
+    if isinstance(value, str):
+        v = value.strip().upper()
+        if v.lstrip("-").isdigit():
+            return int(v)
+        if v in names:
+            return names[v]
+    elif isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
+        return int(value)
+    raise InputError(source, f"malformed {column} {value!r} (a sensor number or one of {', '.join(names)})")
 
 
 def laser_name(laser: int) -> str:

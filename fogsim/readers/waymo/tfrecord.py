@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import os
 import struct
-import tempfile
 from functools import lru_cache
 from pathlib import Path
 from typing import Callable, Iterable
@@ -225,18 +224,13 @@ def read_record(path: str | os.PathLike, offset: int, length: int,
 
 
 def write_tfrecord(path: str | os.PathLike, records: Iterable[bytes]) -> None:
-    """Write ``records`` as a TFRecord file, atomically (temporary file and rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            for data in records:
-                length = struct.pack("<Q", len(data))
-                f.write(length + _FOOTER.pack(masked_crc32c(length)))
-                f.write(data)
-                f.write(_FOOTER.pack(masked_crc32c(data)))
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """Write ``records`` as a TFRecord file, atomically (:func:`fogsim.fileio.atomic_path`: a
+    temporary file and a rename; the file gets 0666 minus the umask, as any tool's output)."""
+    from fogsim.fileio import atomic_path
+
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        for data in records:
+            length = struct.pack("<Q", len(data))
+            f.write(length + _FOOTER.pack(masked_crc32c(length)))
+            f.write(data)
+            f.write(_FOOTER.pack(masked_crc32c(data)))

@@ -1,0 +1,364 @@
+"""Crafted dataset inputs and run-wide checks through the command line (issue 18, part B).
+
+The inputs are built with fogsim's own writers (protobuf_wire, write_tfrecord, pyarrow for v2
+parquet, the Cityscapes fixture tree) from the specs in the notes; every case checks what
+:mod:`test_hostile` checks: the exit code, a message naming the file or the flag, no traceback,
+inputs byte-identical, nothing partial (no ``*.part``, no empty file) and, on exit 2, nothing
+written at all. A case may first run a command of its own (``pre``: e.g. the failed run whose
+corrected rerun must be accepted into the same ``--out``).
+"""
+from __future__ import annotations
+
+import json
+import math
+import zlib
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import pytest
+
+import waymo_fixtures as wfx
+import waymo_lidar_fixtures as lfx
+from conftest import tree_digest
+from fogsim.cli import main
+from fogsim.fileio import PART_SUFFIX, encode_image, write_depth, write_image
+from fogsim.readers.waymo import protobuf_wire as pw
+from fogsim.readers.waymo.tfrecord import write_tfrecord
+from test_hostile import Case, good_cityscapes
+
+STAMPS = (1_000_000, 2_000_000)
+FRONT, FRONT_LEFT = 1, 2
+
+
+# ----------------------------------------------------------------------------- Waymo v1 inputs
+def _image() -> bytes:
+    return encode_image(np.full((lfx.IMAGE_H, lfx.IMAGE_W, 3), 90, np.uint8), ".png")
+
+
+def _car(**kw) -> wfx.Box2D:
+    box = dict(id="cam-car", type=1, cx=lfx.IMAGE_W / 2, cy=lfx.IMAGE_H / 2 + 20, length=120, width=80) | kw
+    return wfx.Box2D(**box)
+
+
+def _labels(camera: int = FRONT, boxes=None) -> bytes:
+    boxes = [_car()] if boxes is None else boxes
+    return pw.bytes_field(8, wfx.camera_labels_message(camera, [wfx.camera_label(b) for b in boxes]))
+
+
+def _depth_dir(tmp: Path, stamps=STAMPS) -> Path:
+    depth = tmp / "in" / "depth"
+    for t in stamps:
+        write_depth(depth / lfx.CONTEXT / f"{t}_FRONT.exr", np.full((lfx.IMAGE_H, lfx.IMAGE_W), 20.0, np.float32))
+    return depth
+
+
+def _segment(tmp: Path, extra: bytes | Callable[[int], bytes] = b"", lasers: bool = True, scene=None,
+             name: str = "seg.tfrecord") -> Path:
+    """A v1 segment of two frames of the wall scene (image, LiDAR unless not ``lasers``) + ``extra``
+    appended to each Frame (CRCs computed by write_tfrecord)."""
+    scene = scene or lfx.wall_scene()
+    path = tmp / "in" / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_tfrecord(path, [lfx.frame_msg(scene, t, with_lasers=lasers, image=_image())
+                          + (extra(t) if callable(extra) else extra) for t in STAMPS])
+    return path
+
+
+def _fog_waymo(tmp: Path, src: Path, *extra: str, depth: bool = True) -> list[str]:
+    argv = ["fog", "--waymo", str(src), "--cameras", "FRONT", "--levels", "0,0.06", "--out", str(tmp / "out"),
+            "--quiet"]
+    return argv + (["--depth-dir", str(_depth_dir(tmp))] if depth and "--depth-from" not in extra else []) + list(extra)
+
+
+def _v1(extra=b"", *flags: str, lasers: bool = True, scene=None, depth: bool = True):
+    def build(tmp: Path) -> list[str]:
+        return _fog_waymo(tmp, _segment(tmp, extra, lasers, scene() if scene else None), *flags, depth=depth)
+    return build
+
+
+def _zip_bomb(declared: int) -> bytes:
+    """A MatrixFloat whose data field declares ``declared`` bytes, zlib'd (1 MiB of zeros follow:
+    the stream is small, what it claims is not)."""
+    head = b"\x0a" + pw.encode_varint(declared)
+    c = zlib.compressobj(9)
+    return c.compress(head) + c.compress(bytes(1 << 20)) + c.flush()
+
+
+def _bomb_frame(t: int) -> bytes:
+    """A Frame whose TOP range_image_compressed is a zlib bomb (declares 3 GiB)."""
+    scene = lfx.wall_scene()
+    laser = scene.lasers[0]
+    body = pw.varint_field(1, laser.name) + pw.bytes_field(2, pw.bytes_field(2, _zip_bomb(3 << 30)))
+    return lfx.frame_msg(scene, t, with_lasers=False, image=_image()) + pw.bytes_field(5, body)
+
+
+def _bomb(*flags: str):
+    def build(tmp: Path) -> list[str]:
+        path = tmp / "in" / "seg_bomb.tfrecord"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_tfrecord(path, [_bomb_frame(t) + _labels() for t in STAMPS])
+        return _fog_waymo(tmp, path, *flags)
+    return build
+
+
+def _ranges(value: float):
+    """The wall scene with every valid range set to ``value`` metres."""
+    def scene():
+        s = lfx.wall_scene()
+        ri = s.lasers[0].range_image
+        ri[..., 0] = np.where(ri[..., 0] > 0, value, ri[..., 0])
+        return s
+    return scene
+
+
+def _singular_extrinsic():
+    scene = lfx.wall_scene()
+    scene.cameras[0].extrinsic = scene.cameras[0].extrinsic.copy()
+    scene.cameras[0].extrinsic[3] = 0.0  # bottom row 0: not a rigid transform (its rotation is fine)
+    return scene
+
+
+def _labels_bytes_name(t: int) -> bytes:
+    """camera_labels whose name (field 1, an enum) is written as a string."""
+    return pw.bytes_field(8, pw.bytes_field(1, "FRONT") + pw.bytes_field(2, wfx.camera_label(_car())))
+
+
+# ----------------------------------------------------------------------------- Waymo v2 inputs
+def _v2_frames() -> list[wfx.LabelFrame]:
+    cam = wfx.Camera(width=lfx.IMAGE_W, height=lfx.IMAGE_H)
+    return [wfx.LabelFrame(lfx.CONTEXT, t, {FRONT: cam}, camera_labels={FRONT: [wfx.Box2D("c", 1, 160, 140, 120, 80)]})
+            for t in STAMPS]
+
+
+def _v2_change(tag: str, column: str, values):
+    """Rewrite ``column`` of the v2 table ``tag`` with ``values`` (a pyarrow array)."""
+    def change(root: Path) -> None:
+        import pyarrow.parquet as pq
+
+        path = root / tag / f"{lfx.CONTEXT}.parquet"
+        table = pq.read_table(path)
+        table = table.set_column(table.schema.get_field_index(column), column, values(len(table)))
+        pq.write_table(table, path)
+    return change
+
+
+def _v2(change: Callable[[Path], None] | None = None, *flags: str, lidar: bool = False):
+    def build(tmp: Path) -> list[str]:
+        root = tmp / "in" / "v2"
+        wfx.write_v2(root, _v2_frames())
+        if lidar:
+            lfx.write_v2(root, lfx.wall_scene())
+        if change:
+            change(root)
+        return _fog_waymo(tmp, root, *flags)
+    return build
+
+
+def _pa_list_int(n: int):
+    import pyarrow as pa
+
+    return pa.array([[FRONT]] * n, pa.list_(pa.int8()))
+
+
+def _pa_str(value: str):
+    def make(n: int):
+        import pyarrow as pa
+
+        return pa.array([value] * n, pa.string())
+    return make
+
+
+def _pa_float(value: float):
+    def make(n: int):
+        import pyarrow as pa
+
+        return pa.array([value] * n, pa.float64())
+    return make
+
+
+# ----------------------------------------------------------------------------- Cityscapes inputs
+def _cs_gt(change: Callable[[Path], None], *flags: str):
+    def build(tmp: Path) -> list[str]:
+        base = good_cityscapes(tmp)
+        ids = np.zeros((20, 40), np.uint16)
+        ids[5:15, 5:20] = 26000  # one car
+        write_image(base / "gtFine" / "val" / "aachen" / "aachen_000000_000019_gtFine_instanceIds.png", ids)
+        change(base)
+        return ["fog", "--cityscapes", str(base), "--levels", "0.06", "--out", str(tmp / "out"), "--quiet", *flags]
+    return build
+
+
+def _gt_emptied(base: Path) -> None:
+    for p in (base / "gtFine" / "val" / "aachen").iterdir():
+        p.unlink()
+
+
+def _gt_groups_big(tmp: Path) -> list[str]:
+    """640×320 instanceIds with cargroup (26) on every 3rd pixel of every 3rd row: 22,827
+    separate group regions, more than an int32 of 100000·k + class id holds."""
+    rng = np.random.default_rng(3)
+    base = tmp / "in" / "cs"
+    stem = "aachen_000000_000019"
+    h, w = 320, 640
+    write_image(base / "leftImg8bit" / "val" / "aachen" / f"{stem}_leftImg8bit.png",
+                rng.integers(0, 256, (h, w, 3), dtype=np.uint8))
+    from fogsim.camera import depth_to_disparity, encode_disparity_png
+
+    disp = encode_disparity_png(depth_to_disparity(np.full((h, w), 30.0, np.float32), 0.209, 400.0))
+    write_image(base / "disparity" / "val" / "aachen" / f"{stem}_disparity.png", disp)
+    (base / "camera" / "val" / "aachen").mkdir(parents=True)
+    (base / "camera" / "val" / "aachen" / f"{stem}_camera.json").write_text(json.dumps(
+        {"extrinsic": {"baseline": 0.209}, "intrinsic": {"fx": 400.0, "fy": 400.0, "u0": 319.5, "v0": 159.5}}))
+    ids = np.zeros((h, w), np.uint16)
+    ids[::3, ::3] = 26
+    ids[100:140, 200:300] = 26000
+    write_image(base / "gtFine" / "val" / "aachen" / f"{stem}_gtFine_instanceIds.png", ids)
+    return ["fog", "--cityscapes", str(base), "--levels", "0.06", "--out", str(tmp / "out"), "--quiet"]
+
+
+# ----------------------------------------------------------------------------- the cases
+def _retry(first: Callable[[Path], list[str]], second: Callable[[list[str], Path], list[str]]):
+    """``first``'s argv, then the corrected rerun ``second(first argv, tmp)`` into the same --out."""
+    def build(tmp: Path) -> list[str]:
+        argv = first(tmp)
+        code = main(argv)
+        assert code == 2, f"the first run should be refused before it claims --out, exit {code}"
+        return second(argv, tmp)
+    return build
+
+
+def _swap_lidar_for_depth_dir(argv: list[str], tmp: Path) -> list[str]:
+    i = argv.index("--depth-from")
+    return argv[:i] + argv[i + 2:] + ["--depth-dir", str(_depth_dir(tmp))]
+
+
+CASES = [
+    # --- Waymo v1: mistyped fields (T4), labels of another camera (T14), LiDAR (T6, T7, T9)
+    Case("w1-labels-varint", _v1(pw.varint_field(8, 7)), 2, ("seg.tfrecord#record 0", "field 8")),
+    Case("w1-labels-name-string", _v1(_labels_bytes_name), 2, ("seg.tfrecord#record 0", "field 1")),
+    Case("w1-labels-other-camera", _v1(_labels(FRONT_LEFT)), 0, ("seg.tfrecord#record 0", "no camera_labels",
+                                                                 "images only")),
+    Case("w1-labels-none", _v1(b""), 0, ("seg.tfrecord#record 0", "no camera_labels", "images only")),
+    Case("w1-lidar-absent", _v1(_labels(), "--depth-from", "lidar", lasers=False), 2,
+         ("seg.tfrecord", "no LiDAR", "--depth-from lidar")),
+    Case("w1-lidar-absent-retry", _retry(_v1(_labels(), "--depth-from", "lidar", lasers=False),
+                                         _swap_lidar_for_depth_dir), 0, ()),
+    Case("w1-lidar-zipbomb", _bomb("--depth-from", "lidar"), 1, ("seg_bomb.tfrecord#record 0", "range_image_compressed",
+                                                                  "declares")),
+    Case("w1-lidar-zipbomb-depth-dir", _bomb(), 1, ("seg_bomb.tfrecord#record 0", "range_image_compressed")),
+    Case("w1-box-huge", _v1(_labels(boxes=[_car(cx=1.7e308, length=1.7e308)])), 1,
+         ("seg.tfrecord#record 0", "2D box", "1.7e+308")),
+    Case("w1-extrinsic-singular", _v1(_labels(), scene=_singular_extrinsic), 1,
+         ("seg.tfrecord#record 0", "extrinsic", "bottom row")),
+    Case("w1-holdout-all", _v1(_labels(), "--depth-from", "lidar", "--lidar-holdout", "0.999"), 1,
+         ("seg.tfrecord#record 0", "--lidar-holdout 0.999", "held out")),
+    Case("w1-lidar-range-huge", _v1(_labels(), "--depth-from", "lidar", scene=_ranges(1e30)), 1,
+         ("seg.tfrecord#record 0", "range", "1e+30")),
+    Case("w1-lidar-range-tiny", _v1(_labels(), "--depth-from", "lidar", scene=_ranges(1e-30)), 1,
+         ("seg.tfrecord#record 0", "range", "1e-30")),
+    # --- Waymo v2: key types (T4, T10), no LiDAR tables (T6), a NaN box type (T9)
+    Case("v2-camera-name-list", _v2(_v2_change("camera_image", "key.camera_name", _pa_list_int)), 2,
+         ("camera_image", f"{lfx.CONTEXT}.parquet", "key.camera_name")),
+    Case("v2-calibration-camera-name-list", _v2(_v2_change("camera_calibration", "key.camera_name", _pa_list_int)),
+         2, ("camera_calibration", "key.camera_name")),
+    Case("v2-camera-box-camera-name-list", _v2(_v2_change("camera_box", "key.camera_name", _pa_list_int)),
+         1, ("camera_box", "key.camera_name")),  # label tables are read per frame
+    Case("v2-camera-name-string", _v2(_v2_change("camera_image", "key.camera_name", _pa_str("FRONT"))), 0, ()),
+    Case("v2-timestamp-string", _v2(_v2_change("camera_image", "key.frame_timestamp_micros", _pa_str("soon"))), 2,
+         ("camera_image", "key.frame_timestamp_micros")),
+    Case("v2-lidar-absent", _v2(None, "--depth-from", "lidar"), 2, ("v2", "no LiDAR", "--depth-from lidar")),
+    Case("v2-lidar-absent-retry", _retry(_v2(None, "--depth-from", "lidar"), _swap_lidar_for_depth_dir), 0, ()),
+    Case("v2-box-type-nan", _v2(_v2_change("camera_box", "[CameraBoxComponent].type", _pa_float(math.nan))), 1,
+         ("camera_box", "#row 0", "[CameraBoxComponent].type")),
+    Case("v2-box-center-string", _v2(_v2_change("camera_box", "[CameraBoxComponent].box.center.x", _pa_str("mid"))),
+         1, ("camera_box", "[CameraBoxComponent].box.center.x")),
+    # --- Cityscapes gtFine (T6, T8)
+    Case("cs-gt-split-empty", _cs_gt(_gt_emptied), 2, ("gtFine", "val", "--no-labels")),
+    Case("cs-gt-split-empty-retry", _retry(_cs_gt(_gt_emptied), lambda argv, tmp: argv + ["--no-labels"]), 0, ()),
+    Case("cs-gt-groups-big", _gt_groups_big, 0, ()),
+]
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+def test_hostile_input(case: Case, tmp_path, capsys, monkeypatch):
+    if case.id.startswith(("v2-",)):
+        pytest.importorskip("pyarrow")
+    monkeypatch.chdir(tmp_path)
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in case.build(tmp_path)]
+    out_before = (tmp_path / "out").exists()
+    capsys.readouterr()
+    before = tree_digest(tmp_path / "in")
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse's own usage errors
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == case.code, err
+    assert "Traceback" not in err
+    for text in case.says:
+        assert text.replace("{tmp}", str(tmp_path)) in err, err
+    if case.code:
+        lines = [ln for ln in err.splitlines() if ln.startswith(("fogsim: error", "  failed:"))]
+        assert lines and all(len(ln) < 600 for ln in lines), err
+    assert tree_digest(tmp_path / "in") == before, "an input changed"
+    outputs = [p for p in tmp_path.rglob("*") if p.is_file() and p.relative_to(tmp_path).parts[0] != "in"]
+    left = [p for p in tmp_path.rglob(f"*{PART_SUFFIX}")] + [p for p in outputs if p.stat().st_size == 0]
+    assert not left, f"partial files left: {left}"
+    if case.code == 2 and not out_before:
+        assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir()), "a usage error wrote output"
+
+
+# ----------------------------------------------------------------------------- below the command line
+def _stream(head: bytes, zeros: int) -> bytes:
+    c = zlib.compressobj(9)
+    out = c.compress(head)
+    for _ in range(zeros >> 20):
+        out += c.compress(bytes(1 << 20))
+    return out + c.flush()
+
+
+@pytest.mark.parametrize("head, says", [
+    (b"\x0a" + pw.encode_varint(3 << 30), "declares"),  # the values field declares 3 GiB
+    (b"\x12\x02\x08\x01", "inflates to more than"),  # shape first, then 300 MiB that declare nothing
+])
+def test_a_zlib_bomb_is_refused_before_it_is_inflated(head, says):
+    """T7: a range image inflates to at most what its largest possible shape holds (memory bound)."""
+    import tracemalloc
+
+    from fogsim.errors import InputError
+    from fogsim.readers.waymo.matrix import MAX_BYTES, decode_matrix
+
+    bomb = _stream(head, 300 << 20)
+    assert len(bomb) < 1 << 20
+    tracemalloc.start()
+    try:
+        with pytest.raises(InputError, match=says) as err:
+            decode_matrix(bomb, "float", "seg#record 0 TOP range_image_compressed")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert "seg#record 0 TOP range_image_compressed" in str(err.value)
+    assert peak < MAX_BYTES["float"] + (16 << 20), f"peak {peak / 1e6:.0f} MB"
+
+
+def test_a_real_size_range_image_still_decodes():
+    from fogsim.readers.waymo.matrix import decode_matrix, encode_matrix
+
+    ri = np.random.default_rng(0).uniform(1, 75, (64, 2650, 4)).astype(np.float32)
+    assert np.array_equal(decode_matrix(encode_matrix(ri), "float", "x"), ri)
+    proj = np.random.default_rng(1).integers(-1, 1920, (64, 2650, 6)).astype(np.int32)
+    assert np.array_equal(decode_matrix(encode_matrix(proj), "int32", "x"), proj)
+
+
+def test_write_tfrecord_follows_the_umask(tmp_path):
+    """also seen: the helper wrote 0600 files (mkstemp's mode)."""
+    import os
+
+    old = os.umask(0o022)
+    try:
+        write_tfrecord(tmp_path / "a.tfrecord", [b"x"])
+    finally:
+        os.umask(old)
+    assert (tmp_path / "a.tfrecord").stat().st_mode & 0o777 == 0o644
+    assert [p.name for p in tmp_path.iterdir()] == ["a.tfrecord"]
