@@ -152,6 +152,21 @@ def read_json(path: str | os.PathLike) -> dict:
 
 
 # ----------------------------------------------------------------------------- images
+#: Default bound on an image's size, width × height, for ``fogsim render`` and ``fogsim fog``
+#: (about 8192 × 4883; the Waymo front camera is 2.5 MP): a frame's arrays, its fog levels and
+#: Cycles' buffers grow with it; raise it with ``--max-pixels`` when a larger image is meant.
+MAX_PIXELS = 40_000_000
+
+
+def pixel_limit_problem(width: int, height: int, max_pixels: int, action: str = "render") -> str | None:
+    """Why a ``width`` × ``height`` image is refused under ``max_pixels`` (``--max-pixels``), or None;
+    ``action`` is what raising the flag would let happen ("render", "fog")."""
+    if width * height > max_pixels:
+        return (f"{width}×{height} = {width * height / 1e6:.1f} MP is above the limit of {max_pixels / 1e6:g} MP "
+                f"(--max-pixels {max_pixels}); raise --max-pixels to {action} it")
+    return None
+
+
 def decode_image(data: bytes, source: str) -> np.ndarray:
     """Decode encoded image bytes (PNG, JPEG, ...) to an RGB array of the file's bit depth.
 

@@ -25,7 +25,7 @@ from fogsim.cli import main
 from fogsim.fileio import PART_SUFFIX, encode_image, write_depth, write_image
 from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.waymo.tfrecord import write_tfrecord
-from test_hostile import Case, good_cityscapes
+from test_hostile import Case, fog, good_cityscapes, good_folder
 
 STAMPS = (1_000_000, 2_000_000)
 FRONT, FRONT_LEFT = 1, 2
@@ -217,6 +217,71 @@ def _gt_groups_big(tmp: Path) -> list[str]:
     return ["fog", "--cityscapes", str(base), "--levels", "0.06", "--out", str(tmp / "out"), "--quiet"]
 
 
+# ----------------------------------------------------------------------------- presets, bench, depth score
+def _preset(change: Callable[[dict], None], *flags: str):
+    """``fogsim render`` of the bundled default preset changed by ``change`` (refused before Blender)."""
+    def build(tmp: Path) -> list[str]:
+        from fogsim.presets import preset_path
+
+        doc = json.loads(preset_path("default").read_text())
+        doc.pop("$schema", None)
+        change(doc)
+        path = tmp / "in" / "p.json"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(doc))
+        return ["render", "--preset", str(path), "--frames", "1", "--resolution", "32x24", "--samples", "1",
+                "--out", str(tmp / "out"), "--quiet", *flags]
+    return build
+
+
+def _set(path: str, value):
+    def change(doc: dict) -> None:
+        *parents, last = path.split(".")
+        for k in parents:
+            doc = doc.setdefault(k, {})
+        doc[last] = value
+    return change
+
+
+def _bench(*flags: str):
+    def build(tmp: Path) -> list[str]:
+        (tmp / "in").mkdir(parents=True, exist_ok=True)
+        return ["bench", "fog-physics", "--frames", "1", "--samples", "2", "--out", str(tmp / "out"), "--quiet",
+                *flags]
+    return build
+
+
+def _score(*flags: str, holdout: bool = True):
+    """``fogsim depth score`` of a folder of ray-distance predictions against hold-out files."""
+    def build(tmp: Path) -> list[str]:
+        from fogsim.depth.lidar_source import write_holdout
+
+        key = f"{lfx.CONTEXT}/1000000_FRONT"
+        write_depth(tmp / "in" / "pred" / f"{key}.exr", np.full((24, 32), 20.0, np.float32))
+        uv = np.array([[3.5, 4.5], [10.5, 12.5]])
+        if holdout:
+            write_holdout(tmp / "in" / "h" / "lidar_holdout" / f"{key}.npz", uv, np.array([20.0, 21.0]), 32, 24)
+        else:
+            (tmp / "in" / "h").mkdir(parents=True)
+        argv = ["depth", "score", "--pred", str(tmp / "in" / "pred"), "--pred-kind", "ray", "--holdout",
+                str(tmp / "in" / "h"), "--out", str(tmp / "out"), "--quiet"]
+        return [a.replace("{tmp}", str(tmp)) for a in argv + list(flags)]
+    return build
+
+
+def _score_pred(write: Callable[[Path], None]):
+    def build(tmp: Path) -> list[str]:
+        argv = _score()(tmp)
+        write(tmp / "in" / "pred" / f"{lfx.CONTEXT}" / "1000000_FRONT.exr")
+        return argv
+    return build
+
+
+def _big_image(tmp: Path) -> list[str]:
+    base = good_folder(tmp)
+    return fog(base, tmp / "out", "--max-pixels", "700")
+
+
 # ----------------------------------------------------------------------------- the cases
 def _retry(first: Callable[[Path], list[str]], second: Callable[[list[str], Path], list[str]]):
     """``first``'s argv, then the corrected rerun ``second(first argv, tmp)`` into the same --out."""
@@ -277,6 +342,42 @@ CASES = [
     Case("cs-gt-split-empty", _cs_gt(_gt_emptied), 2, ("gtFine", "val", "--no-labels")),
     Case("cs-gt-split-empty-retry", _retry(_cs_gt(_gt_emptied), lambda argv, tmp: argv + ["--no-labels"]), 0, ()),
     Case("cs-gt-groups-big", _gt_groups_big, 0, ()),
+    # --- fogsim fog --max-pixels (also seen: render's bound, same default and message)
+    Case("fog-max-pixels-exceeded", _big_image, 1, ("a.png", "32×24", "--max-pixels 700", "raise --max-pixels")),
+    Case("fog-max-pixels-zero", lambda t: fog(good_folder(t), t / "out", "--max-pixels", "0"), 2, ("--max-pixels",)),
+    # --- bench fog-physics: every flag checked before the first render (T11)
+    Case("bench-levels-without-clear", _bench("--levels", "0.03", "--resolution", "32x24"), 2,
+         ("--levels 0.03", "must include 0")),
+    Case("bench-levels-unknown", _bench("--levels", "thick", "--resolution", "32x24"), 2, ("--levels thick",)),
+    Case("bench-resolution-malformed", _bench("--resolution", "big"), 2, ("--resolution",)),
+    Case("bench-resolution-huge", _bench("--resolution", "20000x20000"), 2, ("--resolution", "--max-pixels")),
+    Case("bench-preset-unknown", _bench("--preset", "nope", "--resolution", "32x24"), 2, ("nope.json",)),
+    # --- volumetric and night presets: refused naming the file and the key, before Blender starts
+    Case("vol-medium-unknown", _preset(_set("fog_model.volumetric.medium", "smoke")), 2,
+         ("p.json", "fog_model.volumetric.medium")),
+    Case("vol-g-out-of-range", _preset(_set("fog_model.volumetric.g", 1.5)), 2, ("p.json", "fog_model.volumetric.g")),
+    Case("vol-extent-negative", _preset(_set("fog_model.volumetric.extent_m", -5)), 2,
+         ("p.json", "fog_model.volumetric.extent_m")),
+    Case("vol-medium-flag-with-koschmieder", _preset(lambda d: None, "--fog", "koschmieder", "--fog-medium", "ea"), 2,
+         ("--fog-medium", "--fog volumetric")),
+    Case("night-day-with-night-keys", _preset(_set("lighting", {"time_of_day": "day", "headlight_power_w": 5})),
+         2, ("p.json", "lighting")),
+    Case("night-windows-reversed", _preset(_set("lighting", {"time_of_day": "night",
+                                                             "lit_window_fraction": [0.5, 0.1]})), 2,
+         ("p.json", "lighting.lit_window_fraction")),
+    Case("night-lamp-power-string", _preset(_set("lighting", {"time_of_day": "night",
+                                                              "street_lamp_power_w": "bright"})), 2,
+         ("p.json", "lighting.street_lamp_power_w")),
+    # --- fogsim depth score: its inputs (the hold-out files' own fields are test_hostile_documents');
+    # one unusable prediction makes the whole score meaningless: exit 2, nothing written
+    Case("score-pred-missing", _score("--pred", "{tmp}/in/nopred"), 2, ("nopred",)),
+    Case("score-holdout-empty", _score(holdout=False), 2, ("lidar_holdout",)),
+    Case("score-pred-wrong-size", _score_pred(lambda p: write_depth(p, np.full((12, 16), 20.0, np.float32))), 2,
+         ("1000000_FRONT.exr",)),
+    Case("score-pred-nan", _score_pred(lambda p: write_depth(p, np.full((24, 32), np.nan, np.float32))), 2,
+         ("1000000_FRONT.exr",)),
+    Case("score-pred-truncated", _score_pred(lambda p: p.write_bytes(p.read_bytes()[:200])), 2,
+         ("1000000_FRONT.exr",)),
 ]
 
 
@@ -307,6 +408,11 @@ def test_hostile_input(case: Case, tmp_path, capsys, monkeypatch):
     assert not left, f"partial files left: {left}"
     if case.code == 2 and not out_before:
         assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir()), "a usage error wrote output"
+
+
+def test_at_least_thirty_cases():
+    ids = [c.id for c in CASES]
+    assert len(ids) >= 30 and len(set(ids)) == len(ids)
 
 
 # ----------------------------------------------------------------------------- below the command line

@@ -150,7 +150,29 @@ def _fog_physics(args) -> int:
     from fogsim.bench.fog_physics import run
 
     _positive(frames=args.frames, samples=args.samples)
+    if not args.analyse_only:
+        _check_fog_physics_flags(args)
     return run(args)
+
+
+def _check_fog_physics_flags(args) -> None:
+    """Every flag the three renders take, checked before the first one starts (or anything is
+    written): the preset, --resolution, --levels (which must hold β = 0, the reference) …"""
+    from fogsim.errors import InputError
+    from fogsim.render.preset import load_render_preset
+
+    try:
+        config = load_render_preset(args.preset, frames=args.frames, seed=args.seed, resolution=args.resolution,
+                                    samples=args.samples, levels=args.levels, fog="volumetric",
+                                    fog_medium=args.medium)
+    except InputError as exc:
+        if args.levels and not args.levels.replace(".", "").replace(",", "").isdigit():
+            raise ValueError(f"--levels {args.levels}: {exc}") from None
+        raise
+    if not any(lv.beta == 0 for lv in config.levels):
+        given = f"--levels {args.levels}" if args.levels else f"the levels of preset {args.preset}"
+        raise ValueError(f"{given} must include 0 (β = 0, the clear reference both fog renders are compared with), "
+                         f"got {', '.join(f'{lv.beta:g}' for lv in config.levels)}")
 
 
 def _ila(args) -> int:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from fogsim.dataset.writer import TRAIN_FRACTION, check_train_fraction
 from fogsim.errors import EXIT_FAILED, EXIT_OK, InputError
+from fogsim.fileio import MAX_PIXELS
 from fogsim.fog.labelled import SPLIT_BY
 from fogsim.fog.model import KERNELS, SPACES, airlight_rgb, check_heterogeneity
 from fogsim.readers.base import DEPTH_ENCODINGS
@@ -43,6 +44,9 @@ def _add_batch_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--format", dest="image_format", choices=("png", "jpg"), default="png",
                    help="png keeps the input's bit depth (8 or 16); jpg is 8-bit only: 16-bit input is "
                         "scaled to 8 bit, v8 = round(v16·255/65535), and the sidecar records it")
+    g.add_argument("--max-pixels", type=int, default=MAX_PIXELS,
+                   help=f"an image of more pixels than this, width × height, fails (default {MAX_PIXELS:,}, "
+                        "about 8192×4883, as fogsim render's)")
     g.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
     g.add_argument("--shard", help="i/N: process every N-th sample starting at i (0-based), "
                                    "e.g. $SLURM_ARRAY_TASK_ID/N")
@@ -234,6 +238,9 @@ def _job(args, out: str, classes: tuple[str, ...] = ()):
     if fill not in fill_methods():
         raise ValueError(f"--fill must be one of {', '.join(fill_methods())}, got {fill!r}")
     inputs = _inputs(args)
+    max_pixels = getattr(args, "max_pixels", MAX_PIXELS)
+    if max_pixels < 1:
+        raise ValueError(f"--max-pixels must be ≥ 1, got {max_pixels}")
     min_pixels = getattr(args, "min_pixels", 0)
     if min_pixels < 0:
         raise ValueError(f"--min-pixels must be ≥ 0, got {min_pixels}")
@@ -244,7 +251,7 @@ def _job(args, out: str, classes: tuple[str, ...] = ()):
         inputs["split_by"] = getattr(args, "split_by", None) or "frame"
     return FogJob(levels, out, airlight, args.space, kernel, fill, args.heterogeneity,
                   args.heterogeneity_scale, args.seed, getattr(args, "image_format", "png"), inputs,
-                  labels=bool(classes), classes=tuple(classes), min_pixels=min_pixels)
+                  labels=bool(classes), classes=tuple(classes), min_pixels=min_pixels, max_pixels=max_pixels)
 
 
 def _inputs(args) -> dict:

@@ -39,7 +39,17 @@ from fogsim.dataset.layout import DatasetLayout, frame_from_key
 from fogsim.dataset.reader import frame_records
 from fogsim.dataset.writer import TRAIN_FRACTION, check_train_fraction, finalize, write_frame_labels
 from fogsim.errors import InputError
-from fogsim.fileio import TO_8BIT, atomic_write_bytes, encode_image, read_json, remove_stale_parts, to_8bit, write_json
+from fogsim.fileio import (
+    MAX_PIXELS,
+    TO_8BIT,
+    atomic_write_bytes,
+    encode_image,
+    pixel_limit_problem,
+    read_json,
+    remove_stale_parts,
+    to_8bit,
+    write_json,
+)
 from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
 from fogsim.fog.labelled import SPLIT_BY, check_labelled, checked_records, key_folder
 from fogsim.fog.levels import FogLevel
@@ -71,6 +81,7 @@ class FogJob:
     labels: bool = False          # write the labelled dataset layout (see the module docstring)
     classes: tuple[str, ...] = ()  # the dataset's own class list (labels only)
     min_pixels: int = 0           # kept annotations with fewer pixels → ignore regions (labels only)
+    max_pixels: int = MAX_PIXELS  # an image of more pixels fails (--max-pixels; not a run parameter)
 
     def parameters(self) -> dict:
         """The run parameters recorded in ``fogsim_run.json`` and compared on resume."""
@@ -112,6 +123,8 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
     YOLO labels, then the frame's meta)."""
     image = sample.read_image()
     h, w = image.shape[:2]
+    if why := pixel_limit_problem(w, h, job.max_pixels, "fog"):
+        raise InputError(sample.source, why)  # before its depth is read and its levels are made
     records = checked_records(sample, job.classes, job.min_pixels, w, h) if job.labels else None
     dist = sample_distance(sample, w, h, job.fill, image)
     seed = sample_seed(job.seed, sample.key)

@@ -22,6 +22,7 @@ from typing import Literal
 from fogsim import presets
 from fogsim.camera import CITYSCAPES_BASELINE_M
 from fogsim.errors import InputError
+from fogsim.fileio import MAX_PIXELS, pixel_limit_problem
 from fogsim.fog.levels import FogLevel, parse_levels
 from fogsim.presets import preset_path
 from fogsim.render.fog_settings import (
@@ -54,10 +55,6 @@ __all__ = ["MAX_PIXELS", "MAX_SIDE", "MIN_SIDE", "MAX_SAMPLES", "VEHICLES", "Ren
            "fog_settings", "volumetric_settings", "frame_volumetric", "FOG_KINDS", "FOG_MEDIA", "FOG_EXPOSURES",
            "MAX_FOG_EXTENT_M", "VOLUMETRIC_DEFAULTS", "COMPONENTS"]
 
-#: Default bound on the render size, width × height (about 8192 × 4883; the Waymo front camera
-#: is 2.5 MP). A frame's arrays, its fog levels and Cycles' buffers grow with it; raise it with
-#: ``--max-pixels`` (``max_pixels=``) when a larger render is meant.
-MAX_PIXELS = 40_000_000
 #: The component models by preset key, and the bundled folder of each.
 COMPONENTS = {"style": ("styles", Style), "camera": ("cameras", Camera), "quality": ("quality", Quality)}
 
@@ -140,10 +137,7 @@ def check_size(w: int, h: int, max_pixels: int) -> str | None:
     """Why a ``w``×``h`` render is refused (Blender's side limit, ``max_pixels``), or None."""
     if w > MAX_SIDE or h > MAX_SIDE:
         return f"{w}×{h} is larger than Blender renders ({MAX_SIDE} px a side)"
-    if w * h > max_pixels:
-        return (f"{w}×{h} = {w * h / 1e6:.1f} MP is above the limit of {max_pixels / 1e6:g} MP "
-                f"(--max-pixels {max_pixels}); raise --max-pixels to render it")
-    return None
+    return pixel_limit_problem(w, h, max_pixels, "render")
 
 
 def _component(key: str, value, source: Path) -> dict:
