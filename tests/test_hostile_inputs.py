@@ -468,3 +468,39 @@ def test_write_tfrecord_follows_the_umask(tmp_path):
         os.umask(old)
     assert (tmp_path / "a.tfrecord").stat().st_mode & 0o777 == 0o644
     assert [p.name for p in tmp_path.iterdir()] == ["a.tfrecord"]
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 300 KiB tmpfs (root only; skipped elsewhere), unmounted afterwards."""
+    import subprocess
+
+    where = tmp_path / "small"
+    where.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=300k", "tmpfs", str(where)],
+                      capture_output=True).returncode:
+        pytest.skip("cannot mount a small tmpfs here (needs root)")
+    try:
+        yield where
+    finally:
+        subprocess.run(["umount", "-l", str(where)], capture_output=True)
+
+
+@pytest.mark.blender
+@pytest.mark.slow
+def test_disk_full_during_render_is_reported_as_disk_full(small_disk, tmp_path, capsys):
+    """T13: every frame that hits the full disk says so (Blender's short EXR write was read as a
+    corrupt temp file); after space is freed the resumed dataset equals a run on a roomy disk."""
+    import subprocess
+
+    pytest.importorskip("bpy")
+    argv = ["render", "--frames", "3", "--resolution", "96x64", "--samples", "2", "--quiet", "--out"]
+    assert main(argv + [str(small_disk / "ds")]) == 1
+    failed = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("  failed:")]
+    assert len(failed) == 3 and all("No space left on device" in ln for ln in failed), failed
+    assert not any("EXR" in ln for ln in failed), failed
+    subprocess.run(["mount", "-o", "remount,size=64m", str(small_disk)], check=True)
+    assert main(argv + [str(small_disk / "ds")]) == 0, capsys.readouterr().err
+    assert main(argv + [str(tmp_path / "roomy")]) == 0
+    for name in ("images", "labels", "masks", "depth"):
+        assert tree_digest(small_disk / "ds" / name) == tree_digest(tmp_path / "roomy" / name), name

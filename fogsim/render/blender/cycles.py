@@ -1,13 +1,16 @@
 """Render one frame with Cycles: RGB (scene-linear), planar depth and object index, one pass each."""
 from __future__ import annotations
 
+import errno
 import os
+import shutil
 import tempfile
 
 import bpy
 import numpy as np
 
 from fogsim.camera import NO_HIT_DEPTH
+from fogsim.errors import InputError
 from fogsim.render.blender.compat import PASS_CHANNELS, has_denoiser, set_denoiser_speed, set_multilayer_exr
 from fogsim.render.blender.device import use_device
 from fogsim.render.blender.output import blender_output
@@ -87,6 +90,18 @@ def render_combined(scene, exr_path: str | os.PathLike | None = None, quiet: boo
     return _pick(_render_channels(scene, exr_path, quiet), PASS_CHANNELS["rgb"]).astype(np.float32)
 
 
+def _disk_full(scene, path: str) -> None:
+    """Raise ENOSPC when the EXR Cycles wrote is unreadable because its disk is full: Blender
+    reports a short write only in its log, so the file would otherwise read as a corrupt EXR of
+    fogsim's own temp file. Full = less free space than the passes take uncompressed."""
+    r = scene.render
+    need = int(r.resolution_x * r.resolution_y * r.resolution_percentage / 100 * 5 * 4)  # RGB, Z, index: float32
+    free = shutil.disk_usage(os.path.dirname(path)).free
+    if free < need:
+        raise OSError(errno.ENOSPC, f"No space left on device: Cycles could not write the whole render "
+                                    f"({free:,} bytes free, a frame's passes take up to {need:,})", path)
+
+
 def _render_channels(scene, exr_path, quiet: bool) -> dict:
     path = None if exr_path is None else os.path.abspath(exr_path)
     if path is None or "#" in path:  # Blender would put frame numbers in place of '#'
@@ -99,7 +114,11 @@ def _render_channels(scene, exr_path, quiet: bool) -> dict:
         scene.render.use_file_extension = False
         with blender_output(quiet):
             bpy.ops.render.render(write_still=True, scene=scene.name)
-        return read_exr(path)
+        try:
+            return read_exr(path)
+        except InputError:
+            _disk_full(scene, path)
+            raise
     finally:
         if os.path.exists(path):
             os.unlink(path)
