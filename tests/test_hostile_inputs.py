@@ -504,3 +504,28 @@ def test_disk_full_during_render_is_reported_as_disk_full(small_disk, tmp_path, 
     assert main(argv + [str(tmp_path / "roomy")]) == 0
     for name in ("images", "labels", "masks", "depth"):
         assert tree_digest(small_disk / "ds" / name) == tree_digest(tmp_path / "roomy" / name), name
+
+
+def test_a_v2_range_image_larger_than_any_lidar_is_refused_unread(tmp_path):
+    """T7 for v2: a lidar row whose values list holds more than 256 × 8192 × 6 values (run-length
+    encoded zeros: a small file) is refused from the parquet metadata, before it is read."""
+    pytest.importorskip("pyarrow")
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from fogsim.errors import InputError
+    from fogsim.readers.waymo.lidar import LidarPoints
+
+    root = tmp_path / "v2"
+    lfx.write_v2(root, lfx.wall_scene())
+    path = root / "lidar" / f"{lfx.CONTEXT}.parquet"
+    table = pq.read_table(path)
+    name = "[LiDARComponent].range_image_return1.values"
+    n = 256 * 8192 * 6 + 1
+    huge = pa.ListArray.from_arrays(pa.array([0, n], pa.int32()), pa.array(np.zeros(n, np.float32)))
+    table = table.set_column(table.schema.get_field_index(name), name, huge)
+    pq.write_table(table, path)
+    assert path.stat().st_size < 1 << 20
+    with pytest.raises(InputError, match="more than range images hold") as err:
+        LidarPoints.v2(root, lfx.CONTEXT, lfx.TIMESTAMP)("FRONT")
+    assert str(path) in str(err.value) and name in str(err.value)

@@ -26,6 +26,7 @@ from fogsim.readers.waymo.lidar_frame import (
     require_lidar,
 )
 from fogsim.readers.waymo.lidar_v1 import LASER_RETURNS
+from fogsim.readers.waymo.matrix import MAX_BEAMS, MAX_CHANNELS, MAX_COLUMNS
 from fogsim.readers.waymo.sensors import CAMERA_NAMES, LASER_NAMES, laser_name, sensor_enum
 
 # v2 tables and columns (v2/perception/lidar.py, context.py, pose.py; v2/component.py names them)
@@ -64,11 +65,29 @@ def _v2_rows(file: Path, keys: dict[str, object], columns: list[str], source: st
                     match &= np.array([str(v) == want for v in col], bool)
             hits = np.flatnonzero(match)
             if hits.size:
+                _check_value_counts(pf, group, columns, file)
                 data = pf.read_row_group(group, columns=key_cols + columns).take(hits)
                 rows.extend(data.to_pylist())
     except (OSError, ValueError) as exc:
         raise InputError(file, f"cannot read ({exc})") from None
     return rows
+
+
+def _check_value_counts(pf, group: int, columns: list[str], file: Path) -> None:
+    """Refuse a row group whose range-image ``values`` columns hold more values than its rows'
+    range images can (≤ :data:`~.matrix.MAX_BEAMS` × :data:`~.matrix.MAX_COLUMNS` ×
+    :data:`~.matrix.MAX_CHANNELS` each), from the parquet metadata, before anything is read (a
+    run-length encoded column of zeros inflates like a zlib bomb)."""
+    md = pf.metadata.row_group(group)
+    limit = md.num_rows * MAX_BEAMS * MAX_COLUMNS * MAX_CHANNELS
+    wanted = [c for c in columns if c.endswith(".values")]
+    for i in range(md.num_columns):
+        chunk = md.column(i)
+        name = next((c for c in wanted if chunk.path_in_schema.startswith(c + ".")), None)
+        if name and chunk.num_values > limit:
+            raise InputError(file, f"row group {group}: {name} holds {chunk.num_values:,} values for {md.num_rows} "
+                                   f"row(s), more than range images hold (≤ {MAX_BEAMS} beams × {MAX_COLUMNS} "
+                                   f"columns × {MAX_CHANNELS} channels a row); not read")
 
 
 def _as_int(v) -> int | None:
