@@ -529,3 +529,30 @@ def test_a_v2_range_image_larger_than_any_lidar_is_refused_unread(tmp_path):
     with pytest.raises(InputError, match="more than range images hold") as err:
         LidarPoints.v2(root, lfx.CONTEXT, lfx.TIMESTAMP)("FRONT")
     assert str(path) in str(err.value) and name in str(err.value)
+
+
+def test_more_group_regions_than_an_int32_label_holds():
+    """T8: 100000·k + class id passes 2³¹ at k ≈ 21,475; every group region is still one record."""
+    from fogsim.readers.cityscapes_labels import instance_records
+
+    ids = np.zeros((320, 640), np.uint16)
+    ids[::3, ::3] = 26  # cargroup, every pixel its own 8-connected region
+    ids[100:140, 200:300] = 26000  # one car over some of them
+    records = instance_records(ids, None)
+    groups = [r for r in records if r["reason"] == "group (cargroup)"]
+    expected = int((ids == 26).sum())
+    assert expected > 21_475 and len(groups) == expected
+    assert [r for r in records if r["kept"]] == [records[0]] and records[0]["bbox"] == [200, 100, 300, 140]
+    assert all(r["pixels"] == 1 and r["id"] == 26 for r in groups)
+
+
+def test_unlabelled_images_say_why_in_their_sidecars(tmp_path, capsys):
+    """T14: a segment labelled only for FRONT_LEFT, fogged for FRONT: images only, a warning, and
+    every sidecar records labels_missing."""
+    argv = _v1(_labels(FRONT_LEFT))(tmp_path)
+    assert main(argv) == 0
+    assert "no camera_labels entry for FRONT" in capsys.readouterr().err
+    sidecars = sorted((tmp_path / "out").rglob("*_FRONT.json"))
+    assert len(sidecars) == 4 and not (tmp_path / "out" / "labels").exists()  # 2 frames × 2 levels
+    for path in sidecars:
+        assert "no camera_labels entry for FRONT" in json.loads(path.read_text())["labels_missing"]

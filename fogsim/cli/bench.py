@@ -159,16 +159,16 @@ def _check_fog_physics_flags(args) -> None:
     """Every flag the three renders take, checked before the first one starts (or anything is
     written): the preset, --resolution, --levels (which must hold β = 0, the reference) …"""
     from fogsim.errors import InputError
+    from fogsim.fog.levels import parse_levels
     from fogsim.render.preset import load_render_preset
 
-    try:
-        config = load_render_preset(args.preset, frames=args.frames, seed=args.seed, resolution=args.resolution,
-                                    samples=args.samples, levels=args.levels, fog="volumetric",
-                                    fog_medium=args.medium)
-    except InputError as exc:
-        if args.levels and not args.levels.replace(".", "").replace(",", "").isdigit():
+    if args.levels:
+        try:
+            parse_levels(args.levels)
+        except InputError as exc:  # an unknown fog preset name: say which flag gave it
             raise ValueError(f"--levels {args.levels}: {exc}") from None
-        raise
+    config = load_render_preset(args.preset, frames=args.frames, seed=args.seed, resolution=args.resolution,
+                                samples=args.samples, levels=args.levels, fog="volumetric", fog_medium=args.medium)
     if not any(lv.beta == 0 for lv in config.levels):
         given = f"--levels {args.levels}" if args.levels else f"the levels of preset {args.preset}"
         raise ValueError(f"{given} must include 0 (β = 0, the clear reference both fog renders are compared with), "
