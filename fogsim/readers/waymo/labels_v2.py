@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-from pydantic import Field
 
 from fogsim.errors import InputError
 from fogsim.readers.base import Labels
@@ -34,7 +33,8 @@ from fogsim.readers.waymo.labels import (
     finite_floats,
 )
 from fogsim.readers.waymo.sensors import CAMERA_BY_ID, sensor_enum
-from fogsim.schema.base import Int, Open, check
+from fogsim.schema.base import check
+from fogsim.schema.waymo import V2BoxCodes
 
 # v2 tables and columns (v2/perception/box.py, context.py; v2/component.py names them)
 V2_CAMERA_BOX, V2_ASSOCIATION, V2_LIDAR_BOX = "camera_box", "camera_to_lidar_box_association", "lidar_box"
@@ -119,13 +119,6 @@ def _load_table(path: str, required: tuple[str, ...], optional: tuple[str, ...],
     return _Table(path, columns, groups)
 
 
-class _BoxCodes(Open):
-    """The integer fields of a v2 box row (parquet may store them as floats: 3.0 is 3, NaN refused)."""
-
-    type: Int
-    difficulty: Int | None = Field(None, alias="difficulty_level.detection")
-
-
 def _python(value):
     return value.item() if isinstance(value, np.generic) else value
 
@@ -135,7 +128,7 @@ def _v2_box2d(row: dict, prefix: str, label_id: str, laser_id: str | None, sourc
     codes = {"type": _python(row[f"{prefix}.type"])}
     if prefix == _CB and row.get(V2_CAMERA_BOX_DIFFICULTY) is not None:
         codes["difficulty_level.detection"] = _python(row[V2_CAMERA_BOX_DIFFICULTY])
-    box = check(codes, _BoxCodes, source, prefix)
+    box = check(codes, V2BoxCodes, source, prefix)
     return Box2D(str(label_id), box.type, cx, cy, length, width, box.difficulty or 0, laser_id)
 
 
