@@ -4,8 +4,10 @@ The inputs are built with fogsim's own writers (protobuf_wire, write_tfrecord, p
 parquet, the Cityscapes fixture tree) from the specs in the notes; every case checks what
 :mod:`test_hostile` checks: the exit code, a message naming the file or the flag, no traceback,
 inputs byte-identical, nothing partial (no ``*.part``, no empty file) and, on exit 2, nothing
-written at all. A case may first run a command of its own (``pre``: e.g. the failed run whose
-corrected rerun must be accepted into the same ``--out``).
+written at all. A ``-retry`` case first runs the refused command (it must exit 2 without claiming
+``--out``), then the corrected one into the same ``--out``, which must be accepted. Below the cases:
+the memory bound of the range-image decoders, the umask of write_tfrecord, and a render onto a full
+disk (root: a 300 KiB tmpfs).
 """
 from __future__ import annotations
 
