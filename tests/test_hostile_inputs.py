@@ -500,6 +500,7 @@ def test_disk_full_during_render_is_reported_as_disk_full(small_disk, tmp_path, 
     assert main(argv + [str(small_disk / "ds")]) == 1
     failed = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("  failed:")]
     assert len(failed) == 3 and all("No space left on device" in ln for ln in failed), failed
+    assert all(str(small_disk / "ds") in ln for ln in failed), "each names the file it could not write"
     assert not any("EXR" in ln for ln in failed), failed
     subprocess.run(["mount", "-o", "remount,size=64m", str(small_disk)], check=True)
     assert main(argv + [str(small_disk / "ds")]) == 0, capsys.readouterr().err
