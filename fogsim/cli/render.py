@@ -1,6 +1,7 @@
 """``fogsim render``: render a labeled foggy dataset of procedural street scenes.
 
     fogsim render --preset default --frames 200 --out OUT                   # bpy module (5.0)
+    fogsim render --preset default --assets MODELS --out OUT                # with your own models
     blender -b -P scripts/render_batch.py -- --preset default --out OUT      # Blender binary (3.4+)
 
 Each frame is rendered once (RGB, planar depth, object index) and fogged at every level of
@@ -54,6 +55,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"also render the right camera (preset baseline, else the camera's, else "
                         f"{CITYSCAPES_BASELINE_M} m) "
                         "and write SGBM disparity in Cityscapes' layout under OUT/cityscapes/")
+    p.add_argument("--assets", help="your own models: a folder with one sub-folder per class (car, van, truck, bus, "
+                                    "pedestrian, cyclist, traffic_light, traffic_sign) of .glb/.gltf/.obj/.fbx/.blend "
+                                    "files, imported once and sampled per frame (replaces the preset's assets "
+                                    "classes; its mix, units, forward and out_of_range stay)")
     p.add_argument("--train-fraction", type=float, help="share of frames in the train split (default: the "
                    f"preset's, else {TRAIN_FRACTION}; the paper's 8,100/4,800: 0.628); --finalize-only re-splits "
                    "without rendering")
@@ -102,11 +107,11 @@ def cmd_render(args) -> int:
     if args.camera or args.frame_range or args.class_map:
         raise ValueError("--camera, --frame-range and --class-map need --scene")
     preset_file = args.preset if args.preset and Path(args.preset).is_file() else None
-    check_output(args.out, {"--preset": preset_file})
+    check_output(args.out, {"--preset": preset_file, "--assets": args.assets})
     config = load_render_preset(args.preset, frames=args.frames, seed=args.seed, train_fraction=args.train_fraction,
                                 resolution=args.resolution, samples=args.samples, levels=args.levels,
                                 stereo=True if args.stereo else None, max_pixels=args.max_pixels,
-                                fog=args.fog, fog_medium=args.fog_medium, fog_scale=args.fog_scale)
+                                fog=args.fog, fog_medium=args.fog_medium, fog_scale=args.fog_scale, assets=args.assets)
     shard = parse_shard(args.shard)
     require_bpy()
     from fogsim.render.blender.job import RUN_FILE, RenderJob

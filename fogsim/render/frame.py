@@ -37,28 +37,30 @@ def frame_name(index: int) -> str:
     return f"{index:06d}"
 
 
-def describe_frame(config: RenderConfig, index: int) -> dict:
-    """The scene description of frame ``index`` (same config and index → same scene)."""
+def describe_frame(config: RenderConfig, index: int, library=None) -> dict:
+    """The scene description of frame ``index`` (same config, library and index → same scene);
+    ``library``: the run's :class:`fogsim.scene.library.AssetLibrary` (``config.assets`` imported)."""
     s = frame_seed(config.seed, index)
     return sample_scene(np.random.default_rng(s), config.style, config.camera, config.resolution, seed=s,
-                        lighting=config.lighting)
+                        lighting=config.lighting, library=library)
 
 
-def check_scene(config: RenderConfig, index: int = 0) -> None:
+def check_scene(config: RenderConfig, index: int = 0, library=None) -> None:
     """Describe frame ``index`` before any output is written: a preset the scene layout cannot
     use is a setup error naming the preset (exit 2), not a failure of every frame after the
     dataset folder was claimed. (:func:`fogsim.render.preset.load_render_preset` checks every
     key already; this is the net under it.)"""
     try:
-        describe_frame(config, index)
+        describe_frame(config, index, library)
     except Exception as exc:  # whatever the layout trips over is the preset's problem
         raise InputError(config.source, f"cannot build a scene from this preset "
                                         f"({type(exc).__name__}: {exc})") from None
 
 
-def scene_meshes(desc: dict) -> dict[int, list]:
-    """World-space (vertices, faces, slot) parts of every object, built once per frame."""
-    return {obj["id"]: world_parts(obj) for obj in desc["objects"]}
+def scene_meshes(desc: dict, library=None) -> dict[int, list]:
+    """World-space (vertices, faces, slot) parts of every object, built once per frame (library
+    models: the imported mesh, so silhouettes are the model's own)."""
+    return {obj["id"]: world_parts(obj, library) for obj in desc["objects"]}
 
 
 @dataclass(frozen=True)
@@ -72,9 +74,9 @@ class DescribedFrame:
     meshes: dict
 
     @classmethod
-    def of(cls, config: RenderConfig, index: int) -> "DescribedFrame":
-        desc = describe_frame(config, index)
-        return cls(index, desc, scene_meshes(desc))
+    def of(cls, config: RenderConfig, index: int, library=None) -> "DescribedFrame":
+        desc = describe_frame(config, index, library)
+        return cls(index, desc, scene_meshes(desc, library))
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,8 @@ Conventions (the box formats and their conversions live in :mod:`fogsim.boxes`):
 * YOLO lines: :func:`fogsim.boxes.yolo_line` (``class cx cy w h``, normalised, 6 decimals).
 * Distance: the median ray distance (metres, camera centre to surface) over the object's
   visible pixels; non-finite values (no hit) are ignored.
+* ``asset_file``: the model file of an object from the user's asset library
+  (:mod:`fogsim.scene.library`); None for fogsim's procedural models.
 """
 from __future__ import annotations
 
@@ -21,6 +23,12 @@ DISTANCE_STAT = "median ray distance over visible pixels"
 #: the label filters' defaults (a preset's ``labels`` block overrides them): an object with fewer
 #: visible pixels, or a smaller visible fraction of its silhouette, is kept out of the YOLO labels
 from fogsim.schema.presets import MIN_PIXELS, MIN_VISIBLE_FRACTION  # noqa: E402  (the preset's defaults)
+
+
+def asset_file(obj: dict) -> str | None:
+    """The library model file of a scene object, None for a procedural one."""
+    asset = obj.get("asset", {})
+    return asset["params"]["file"] if asset.get("type") == "library" else None
 
 
 def object_records(mask: np.ndarray, ray_distance: np.ndarray, objects: list[dict],
@@ -61,7 +69,7 @@ def object_records(mask: np.ndarray, ray_distance: np.ndarray, objects: list[dic
             "visible_fraction": round(visible, 4), "truncation": round(max(truncation, 0.0), 4),
             "truncated": x0 == 0 or y0 == 0 or x1 == w or y1 == h,
             "distance_m": None if np.isnan(d) else round(d, 3), "distance_stat": DISTANCE_STAT,
-            "kept": reason is None, "reason": reason})
+            "kept": reason is None, "reason": reason, "asset_file": asset_file(obj)})
     return records
 
 

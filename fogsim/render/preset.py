@@ -15,7 +15,7 @@ is touched. The render size is bounded by :data:`MAX_PIXELS` (``--max-pixels``).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
@@ -37,12 +37,15 @@ from fogsim.render.fog_settings import (
     frame_volumetric,
     volumetric_settings,
 )
+from fogsim.scene.library import assets_dir, library_files
 from fogsim.schema.base import Closed, check, int_in, load_json, number_in
 from fogsim.schema.presets import (
+    ASSET_CLASSES,
     MAX_SIDE,
     MIN_SIDE,
     TRAIN_FRACTION,
     VEHICLES,
+    Assets,
     Camera,
     DatasetPreset,
     Quality,
@@ -81,6 +84,7 @@ class RenderConfig:
     train_fraction: float = TRAIN_FRACTION  # share of frames in the train split (fogsim.dataset.writer's rule)
     lighting: dict = field(default_factory=dict)  # checked "lighting" object; {} = day (see check_lighting)
     sensor: dict = field(default_factory=dict)  # checked "sensor" object; {} = a perfect pinhole (fogsim.sensor)
+    assets: dict = field(default_factory=dict)  # the asset library (resolve_assets); {} = procedural only
 
     def to_dict(self) -> dict:
         d = {"name": self.name, "source": self.source, "style": self.style, "camera": self.camera,
@@ -92,6 +96,8 @@ class RenderConfig:
             d["lighting"] = self.lighting
         if self.sensor:  # absent without a sensor model, likewise
             d["sensor"] = self.sensor
+        if self.assets:  # likewise absent without a library
+            d["assets"] = self.assets
         return d
 
 
@@ -162,14 +168,17 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
                        samples: int | None = None, levels: str | None = None,
                        stereo: bool | None = None, train_fraction: float | None = None,
                        max_pixels: int = MAX_PIXELS, fog: str | None = None,
-                       fog_medium: str | None = None, fog_scale: float | None = None) -> RenderConfig:
+                       fog_medium: str | None = None, fog_scale: float | None = None,
+                       assets: str | None = None) -> RenderConfig:
     """Read a dataset preset, check all of it and apply overrides; every problem of the
     preset names the preset file (and the key), every bad override its flag.
 
     ``fog`` (``--fog``): "koschmieder" | "volumetric", sets ``fog_model.kind``;
     ``fog_medium`` (``--fog-medium``): "full" | "hybrid" | "ea", sets
     ``fog_model.volumetric.medium`` (and implies ``--fog volumetric``); ``fog_scale``
-    (``--fog-scale``): ``fog_model.volumetric.resolution_scale`` (implies ``--fog volumetric``)."""
+    (``--fog-scale``): ``fog_model.volumetric.resolution_scale`` (implies ``--fog volumetric``); ``assets``
+    (``--assets``): a folder with one sub-folder of models per class, replacing the preset's class
+    entries."""
     # command-line overrides first: their errors are usage errors, not the preset's
     ov = check_overrides(frames=frames, seed=seed, samples=samples, max_pixels=max_pixels,
                          train_fraction=train_fraction, fog=fog, fog_medium=fog_medium,
@@ -178,11 +187,31 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
     if res_override and (why := check_size(*res_override, ov.max_pixels)):
         raise ValueError(f"--resolution {why}")
     lv_override = parse_levels(levels) if levels is not None else None
+    asset_dirs = assets_dir(assets) if assets is not None else None
 
     path = preset_path(name_or_path)
     if not path.is_file():
         raise InputError(path, "preset not found")
-    return _compose(load_json(path, DatasetPreset), path, ov, res_override, lv_override, stereo)
+    cfg = _compose(load_json(path, DatasetPreset), path, ov, res_override, lv_override, stereo)
+    return replace(cfg, assets=resolve_assets(cfg.assets, path, asset_dirs, assets))
+
+
+def resolve_assets(given: dict, preset: Path, dirs: dict | None = None, dirs_source=None) -> dict:
+    """The run's asset library from the preset's checked ``assets`` (paths relative to the preset's
+    folder) and ``--assets`` (``dirs``: class → folder, replacing the preset's class entries):
+    ``{"files": {class: [absolute paths]}, "mix": {class: share}, "units", "forward",
+    "out_of_range"}``, or {} without any library. A class with no model file is an InputError."""
+    classes = {k: v for k, v in given.items() if k in ASSET_CLASSES}
+    if dirs is not None:
+        classes = dict(dirs)
+    if not classes:
+        return {}
+    source = dirs_source if dirs is not None else preset
+    a = check({**{k: v for k, v in given.items() if k not in ASSET_CLASSES}, **classes}, Assets, source, "assets")
+    files = library_files(classes, source, None if dirs is not None else preset.parent)
+    mix = {k: v for k, v in a.mix.given().items() if v is not None}
+    return {"files": files, "mix": {c: float(mix.get(c, 1.0)) for c in files}, "units": a.units,
+            "forward": a.forward, "out_of_range": a.out_of_range}
 
 
 def _hdri_paths(lighting: dict, source: Path) -> dict:
@@ -234,6 +263,7 @@ def _compose(d: DatasetPreset, path: Path, ov: Overrides, res_override, lv_overr
         style=style, camera=camera, resolution=(int(res[0]), int(res[1])), quality=quality, levels=tuple(lv),
         fog_model=fog_model, labels=d.labels.given(), lighting=_hdri_paths(check_lighting(d.lighting.given()), path),
         sensor=d.sensor.given() if d.sensor is not None else {},
+        assets=d.assets.given(),
         exposure=d.exposure, frames=ov.frames if ov.frames is not None else d.frames,
         seed=ov.seed if ov.seed is not None else d.seed, stereo_baseline=baseline,
         train_fraction=ov.train_fraction if ov.train_fraction is not None else d.train_fraction)

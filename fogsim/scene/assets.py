@@ -62,5 +62,8 @@ def build_asset(spec: dict) -> list[tuple[trimesh.Trimesh, str]]:
 
 def asset_extent(spec: dict) -> tuple[float, float, float]:
     """(size_x, size_y, size_z) of the local bounding box in metres, from the params alone
-    (no meshing); never smaller than the built mesh and at most ~1 cm larger."""
+    (no meshing); never smaller than the built mesh and at most ~1 cm larger. A library model
+    (``"type": "library"``, :mod:`fogsim.scene.library`) carries its extent in its params."""
+    if spec["type"] == "library":
+        return tuple(spec["params"]["extent"])
     return parts_extent(_parts(spec))

@@ -8,7 +8,9 @@ Object record (an entry of ``scene["objects"]``)::
 ``asset.type`` is one of :data:`fogsim.scene.assets.ASSET_TYPES`, or ``"box"`` with
 ``params.size = [sx, sy, sz]`` (metres, resting on z = 0, centred in x and y), or ``"boxes"``
 with ``params.boxes = [[cx, cy, z0, sx, sy, sz], …]`` (each resting on z0) — both with
-``params.material``: the road, sidewalks, curbs and lane marks are boxes.
+``params.material``: the road, sidewalks, curbs and lane marks are boxes. ``"library"`` is one of
+the user's models (:mod:`fogsim.scene.library`): its mesh comes from the run's asset library
+(one part, slot ``"library"``; the renderer keeps the model's own materials).
 """
 from __future__ import annotations
 
@@ -18,8 +20,14 @@ import trimesh
 from fogsim.scene.assets_parts import box_arrays
 
 
-def local_parts(asset: dict) -> list[tuple[trimesh.Trimesh, str]]:
-    """(mesh in the asset's local frame, material slot) pairs."""
+def local_parts(asset: dict, library=None) -> list[tuple[trimesh.Trimesh, str]]:
+    """(mesh in the asset's local frame, material slot) pairs; ``library`` (an
+    :class:`fogsim.scene.library.AssetLibrary`) holds the meshes of library models."""
+    if asset["type"] == "library":
+        if library is None:
+            raise ValueError(f"the library model {asset['params']['file']} needs the run's asset library")
+        v, f = library.mesh(asset["params"]["file"])
+        return [(trimesh.Trimesh(vertices=v, faces=f, process=False), "library")]
     if asset["type"] in ("box", "boxes"):
         p = asset["params"]
         boxes = [[0.0, 0.0, 0.0, *p["size"]]] if asset["type"] == "box" else p["boxes"]
@@ -39,11 +47,11 @@ def _boxes_mesh(boxes: np.ndarray) -> trimesh.Trimesh:
     return trimesh.Trimesh(vertices=verts, faces=faces, process=False)
 
 
-def world_parts(obj: dict) -> list[tuple[np.ndarray, np.ndarray, str]]:
+def world_parts(obj: dict, library=None) -> list[tuple[np.ndarray, np.ndarray, str]]:
     """(vertices N×3 world metres, faces F×3, material slot) per part of an object."""
     M = np.asarray(obj["transform"], dtype=np.float64)
     out = []
-    for mesh, slot in local_parts(obj["asset"]):
+    for mesh, slot in local_parts(obj["asset"], library):
         v = np.asarray(mesh.vertices, dtype=np.float64) @ M[:3, :3].T + M[:3, 3]
         out.append((v, np.asarray(mesh.faces, dtype=np.int64), slot))
     return out

@@ -46,9 +46,14 @@ def _footprint(spec: dict, x: float, y: float, yaw_deg: float, extent=None):
 
 
 class _Builder:
-    def __init__(self, rng: np.random.Generator):
-        self.rng, self.objects, self.occupied = rng, [], _Occupancy()
+    def __init__(self, rng: np.random.Generator, library=None):
+        self.rng, self.objects, self.occupied, self.library = rng, [], _Occupancy(), library
         self._last: tuple[dict | None, tuple] = (None, ())  # (spec, extent): retries reuse it
+
+    def asset(self, cls: str) -> dict:
+        """A model of ``cls``: one of the asset library's (:mod:`fogsim.scene.library`), else procedural."""
+        picked = self.library.pick(cls, self.rng) if self.library is not None else None
+        return picked or sample_asset(cls, self.rng)
 
     def add(self, cls: str, asset: dict, x: float, y: float, z: float = 0.0, yaw: float = 0.0) -> dict:
         obj = {"id": len(self.objects) + 1, "class": cls, "asset": asset,
@@ -135,14 +140,16 @@ def vehicles(b: _Builder, st: dict, style: dict) -> None:
         for side in (-1, 1):
             y = float(rng.uniform(-5, 2))
             while y < st["length"]:
-                spec = sample_asset(str(rng.choice(["car", "car", "car", "van"])), rng)
+                kind = str(rng.choice(["car", "car", "car", "van"]))
+                spec = b.asset(kind)
                 length = asset_extent(spec)[1]
                 if rng.random() < style["parked_probability"]:
                     x = side * (n * lw + st["parking_width"] / 2) + float(rng.normal(0, 0.1))
-                    b.place(spec["type"], spec, x, y + length / 2, 0.0, 0.0 if side > 0 else 180.0)
+                    b.place(kind, spec, x, y + length / 2, 0.0, 0.0 if side > 0 else 180.0)
                 y += length + float(rng.uniform(0.8, 3.0))
     for _ in range(_count(rng, style["driving"])):
-        spec = sample_asset(str(rng.choice(kinds, p=probs)), rng)
+        kind = str(rng.choice(kinds, p=probs))
+        spec = b.asset(kind)
         for _try in range(20):
             lane = int(rng.integers(0, 2 * n))
             side = 1 if lane < n else -1
@@ -150,14 +157,14 @@ def vehicles(b: _Builder, st: dict, style: dict) -> None:
             y = float(rng.uniform(-8, st["length"]))
             if abs(x - st["camera_x"]) < lw / 2 and y < 9.0:
                 continue  # keep the ego lane clear just ahead of the camera
-            if b.place(spec["type"], spec, x, y, 0.0, (0.0 if side > 0 else 180.0) + float(rng.normal(0, 1.5)), 1.5):
+            if b.place(kind, spec, x, y, 0.0, (0.0 if side > 0 else 180.0) + float(rng.normal(0, 1.5)), 1.5):
                 break
 
 
 def people(b: _Builder, st: dict, style: dict) -> None:
     rng, curb, sw = b.rng, st["curb_x"], st["sidewalk_width"]
     for _ in range(_count(rng, style["pedestrians"])):
-        spec = sample_asset("pedestrian", rng)
+        spec = b.asset("pedestrian")
         for _try in range(20):
             if st["crosswalks"] and rng.random() < 0.2:  # crossing the street
                 x = float(rng.uniform(-curb + 0.5, curb - 0.5))
@@ -171,7 +178,7 @@ def people(b: _Builder, st: dict, style: dict) -> None:
                 break
     n, lw = st["lanes"], st["lane_width"]
     for _ in range(_count(rng, style["cyclists"])):
-        spec = sample_asset("cyclist", rng)
+        spec = b.asset("cyclist")
         side = float(rng.choice([-1.0, 1.0]))
         x, y = side * (n * lw - 0.9), float(rng.uniform(6, st["length"] * 0.7))
         b.place("cyclist", spec, x, y, 0.0, 0.0 if side > 0 else 180.0, 0.5)
@@ -191,12 +198,12 @@ def street_furniture(b: _Builder, st: dict, style: dict) -> None:
                 b.place("tree", sample_asset("tree", rng), x, float(y) + float(rng.normal(0, 1)), SIDEWALK_HEIGHT,
                         float(rng.uniform(0, 360)), 0.2)
         for yc in st["crosswalks"]:
-            b.place("traffic_light", sample_asset("traffic_light", rng), side * (curb + 0.6),
+            b.place("traffic_light", b.asset("traffic_light"), side * (curb + 0.6),
                     yc - side * 3.0, SIDEWALK_HEIGHT, 0.0 if side < 0 else 180.0, 0.1)
     for _ in range(_count(rng, style["signs"])):
         side = float(rng.choice([-1.0, 1.0]))
         y = float(rng.uniform(8, st["length"] * 0.7))
-        b.place("traffic_sign", sample_asset("traffic_sign", rng), side * (curb + 0.4), y, SIDEWALK_HEIGHT,
+        b.place("traffic_sign", b.asset("traffic_sign"), side * (curb + 0.4), y, SIDEWALK_HEIGHT,
                 180.0 if side > 0 else 0.0, 0.1)
 
 
@@ -214,8 +221,10 @@ def camera_intrinsics(camera: dict, resolution: tuple[int, int] | None = None) -
 
 def sample_scene(rng: np.random.Generator, style: dict, camera: dict,
                  resolution: tuple[int, int] | None = None, seed: int | None = None,
-                 lighting: dict | None = None) -> dict:
+                 lighting: dict | None = None, library=None) -> dict:
     """A random street of ``style`` seen from ``camera`` (presets as dicts); JSON-serialisable.
+
+    ``library``: the run's :class:`fogsim.scene.library.AssetLibrary` (the user's models), or None.
 
     ``lighting``: the preset's lighting object; ``{"time_of_day": "night"}`` adds street lamps,
     vehicle lights and lit windows to the same street (:func:`fogsim.scene.lights.apply_night`),
@@ -228,7 +237,7 @@ def sample_scene(rng: np.random.Generator, style: dict, camera: dict,
     ego_lane = int(rng.integers(0, n))
     st["camera_x"] = lw * (ego_lane + 0.5) + float(rng.normal(0, 0.2))
     st["crosswalks"] = ([float(rng.uniform(15, 60))] if rng.random() < style["crosswalk_probability"] else [])
-    b = _Builder(rng)
+    b = _Builder(rng, library)
     street_geometry(b, st)
     buildings(b, st, style)
     street_furniture(b, st, style)

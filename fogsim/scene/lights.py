@@ -72,6 +72,9 @@ def _slot_boxes(asset: dict, slot: str) -> list[tuple[np.ndarray, np.ndarray]]:
     """(lo, hi) local bounding boxes of the asset's primitives of material ``slot``."""
     from fogsim.scene.assets import asset_parts
 
+    if asset["type"] == "library":  # the user's model: where its lamps are is not known
+        return []
+
     return [(p.lo, p.hi) for p in asset_parts(asset) if p.slot == slot]
 
 

@@ -364,6 +364,58 @@ class SensorSpec(Closed):
     motion_blur: MotionBlur | None = None  # a second, Combined-only Cycles render (labels stay sharp)
 
 
+#: The classes an asset library may hold models of (``assets``), each with a real-size range
+#: (:data:`fogsim.scene.library.SIZE_RANGES`).
+ASSET_CLASSES = ("car", "van", "truck", "bus", "pedestrian", "cyclist", "traffic_light", "traffic_sign")
+#: Model units → metres (``assets.units``; glTF is metres by its spec, FBX and .blend carry their
+#: own scale, which Blender's importers apply: this factor comes on top).
+ASSET_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048}
+#: A model's front after Blender imports it (z up). Blender's front view and glTF's spec (+Z front,
+#: which the importer turns into −y) both face −y.
+ASSET_FORWARD = ("-y", "+y", "-x", "+x")
+
+
+class AssetMix(Closed):
+    """``assets.mix``: the share of library models per class in [0, 1] (the rest procedural);
+    a class with a library and no share here is all library (1)."""
+
+    car: Prob | None = None
+    van: Prob | None = None
+    truck: Prob | None = None
+    bus: Prob | None = None
+    pedestrian: Prob | None = None
+    cyclist: Prob | None = None
+    traffic_light: Prob | None = None
+    traffic_sign: Prob | None = None
+
+
+class Assets(Closed):
+    """``assets``: the user's own models for the procedural streets, per class a folder (searched
+    recursively) or a glob of .glb/.gltf/.obj/.fbx/.blend files (relative to the preset's folder).
+    A model outside its class's real-size range is refused, or scaled into it with
+    ``out_of_range: "scale"``."""
+
+    car: Text | None = None
+    van: Text | None = None
+    truck: Text | None = None
+    bus: Text | None = None
+    pedestrian: Text | None = None
+    cyclist: Text | None = None
+    traffic_light: Text | None = None
+    traffic_sign: Text | None = None
+    mix: AssetMix = AssetMix()
+    units: Literal[tuple(ASSET_UNITS)] = "m"
+    forward: Literal[ASSET_FORWARD] = "-y"
+    out_of_range: Literal["refuse", "scale"] = "refuse"
+
+    @model_validator(mode="after")
+    def _mix_needs_library(self):
+        lonely = sorted(k for k, v in self.mix.given().items() if v is not None and getattr(self, k) is None)
+        if lonely:
+            raise ValueError(f"mix gives a share to {lonely} but no library folder or glob for it")
+        return self
+
+
 class FogLevelSpec(Closed):
     key: Text
     name: Text | None = None
@@ -408,6 +460,7 @@ class DatasetPreset(_Meta):
     labels: Labels = Labels()
     lighting: Lighting = Lighting()
     sensor: SensorSpec | None = None  # the camera model after the fog; None = a perfect pinhole
+    assets: Assets = Assets()  # the user's own models (none: procedural only)
     exposure: number_in(0, lo_open=True) = 1.0
     frames: int_in(1) = 8
     seed: int_in(0) = 0

@@ -100,11 +100,12 @@ def _lighting(built: Built, light: dict, scene) -> None:
     built.others += [("lights", sun)]
 
 
-def build(desc: dict, scene=None, meshes: dict | None = None) -> Built:
+def build(desc: dict, scene=None, meshes: dict | None = None, library=None) -> Built:
     """Create camera, lighting and every object of ``desc`` in ``scene`` (pass index = id).
 
     ``meshes`` (id → world parts, from :func:`fogsim.render.frame.scene_meshes`) avoids building
-    the trimesh geometry twice when the caller already has it.
+    the trimesh geometry twice when the caller already has it. ``library``: the run's
+    :class:`fogsim.render.blender.library.BlenderLibrary`, which instances library models.
     """
     scene = scene or bpy.context.scene
     built = Built()
@@ -114,6 +115,9 @@ def build(desc: dict, scene=None, meshes: dict | None = None) -> Built:
     _lighting(built, desc["lighting"], scene)
     add_lights(built, desc["lighting"].get("sources", ()))  # night: lamps, vehicle lights (fogsim.scene.lights)
     for obj in desc["objects"]:
+        if obj["asset"]["type"] == "library":
+            library.instance(built, obj)  # the imported model's meshes, shared by every frame
+            continue
         parts = meshes[obj["id"]] if meshes is not None else world_parts(obj)
         slots = sorted({s for _, _, s in parts})
         mesh = _mesh(f"fogsim_{obj['class']}_{obj['id']}", parts, slots)

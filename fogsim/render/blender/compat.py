@@ -128,3 +128,16 @@ def force_homogeneous(material) -> None:
     """3.4: treat the material's volume as homogeneous (analytic path); 5.0 decides by itself."""
     if hasattr(material.cycles, "homogeneous_volume"):
         material.cycles.homogeneous_volume = True
+
+
+def enable_importers() -> None:
+    """Make Blender's glTF and FBX importers available (add-ons shipped with 3.4 and the 5.0
+    module; OBJ is built in) and let 3.4's glTF importer run on numpy ≥ 1.24, which dropped the
+    ``numpy.bool`` alias it uses (numpy 2 has it again, as ``numpy.bool_``)."""
+    import addon_utils
+    import numpy
+
+    if "bool" not in numpy.__dict__:
+        numpy.bool = numpy.bool_
+    for module in ("io_scene_gltf2", "io_scene_fbx"):
+        addon_utils.enable(module, default_set=False)

@@ -30,6 +30,7 @@ from fogsim.render.blender import fog_volume
 from fogsim.render.blender.compat import has_mie_phase
 from fogsim.render.blender.cycles import configure, render, render_combined
 from fogsim.render.blender.motion import motion_blur
+from fogsim.render.blender.library import load_library
 from fogsim.render.frame import DescribedFrame, FogRenders, FramePasses, check_scene, commit_frame, frame_name
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
 from fogsim.render.preset import RenderConfig, frame_volumetric, volumetric_settings
@@ -79,8 +80,11 @@ class RenderJob:
                                             f"(this is {bpy.app.version_string}); use \"HG\" with g = 0.85")
         i, n = shard
         mine = [k for k in range(config.frames) if k % n == i]
+        # the user's models, imported once for the whole run (a refused one is a setup error, exit 2)
+        self.assets = load_library(config.assets) if config.assets else None
+        self.library = self.assets.library if self.assets else None
         if mine:  # a preset the layout cannot use must not claim the folder (setup error, exit 2)
-            check_scene(config, mine[0])
+            check_scene(config, mine[0], self.library)
         Path(out).mkdir(parents=True, exist_ok=True)
         claim_output(Path(out) / RUN_FILE, dataset_parameters(config),
                      {"blender": bpy.app.version_string, "config": config.to_dict()},
@@ -97,11 +101,11 @@ class RenderJob:
         """Render and commit the next frame; returns its meta record."""
         index = self.todo.pop(0)
         t0 = time.perf_counter()
-        frame = DescribedFrame.of(self.config, index)
+        frame = DescribedFrame.of(self.config, index, self.library)
         desc = frame.desc
         t1 = time.perf_counter()
         info = configure(self.scene, self.config.quality, frame_seed(self.config.seed, index), self.gpu)
-        built = scene_build.build(desc, self.scene, frame.meshes)
+        built = scene_build.build(desc, self.scene, frame.meshes, self.assets)
         t2 = time.perf_counter()
         right = fog_linear = fog_cycles = None
         tmp = render_tmp_dir(self.layout)
@@ -222,6 +226,9 @@ class RenderJob:
     def close(self) -> None:
         """Remove the scene and this job's temporary renders (the folder too, once empty)."""
         remove_render_tmp(self.layout, self.mine)
+        if self.assets is not None:
+            self.assets.remove()
+            self.assets = None
         if self.scene is not None and self.scene.name in bpy.data.scenes and len(bpy.data.scenes) > 1:
             bpy.data.scenes.remove(self.scene)
         self.scene = None
