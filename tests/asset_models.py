@@ -36,7 +36,7 @@ def car(length: float, colour) -> trimesh.Scene:
     for i, (sx, sz) in enumerate(((-1, -1), (-1, 1), (1, -1), (1, 1))):
         wheel = trimesh.creation.cylinder(radius=r, height=0.25, sections=16)
         wheel.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0]))
-        wheel.apply_translation([sx * (w / 2 - 0.1), r, sz * length * 0.33])
+        wheel.apply_translation([sx * (w / 2 - 0.02), r, sz * length * 0.33])
         wheel.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(
             baseColorFactor=np.array([20, 20, 20, 255], np.uint8)))
         scene.add_geometry(wheel, geom_name=f"wheel{i}")

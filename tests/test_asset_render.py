@@ -96,8 +96,9 @@ def test_a_wrong_size_model_is_refused_naming_it(tmp_path):
 
 @pytest.mark.slow
 def test_memory_stays_flat_over_many_library_frames(library, tmp_path):
-    """50 frames in one process: datablocks return to the same counts, RSS does not keep growing."""
-    res = run(runner("bpy")(SCRIPTS / "asset_rss.py", str(library), str(tmp_path / "out"), "50",
+    """40 frames in one process: Blender's datablocks are the same after every frame (nothing
+    imported per frame, nothing left behind) and RSS grows by well under 1 MiB a frame."""
+    res = run(runner("bpy")(SCRIPTS / "asset_rss.py", str(library), str(tmp_path / "out"), "40",
                             str(tmp_path / "rss.json")), timeout=1200)
     assert res.returncode == 0, res.stderr[-3000:]
     r = json.loads((tmp_path / "rss.json").read_text())
@@ -105,4 +106,5 @@ def test_memory_stays_flat_over_many_library_frames(library, tmp_path):
     assert r["library_objects"] > 100  # the library was used throughout
     assert len({(x["objects"], x["meshes"], x["materials"], x["images"]) for x in rows}) == 1
     rss = np.array([x["rss_mib"] for x in rows])
-    assert rss[-10:].mean() - rss[5:15].mean() < 25, rss.tolist()  # MiB over 40 frames
+    slope = np.polyfit(np.arange(5, len(rss)), rss[5:], 1)[0]
+    assert slope < 1.0, rss.tolist()  # MiB per frame

@@ -3,8 +3,9 @@
 Run by tests/test_asset_render.py (and by hand for the figure in docs/own-assets.md):
 ``python asset_rss.py LIB OUT_DIR FRAMES RESULT.json`` (bpy module) or ``blender -b -P asset_rss.py --
 …``. Renders FRAMES tiny frames (48×32, 1 sample, clear only) of the default preset with the
-models of LIB in one process, as ``fogsim render --assets LIB`` does, and writes the resident
-set size (MiB, /proc/self/status) and the counts of objects, meshes and materials after each.
+models of LIB in one process, as ``fogsim render --assets LIB`` does (LIB ``-``: no library, the
+baseline), and writes the resident set size (MiB, /proc/self/status) and the counts of objects,
+meshes, materials and images after each.
 """
 import json
 import sys
@@ -31,7 +32,8 @@ def rss_mib() -> float:
     return float("nan")
 
 
-config = load_render_preset("default", frames=frames, resolution="48x32", samples=1, levels="clear", assets=lib)
+config = load_render_preset("default", frames=frames, resolution="48x32", samples=1, levels="clear",
+                            assets=None if lib == "-" else lib)
 job = RenderJob(config, out, resume=False, quiet=True)
 rows = []
 library_objects = 0

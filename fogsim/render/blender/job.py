@@ -81,7 +81,7 @@ class RenderJob:
         i, n = shard
         mine = [k for k in range(config.frames) if k % n == i]
         # the user's models, imported once for the whole run (a refused one is a setup error, exit 2)
-        self.assets = load_library(config.assets) if config.assets else None
+        self.assets = load_library(config.assets, quiet) if config.assets else None
         self.library = self.assets.library if self.assets else None
         if mine:  # a preset the layout cannot use must not claim the folder (setup error, exit 2)
             check_scene(config, mine[0], self.library)

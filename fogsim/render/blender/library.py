@@ -22,8 +22,10 @@ import bpy
 import mathutils
 import numpy as np
 
+from fogsim.console import captured_fds
 from fogsim.errors import InputError
 from fogsim.render.blender.compat import enable_importers
+from fogsim.render.blender.output import show
 from fogsim.scene.library import FORMATS, AssetLibrary, LibraryModel, extent, fit_size, normalise
 
 #: bpy.data collections an import may add to; all but the kept ones are emptied again afterwards
@@ -58,17 +60,21 @@ class BlenderLibrary:
         self.parts.clear()
 
 
-def load_library(assets: dict) -> BlenderLibrary:
+def load_library(assets: dict, quiet: bool = False) -> BlenderLibrary:
     """Import every file of ``assets`` (``{"files": {class: [paths]}, "mix", "units", "forward",
     "out_of_range"}``); a file that does not import, holds no geometry or has the wrong size is
-    an InputError naming it (nothing imported is left behind)."""
+    an InputError naming it (nothing imported is left behind). The importers' own output is
+    captured: shown as :func:`fogsim.render.blender.output.show` does (``quiet``: errors only)
+    for a file imported, dropped for a file refused (its InputError says why)."""
     enable_importers()
     out = BlenderLibrary(AssetLibrary(mix=dict(assets["mix"])))
     try:
         for cls, files in assets["files"].items():
             models = out.library.models.setdefault(cls, [])
             for file in files:
-                parts = import_parts(file)
+                with captured_fds() as lines:  # a file refused is one line (its InputError) …
+                    parts = import_parts(file)
+                show(lines, quiet)  # … one imported shows the importer's warnings (quiet: errors only)
                 out.parts[file] = parts  # before the checks, so remove() cleans up a refused model
                 models.append(_model(file, cls, parts, assets))
     except BaseException:

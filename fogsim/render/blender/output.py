@@ -52,16 +52,21 @@ def blender_output(quiet: bool = False):
     """Capture fds 1 and 2 while the block runs (a render, a device query); then drop Blender's
     progress lines, always show its errors (stderr), and show its other lines through
     ``tqdm.write`` unless ``quiet``. The descriptors are restored even when the block raises."""
-    from tqdm import tqdm
-
     lines = {"stdout": [], "stderr": []}
     try:
         with captured_fds() as lines:
             yield
     finally:
-        for stream, line in [("stdout", s) for s in lines["stdout"]] + [("stderr", s) for s in lines["stderr"]]:
-            kind = classify(line)
-            if kind == "progress" or (kind == "other" and quiet):
-                continue
-            target = sys.stderr if kind == "error" or stream == "stderr" else sys.stdout
-            tqdm.write(last_segment(line), file=target)
+        show(lines, quiet)
+
+
+def show(lines: dict, quiet: bool = False) -> None:
+    """Print captured ``{"stdout": [...], "stderr": [...]}`` lines by the rules above."""
+    from tqdm import tqdm
+
+    for stream, line in [("stdout", s) for s in lines["stdout"]] + [("stderr", s) for s in lines["stderr"]]:
+        kind = classify(line)
+        if kind == "progress" or (kind == "other" and quiet):
+            continue
+        target = sys.stderr if kind == "error" or stream == "stderr" else sys.stdout
+        tqdm.write(last_segment(line), file=target)
