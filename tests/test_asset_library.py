@@ -145,3 +145,13 @@ def test_silhouettes_use_the_library_mesh():
     assert sil[car["id"]]["pixels_total"] >= 0
     with pytest.raises(ValueError, match="needs the run's asset library"):
         scene_meshes(desc)
+
+
+def test_night_streets_take_library_vehicles_without_lamps():
+    cfg = load_render_preset("night")
+    lib = _library()
+    desc = sample_scene(np.random.default_rng(2), cfg.style, cfg.camera, cfg.resolution, seed=2,
+                        lighting=cfg.lighting, library=lib)
+    ids = {o["id"] for o in desc["objects"] if o["asset"]["type"] == "library"}
+    assert ids and desc["lighting"]["sources"]  # street lamps, procedural vehicles' lights
+    assert not {s.get("object_id") for s in desc["lighting"]["sources"]} & ids
