@@ -41,7 +41,7 @@ PACKAGE = ROOT / "fogsim"
 BLENDER_MODULES = {"bpy", "mathutils", "bpy_extras"}
 TORCH_MODULES = {"torch", "torchvision", "ultralytics"}
 HEAVY = BLENDER_MODULES | TORCH_MODULES
-TORCH_OWNERS = {"fogsim.depth.ila", "fogsim.detection.yolo"}
+TORCH_OWNERS = {"fogsim.depth.ila", "fogsim.detection.yolo", "fogsim.detection.augmented", "fogsim.augment.torch_fog"}
 CORE_PACKAGES = ("fogsim.fog", "fogsim.readers", "fogsim.scene", "fogsim.dataset", "fogsim.presets")
 FORBIDDEN_IN_CORE = ("fogsim.render.blender", "fogsim.depth.ila", "fogsim.detection")
 

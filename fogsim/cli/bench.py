@@ -1,4 +1,4 @@
-"""``fogsim bench fog | render | render-fog | fog-physics | ila | lidar``: the speed and accuracy benchmarks.
+"""``fogsim bench fog | augment | render | render-fog | fog-physics | ila | lidar``: the speed and accuracy benchmarks.
 
 Each prints its figures beside a baseline measured in the same run (ratios of medians:
 these machines are noisy); none of them is a test, and CI times nothing.
@@ -20,6 +20,13 @@ def add_parsers(sub) -> None:
     fog.add_argument("--repeat", type=int, default=15, help="interleaved repeats (medians)")
     _quiet_option(fog)
     fog.set_defaults(run=lambda args: _fog(args))
+
+    aug = bsub.add_parser("augment", help="fog as augmentation: images/s (NumPy, albumentations, torch batch) at "
+                          "640×640 and 1920×1280 on one core, against albumentations RandomFog, and the cost "
+                          "added to an Ultralytics training sample")
+    aug.add_argument("--repeat", type=int, default=5, help="interleaved repeats (medians)")
+    _quiet_option(aug)
+    aug.set_defaults(run=lambda args: _augment(args))
 
     render = bsub.add_parser("render", help="seconds per frame by stage and RSS over many frames (needs bpy), "
                              "against factory Cycles settings")
@@ -120,6 +127,13 @@ def _positive(**values) -> None:
 
 def _fog(args) -> int:
     from fogsim.bench.fog import run
+
+    _positive(repeat=args.repeat)
+    return run(args.repeat)
+
+
+def _augment(args) -> int:
+    from fogsim.bench.augment import run
 
     _positive(repeat=args.repeat)
     return run(args.repeat)

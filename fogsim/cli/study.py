@@ -64,6 +64,10 @@ def add_parsers(sub) -> None:
     tr.add_argument("--workers", type=int, default=d.workers, help="data-loader workers")
     tr.add_argument("--seed", type=int, default=d.seed)
     tr.add_argument("--patience", type=int, default=d.patience, help="early-stopping patience (epochs)")
+    tr.add_argument("--augment", metavar="continuous[:LOW-HIGH]",
+                    help="also train a model 'augmented' on the clear images with fog drawn per sample from the "
+                         "dataset's depth (β uniform in LOW–HIGH 1/m, default 0–0.12; ':visibility' draws uniformly "
+                         "in visibility), the mixed model's epochs and images per epoch; needs rendered depth")
     tr.add_argument("--cache", action="store_true", help="keep decoded images in RAM (faster on large "
                     "images; Ultralytics warns it may make training non-deterministic)")
     tr.add_argument("--no-plots", action="store_true", help="skip Ultralytics' training plots")
@@ -121,6 +125,7 @@ def render(dataset: Path, args) -> None:
 
 
 def cmd_study(args) -> int:
+    from fogsim.augment.spec import parse_augment
     from fogsim.detection.class_map import load_class_map
     from fogsim.detection.study import Study
     from fogsim.detection.yolo import TrainConfig
@@ -134,6 +139,7 @@ def cmd_study(args) -> int:
                       batch=args.batch, nbs=args.nbs, device=args.device, workers=args.workers, seed=args.seed,
                       patience=args.patience, cache=args.cache, plots=not args.no_plots)
     check_args(args)
+    augment = parse_augment(args.augment) if args.augment else None
     shard = parse_shard(args.shard)
     if args.quiet:  # read when Ultralytics is first imported: its log and progress bars off, errors kept
         os.environ["YOLO_VERBOSE"] = "False"
@@ -141,7 +147,7 @@ def cmd_study(args) -> int:
         render(dataset, args)
     class_map = load_class_map(args.class_map) if args.class_map else None
     study = Study(dataset, out, cfg, unknown_distance=args.unknown_distance, class_map=class_map,
-                  sim_dataset=args.sim_dataset)
+                  sim_dataset=args.sim_dataset, augment=augment)
     if not args.report_only:
         study.run_models(shard, progress=not args.quiet)
     if args.no_report:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsim.camera import StereoCamera
+from fogsim.camera import Intrinsics, StereoCamera, planar_to_ray
 from fogsim.dataset.layout import PARTS, DatasetLayout
 from fogsim.errors import InputError
 from fogsim.fileio import read_depth_file, read_image, read_json
@@ -35,6 +35,16 @@ def dataset_levels(dataset: str | Path | DatasetLayout) -> list[str]:
                                       "with fogsim fog (after sharded runs: fogsim fog --finalize-only)")
     data = load_json(manifest, DatasetManifest)
     return [lv.key for lv in data.levels]
+
+
+def clear_level(dataset: str | Path | DatasetLayout) -> str | None:
+    """The key of the dataset's clear level (β = 0 in ``dataset.json``), None when it has none."""
+    layout = as_layout(dataset)
+    dataset_levels(layout)  # the manifest's checks
+    for record in read_json(layout.manifest())["levels"]:
+        if record.get("beta") == 0:
+            return record["key"]
+    return None
 
 
 def dataset_classes(dataset: str | Path | DatasetLayout) -> list[str]:
@@ -136,6 +146,25 @@ def frame_records(dataset: str | Path | DatasetLayout, model=FrameMeta) -> Frame
             continue
         frames.append(frame)
     return FrameRecords(frames, metas, skipped)
+
+
+def read_distance(dataset: str | Path | DatasetLayout, frame: str) -> np.ndarray:
+    """The frame's ray distance ℓ in metres (H×W float32, +inf = no hit) from its depth file and
+    the camera in its record (planar Z → ray); an InputError when the frame has no depth."""
+    layout = as_layout(dataset)
+    meta = read_meta(layout, frame)
+    record = meta.get("depth") or {}
+    path = layout.root / record["file"] if record.get("file") else layout.depth(frame)
+    if not path.is_file():
+        raise InputError(path, "no depth for this frame: fog from depth needs a rendered dataset (depth/<frame>.exr)")
+    depth = read_depth_file(path)
+    if str(record.get("kind", "planar")).startswith("planar"):
+        try:
+            K = Intrinsics.from_dict(meta["camera"]["intrinsics"], str(layout.meta(frame)))
+        except (KeyError, TypeError):
+            raise InputError(layout.meta(frame), "planar depth but no camera.intrinsics in the frame record") from None
+        return planar_to_ray(depth, K)
+    return depth.astype(np.float32, copy=False)
 
 
 def frame_count(dataset: str | Path | DatasetLayout) -> int:

@@ -39,14 +39,23 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from fogsim.augment.spec import FogSpec
 from fogsim.dataset.layout import MIXED_MODEL, DatasetLayout
-from fogsim.dataset.reader import dataset_classes, dataset_levels, missing_files, read_split, val_ground_truth
+from fogsim.dataset.reader import (
+    clear_level,
+    dataset_classes,
+    dataset_levels,
+    missing_files,
+    read_distance,
+    read_split,
+    val_ground_truth,
+)
 from fogsim.detection.class_map import BUILTIN, ClassMap, identity, map_detections, map_ground_truth, restriction
 from fogsim.detection.coco_eval import BINS, UNKNOWN_DISTANCE, distance_coverage
 from fogsim.detection.layout import StudyLayout
 from fogsim.detection.level_estimation import LevelEstimator, confusion, image_features, route
 from fogsim.detection.table import cross_density, heatmap, markdown, write_report
-from fogsim.detection.yolo import TrainConfig, check_model, predict, train, training_view
+from fogsim.detection.yolo import AUGMENTED_MODEL, TrainConfig, check_model, predict, train, training_view
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes, read_image, read_json, write_image, write_json
 from fogsim.fog.visibility import INVISIBLE_RULE
@@ -64,7 +73,7 @@ class Study:
 
     def __init__(self, dataset: str | Path, out: str | Path, cfg: TrainConfig | None = None, *,
                  unknown_distance: str = "ignore", class_map: ClassMap | None = None,
-                 sim_dataset: str | Path | None = None):
+                 sim_dataset: str | Path | None = None, augment: FogSpec | None = None):
         self.dataset, self.out, self.cfg = Path(dataset).resolve(), Path(out).resolve(), cfg
         self.layout, self.files = DatasetLayout(self.dataset), StudyLayout(self.out)
         self.levels = dataset_levels(self.layout)
@@ -84,11 +93,18 @@ class Study:
             if class_map is not None:
                 class_map.check_source(self.classes, str(self.layout.manifest()))
             self.eval_map = class_map
-        clash = [lv for lv in self.levels if lv in (MIXED_MODEL, "oracle") or lv.startswith("routed")]
+        clash = [lv for lv in self.levels if lv in (MIXED_MODEL, AUGMENTED_MODEL, "oracle") or lv.startswith("routed")]
         if clash:
             raise InputError(self.layout.manifest(), f"fog level keys {clash} clash with the study's "
-                                                     "row names (mixed, oracle, routed …)")
+                                                     "row names (mixed, augmented, oracle, routed …)")
         self.models = [*self.levels, MIXED_MODEL]
+        self.augment, self.clear = augment, None
+        if augment is not None:
+            self.clear = clear_level(self.layout)
+            if self.clear is None:
+                raise InputError(self.layout.manifest(), "--augment trains on the clear images: the dataset "
+                                                         "has no level with β = 0")
+            self.models.append(AUGMENTED_MODEL)
         self.config_dir = self.files.config_dir()
 
     def prediction(self, model: str, level: str) -> Path:
@@ -109,6 +125,8 @@ class Study:
     def check_parameters(self, gts: dict) -> None:
         """Write ``study.json``, or refuse when OUT holds a study with other parameters."""
         params = self._dataset_parameters(gts) | {"train": asdict(self.cfg)}
+        if self.augment is not None:  # only then: a study without it keeps its study.json
+            params["augment"] = {"beta": list(self.augment.beta), "sample": self.augment.sample}
         claim_output(self.files.study_file(), params, what="study")
 
     def stored_config(self, gts: dict) -> TrainConfig:
@@ -132,18 +150,29 @@ class Study:
         mine = self.models[shard[0]::shard[1]]
         if any(not self.files.run_done(m).is_file() for m in mine):
             check_model(self.cfg.model, self.config_dir)  # before study.json: a typo must not lock OUT
+        if AUGMENTED_MODEL in mine:
+            self.check_depth()
         self.check_parameters(gts)
-        data = training_view(self.dataset, self.files.training_view(), self.levels, self.classes)
+        data = training_view(self.dataset, self.files.training_view(), self.levels, self.classes, self.clear)
         for name in tqdm(mine, desc="models", unit="model", disable=not progress):
             if not self.files.run_done(name).is_file():
                 shutil.rmtree(self.files.predictions(name), ignore_errors=True)  # from older weights
-            best = train(name, data[name], self.files.run(name), self.cfg, self.config_dir)
+            best = train(name, data[name], self.files.run(name), self.cfg, self.config_dir, self.trainer(name))
             for lv in self.levels:
                 path = self.prediction(name, lv)
                 if not path.is_file():
                     write_json(path, predict(best, gts[lv], self.dataset, self.cfg, self.config_dir))
         if self.sim is not None:
             self.run_sim_models(gts, shard, progress)
+
+    def trainer(self, name: str):
+        """The Ultralytics trainer class of model ``name``: the fogging one for ``augmented``, else
+        None (Ultralytics' default)."""
+        if name != AUGMENTED_MODEL:
+            return None
+        from fogsim.detection.augmented import fog_trainer
+        from fogsim.detection.yolo import load_ultralytics
+        return fog_trainer(load_ultralytics(self.config_dir), self.dataset, self.augment, self.cfg.seed)
 
     def run_sim_models(self, gts: dict, shard: tuple[int, int] = (0, 1), progress: bool = True) -> None:
         """Train the sim study's models of this shard (on the rendered dataset) and run each on
@@ -170,6 +199,17 @@ class Study:
             more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
             raise InputError(missing[0], f"missing from the dataset{more}: its split lists or COCO files name "
                                          "it; restore it, or rebuild the lists with fogsim render --finalize-only")
+
+    def check_depth(self) -> None:
+        """The augmented model fogs the clear training frames from their depth: every one must
+        have it (the first is read, to check its record and camera too) before training starts."""
+        frames = read_split(self.layout, self.clear, "train")
+        if frames:
+            read_distance(self.layout, frames[0])
+        missing = [p for f in frames if not (p := self.layout.depth(f)).is_file()]
+        if missing:
+            raise InputError(missing[0], f"no depth for this frame ({len(missing)} of {len(frames)} clear training "
+                                         "frames lack one): --augment needs a rendered dataset's depth/<frame>.exr")
 
     def missing_predictions(self) -> list[Path]:
         paths = [self.prediction(m, lv) for m in self.models for lv in self.levels]
@@ -292,7 +332,8 @@ class Study:
                  f"Dataset `{self.dataset}`: {n_train} training / {n_val} validation frames per level; "
                  f"model `{cfg.model}`{' from scratch' if cfg.model.endswith(('.yaml', '.yml')) else ''}, "
                  f"{cfg.epochs} epochs "
-                 f"(mixed: {cfg.epochs_for(MIXED_MODEL)} over every level), {cfg.imgsz} px, batch {cfg.batch}. "
+                 f"(mixed and augmented: {cfg.epochs_for(MIXED_MODEL)} over every level's worth), "
+                 f"{cfg.imgsz} px, batch {cfg.batch}. "
                  f"Objects within {max_distance_m:g} m count; {ignored}.",
                  "", "Recall = Ultralytics' R (recall at the max-F1 confidence), over every object and over "
                  f"the visible ones only (recall_visible: invisible objects, {INVISIBLE_RULE} against their "
@@ -300,13 +341,15 @@ class Study:
                  "(pycocotools). Rows: trained on (oracle = each level's own model; routed = the model "
                  "of the estimated level); columns: validated on.", "", *self._classes_lines(),
                  *_coverage_lines(coverage, self.unknown_distance, max_distance_m), markdown(table),
-                 "**recall by distance** (every detection; model on its own level, mixed, routed)", "",
+                 "**recall by distance** (every detection; model on its own level, mixed, augmented, routed)", "",
                  "| row | level | " + " | ".join(f"{lo:g}–{hi:g} m" for lo, hi in BINS) + " |",
                  "|---" * (len(BINS) + 2) + "|"]
-        for row in ("oracle", MIXED_MODEL, *(r for r in table if r.startswith("routed"))):
+        for row in ("oracle", MIXED_MODEL, *(r for r in table if r == AUGMENTED_MODEL or r.startswith("routed"))):
             for lv, cell in table[row].items():
                 vals = ["—" if v is None else f"{v:.3f}" for v in cell["recall_by_distance"].values()]
                 lines.append(f"| {row} | {lv} | " + " | ".join(vals) + " |")
+        if AUGMENTED_MODEL in table:
+            lines += ["", *_winner_lines(table, self.levels, self.augment)]
         lines += ["", "**training** (seconds of the run that finished each model)", "",
                   "| model | epochs | seconds | state |", "|---|---|---|---|"]
         training = self.training_records() if training is None else training
@@ -330,6 +373,25 @@ def read_predictions(path: Path) -> list[dict]:
     dets = read_json(path)
     check(dets, Predictions, path)
     return dets
+
+
+def _winner_lines(table: dict, levels: list[str], augment: FogSpec | None) -> list[str]:
+    """Which training wins on each level: the level's own specialist (oracle), ``mixed`` (every
+    level on disk) or ``augmented`` (clear images, fog drawn per sample), by mAP@50 and recall."""
+    rows = ("oracle", MIXED_MODEL, AUGMENTED_MODEL)
+    span = "" if augment is None else f" (β {augment.sample}-uniform in {augment.beta[0]:g}–{augment.beta[-1]:g} 1/m)"
+    lines = [f"**augmented{span} vs mixed vs specialists** (map50 / recall_all; best in bold)", "",
+             "| level | " + " | ".join(rows) + " | wins (map50) |", "|---" * (len(rows) + 2) + "|"]
+    wins = {r: 0 for r in rows}
+    for lv in levels:
+        cells = {r: table[r][lv] for r in rows}
+        best = max(rows, key=lambda r: cells[r]["ap50"])
+        wins[best] += 1
+        lines.append(f"| {lv} | " + " | ".join(
+            (f"**{c['ap50']:.3f}**" if r == best else f"{c['ap50']:.3f}") + f" / {c['recall_all']:.3f}"
+            for r, c in cells.items()) + f" | {best} |")
+    lines += ["", "Levels won by mAP@50: " + ", ".join(f"{r} {n}" for r, n in wins.items()) + "."]
+    return lines
 
 
 def _coverage_lines(coverage: dict | None, policy: str, max_distance_m: float) -> list[str]:

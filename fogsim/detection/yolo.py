@@ -31,6 +31,7 @@ from fogsim.detection.layout import DONE_FILE
 from fogsim.errors import FogsimError, InputError
 from fogsim.fileio import atomic_write_bytes, write_json
 
+AUGMENTED_MODEL = "augmented"  # trained on clear images fogged on the fly (fogsim.detection.augmented)
 MIN_ULTRALYTICS = (8, 4, 37)  # earlier releases inflate mAP (PR curve extended to recall 1)
 # MIXED_MODEL ("mixed", the model trained on every level at once) is defined in
 # fogsim.dataset.layout beside MIXED_SPLIT ("all", the dataset's every-level split).
@@ -55,7 +56,8 @@ class TrainConfig:
     plots: bool = True
 
     def epochs_for(self, model_name: str) -> int:
-        return self.mixed_epochs if model_name == MIXED_MODEL and self.mixed_epochs else self.epochs
+        every_level = model_name in (MIXED_MODEL, AUGMENTED_MODEL)  # both see every level's worth per epoch
+        return self.mixed_epochs if every_level and self.mixed_epochs else self.epochs
 
 
 def _version_tuple(text: str) -> tuple[int, ...]:
@@ -110,10 +112,13 @@ def check_model(model: str, config_dir: str | Path) -> None:
 
 # --- training view -------------------------------------------------------------------------------
 
-def training_view(dataset: Path, view: Path, levels: list[str], classes=None) -> dict[str, Path]:
+def training_view(dataset: Path, view: Path, levels: list[str], classes=None,
+                  augmented: str | None = None) -> dict[str, Path]:
     """The dataset's YOLO layout seen through symlinks under ``view``; returns a data YAML per
     model (each level, and ``mixed`` over every level), class names ``classes`` (default: the
-    dataset's own list, from ``dataset.json``).
+    dataset's own list, from ``dataset.json``). With ``augmented`` (the clear level's key) also
+    :data:`AUGMENTED_MODEL`: the clear training images listed once per level (the mixed model's
+    number of images per epoch, to be fogged on the fly), validated on the mixed val split.
 
     ``view/<model>/<part>/<level>/{images,labels}`` link to the dataset's level folders, so
     Ultralytics' label cache (``…/<level>/labels.cache``) is one per model and split: never in
@@ -128,10 +133,14 @@ def training_view(dataset: Path, view: Path, levels: list[str], classes=None) ->
             if not folder(lv).is_dir():
                 raise InputError(folder(lv), f"missing {kind} folder of fog level {lv!r}")
     data = {}
-    for model, members in [*((lv, [lv]) for lv in levels), (MIXED_MODEL, levels)]:
-        for part in PARTS:  # the mixed model validates on the mixed val split
+    models = [*((lv, [lv], [lv]) for lv in levels), (MIXED_MODEL, levels, levels)]
+    if augmented is not None:
+        models.append((AUGMENTED_MODEL, [augmented] * len(levels), levels))
+    for model, train_members, val_members in models:
+        members = list(dict.fromkeys(train_members + val_members))
+        for part in PARTS:  # the mixed and augmented models validate on the mixed val split
             paths = []
-            for lv in members:
+            for lv in train_members if part == "train" else val_members:
                 base = view / model / part / lv
                 base.mkdir(parents=True, exist_ok=True)
                 for kind, folder in folders.items():
@@ -156,13 +165,14 @@ def _symlink(link: Path, target: Path) -> None:
 
 # --- training ------------------------------------------------------------------------------------
 
-def train(name: str, data_file: Path, run: Path, cfg: TrainConfig, config_dir: Path) -> Path:
+def train(name: str, data_file: Path, run: Path, cfg: TrainConfig, config_dir: Path, trainer=None) -> Path:
     """Train (or resume, or skip when done) model ``name``; returns its ``best.pt``.
 
     ``run`` is the model's Ultralytics run folder (:meth:`fogsim.detection.layout.StudyLayout.run`:
     weights, results.csv, plots); its :data:`~fogsim.detection.layout.DONE_FILE`, written last,
     marks it trained. An interrupted run resumes from ``weights/last.pt`` (data, folder and device
-    of this call, in case the study moved).
+    of this call, in case the study moved). ``trainer``: a custom Ultralytics trainer class
+    (``YOLO.train(trainer=…)``), e.g. :func:`fogsim.detection.augmented.fog_trainer`'s.
     """
     run = Path(run).resolve()
     best, last, done = run / "weights" / "best.pt", run / "weights" / "last.pt", run / DONE_FILE
@@ -175,7 +185,7 @@ def train(name: str, data_file: Path, run: Path, cfg: TrainConfig, config_dir: P
         state = "resumed"
         with _failure(f"training {name} failed"):
             ultralytics.YOLO(str(last)).train(resume=True, data=str(data_file), save_dir=str(run), device=device,
-                                              workers=cfg.workers)
+                                              workers=cfg.workers, trainer=trainer)
     elif last.is_file():
         state = "finished earlier"  # its last epoch was saved, the marker was not
     else:
@@ -185,7 +195,7 @@ def train(name: str, data_file: Path, run: Path, cfg: TrainConfig, config_dir: P
                 data=str(data_file), epochs=cfg.epochs_for(name), imgsz=cfg.imgsz, batch=cfg.batch,
                 nbs=cfg.nbs or cfg.batch, device=device, workers=cfg.workers, seed=cfg.seed, deterministic=True,
                 patience=cfg.patience, cache="ram" if cfg.cache else False, plots=cfg.plots,
-                pretrained=False, amp=False, project=str(run.parent), name=run.name, exist_ok=True)
+                pretrained=False, amp=False, project=str(run.parent), name=run.name, exist_ok=True, trainer=trainer)
     if not best.is_file():
         raise FogsimError(f"{run}: Ultralytics finished without writing weights/best.pt")
     write_json(done, {"model": name, "data": str(data_file), "config": asdict(cfg),

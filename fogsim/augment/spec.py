@@ -1,0 +1,171 @@
+"""What a fog augmentation draws per sample, and the NumPy reference that applies it.
+
+:class:`FogSpec` holds the configuration shared by every front end (albumentations, torchvision,
+the batched torch function, the Ultralytics training hook): the range or list β is drawn from,
+uniform in β or in visibility, the airlight and its jitter, the depth convention, the blend
+space, the extended kernel and heterogeneity. :meth:`FogSpec.draw` draws one sample's
+parameters from a NumPy ``Generator`` (seeded by the caller: the same seed gives the same
+draws); :func:`apply_fog` is the reference every other path is tested against — it is
+:func:`fogsim.fog.model.koschmieder` (or ``koschmieder_extended``) with the depth converted.
+
+Depth requirements (docs/augment.md): metres; **ray distance** from the camera centre by
+default, or planar Z along the optical axis with ``depth="planar"`` and the camera's
+intrinsics (or horizontal field of view); +inf = sky (pure airlight when β > 0); 0 = a hole,
+which gets *no* fog (t = 1) — fill holes first (:mod:`fogsim.fog.fill`) where they matter; NaN
+or negative depth is a ValueError.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fogsim.camera import Intrinsics, planar_to_ray
+from fogsim.fog.levels import beta_from_visibility, visibility_from_beta
+from fogsim.fog.model import Kernel, check_heterogeneity, density_field, koschmieder, koschmieder_extended
+from fogsim.schema.presets import SPACES
+
+DEPTH_KINDS = ("ray", "planar")
+SAMPLING = ("beta", "visibility")
+
+
+@dataclass(frozen=True)
+class Draw:
+    """One sample's fog: β in 1/m, airlight RGB in 8-bit units, optional density field."""
+
+    beta: float
+    airlight: tuple[float, float, float]
+    density: np.ndarray | None = field(default=None, compare=False, repr=False)
+
+
+@dataclass(frozen=True)
+class FogSpec:
+    """How fog is drawn and applied per sample.
+
+    ``beta``: a ``(low, high)`` tuple is a range in 1/m; a list (or a tuple of another length)
+    is a set of values, one picked uniformly; a number is that β always.
+    ``sample``: for a range, ``"beta"`` draws β uniformly, ``"visibility"`` draws the visibility
+    V = ln 20 / β uniformly between V(high) and V(low) (needs low > 0: V(0) is infinite).
+    ``airlight``: 8-bit units (255 = white); ``airlight_jitter``: ± that many units, uniform,
+    the same for R, G, B (grey fog). ``depth``: ``"ray"`` (default) or ``"planar"``, which needs
+    ``intrinsics`` (scaled to the image's size when it differs) or ``hfov`` in degrees.
+    ``kernel``: None = standard law, a :class:`~fogsim.fog.model.Kernel` = extended form.
+    ``heterogeneity``: amplitude a of a smooth density field (0 = homogeneous), patches of
+    ``heterogeneity_scale`` pixels (:func:`~fogsim.fog.model.density_field`).
+    """
+
+    beta: tuple[float, float] | tuple[float, ...] = (0.0, 0.12)
+    sample: str = "beta"
+    airlight: float = 255.0
+    airlight_jitter: float = 0.0
+    depth: str = "ray"
+    intrinsics: Intrinsics | None = None
+    hfov: float | None = None
+    space: str = "srgb"
+    kernel: Kernel | None = None
+    heterogeneity: float = 0.0
+    heterogeneity_scale: float = 64.0
+    is_list: bool = False  # set by __post_init__: beta is a list of values (not a range)
+
+    def __post_init__(self):
+        beta = self.beta
+        if isinstance(beta, (int, float)):
+            beta = (float(beta), float(beta))
+        beta = tuple(float(b) for b in beta)
+        is_list = isinstance(self.beta, list) or len(beta) != 2
+        if not beta or not all(math.isfinite(b) and b >= 0 for b in beta):
+            raise ValueError(f"β must be finite values ≥ 0 (1/m), got {self.beta}")
+        if not is_list and beta[0] > beta[1]:
+            raise ValueError(f"β range must be (low, high) with low ≤ high, got {self.beta}")
+        if self.sample not in SAMPLING:
+            raise ValueError(f"sample must be one of {', '.join(SAMPLING)}, got {self.sample!r}")
+        if self.sample == "visibility" and not is_list and beta[0] == 0:
+            raise ValueError("uniform in visibility needs a β range with low > 0 (visibility is infinite at β = 0)")
+        if not (0 <= self.airlight - self.airlight_jitter and self.airlight + self.airlight_jitter <= 255):
+            raise ValueError(f"airlight ± jitter must stay in [0, 255], got {self.airlight} ± {self.airlight_jitter}")
+        if self.depth not in DEPTH_KINDS:
+            raise ValueError(f"depth must be one of {', '.join(DEPTH_KINDS)}, got {self.depth!r}")
+        if self.depth == "planar" and self.intrinsics is None and self.hfov is None:
+            raise ValueError("planar depth needs the camera: intrinsics or hfov (degrees)")
+        if self.hfov is not None and not 0 < self.hfov < 180:
+            raise ValueError(f"hfov must be in (0, 180) degrees, got {self.hfov}")
+        if self.space not in SPACES:
+            raise ValueError(f"space must be one of {', '.join(SPACES)}, got {self.space!r}")
+        if self.heterogeneity:
+            check_heterogeneity(self.heterogeneity, self.heterogeneity_scale)
+        object.__setattr__(self, "beta", beta)
+        object.__setattr__(self, "is_list", is_list)
+
+    def draw_beta(self, rng: np.random.Generator) -> float:
+        """One β (1/m) from the range or list."""
+        if self.is_list:
+            return self.beta[int(rng.integers(len(self.beta)))]
+        low, high = self.beta
+        if self.sample == "beta":
+            return float(rng.uniform(low, high))
+        v = rng.uniform(visibility_from_beta(high), visibility_from_beta(low))
+        return beta_from_visibility(float(v))
+
+    def draw(self, rng: np.random.Generator, shape: tuple[int, int] | None = None) -> Draw:
+        """One sample's parameters (β, airlight, density field for an H×W ``shape``)."""
+        beta = self.draw_beta(rng)
+        a = self.airlight
+        if self.airlight_jitter:
+            a = float(a + rng.uniform(-self.airlight_jitter, self.airlight_jitter))
+        density = None
+        if self.heterogeneity and shape is not None:
+            density = density_field(shape, rng, self.heterogeneity, self.heterogeneity_scale)
+        return Draw(beta, (a, a, a), density)
+
+    def camera(self, height: int, width: int) -> Intrinsics:
+        """The camera of an image of this size (for planar depth)."""
+        if self.intrinsics is not None:
+            K = self.intrinsics
+            return K if (K.width, K.height) == (width, height) else K.scaled(width, height)
+        return Intrinsics.from_hfov(self.hfov, width, height)
+
+    def ray_distance(self, depth: np.ndarray) -> np.ndarray:
+        """H×W ray distance in metres from the depth as given (H×W or H×W×1)."""
+        depth = np.asarray(depth)
+        if depth.ndim == 3 and depth.shape[2] == 1:
+            depth = depth[:, :, 0]
+        depth = depth.astype(np.float32, copy=False)
+        if self.depth == "planar":
+            return planar_to_ray(depth, self.camera(*depth.shape))
+        return depth
+
+
+def apply_fog(image: np.ndarray, depth: np.ndarray, draw: Draw, spec: FogSpec = FogSpec()) -> np.ndarray:
+    """The reference: fog ``image`` (H×W×3 uint8/uint16/float) with ``draw`` over ``depth``
+    (see the module docstring); same dtype back. Channel order does not matter for grey airlight."""
+    distance = spec.ray_distance(depth)
+    if spec.kernel is None:
+        return koschmieder(image, distance, draw.beta, draw.airlight, spec.space, draw.density)
+    return koschmieder_extended(image, distance, draw.beta, spec.kernel, draw.airlight, spec.space, draw.density)
+
+
+def random_fog(image: np.ndarray, depth: np.ndarray, rng: np.random.Generator,
+               spec: FogSpec = FogSpec()) -> tuple[np.ndarray, float]:
+    """Draw one sample's fog from ``rng`` and apply it: (fogged image, β used in 1/m)."""
+    draw = spec.draw(rng, image.shape[:2])
+    return apply_fog(image, depth, draw, spec), draw.beta
+
+
+def parse_augment(text: str) -> FogSpec:
+    """``continuous`` or ``continuous:LOW-HIGH`` (β in 1/m; default 0–0.12, the paper's levels'
+    span), optionally ``…:visibility`` to draw uniformly in visibility → the study's FogSpec."""
+    parts = text.split(":")
+    if parts[0] != "continuous" or len(parts) > 3:
+        raise ValueError(f"--augment must be continuous[:LOW-HIGH][:visibility], got {text!r}")
+    beta, sample = (0.0, 0.12), "beta"
+    for part in parts[1:]:
+        if part in SAMPLING:
+            sample = part
+            continue
+        try:
+            low, high = (float(v) for v in part.split("-"))
+        except ValueError:
+            raise ValueError(f"--augment range must be LOW-HIGH in 1/m (e.g. 0-0.12), got {part!r}") from None
+        beta = (low, high)
+    return FogSpec(beta=beta, sample=sample)
