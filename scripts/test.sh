@@ -23,6 +23,12 @@ else
   "${PIP[@]}" install -q -e ".[dev,blender,waymo,ila,docs]"
 fi
 
+# albumentations (the 'augment' extra's library) without its declared dependencies: those pull
+# opencv-python-headless over the contrib build and, through its newest wheels, numpy 2 over bpy's
+# numpy<2. Its pure-Python needs are installed alone (fogsim's Fog uses nothing else of it).
+"${PIP[@]}" install -q --no-deps "albumentations==2.0.8" "albucore==0.0.24"
+"${PIP[@]}" install -q "scipy>=1.10" "pydantic>=2.9.2" pyyaml "stringzilla>=3.10.4" "simsimd>=5.9.2"
+
 # --- OpenCV: the contrib build must be the cv2 in place, whatever was installed in what order.
 # opencv-python (pulled by Ultralytics), opencv-python-headless and opencv-contrib-python all
 # write the same cv2/ folder as opencv-contrib-python-headless; whichever came last wins and

@@ -7,7 +7,8 @@
 * **No import circles**: the import graph (module → the module an import statement reads from,
   lazy imports and ``__init__`` modules included) has no cycle.
 * Only ``fogsim.render.blender`` imports Blender's modules (bpy, mathutils, bpy_extras).
-* Only ``fogsim.depth.ila`` and ``fogsim.detection.yolo`` import torch, torchvision or Ultralytics.
+* Only ``fogsim.depth.ila``, ``fogsim.detection.yolo``, ``fogsim.detection.augmented`` and
+  ``fogsim.augment.torch_fog`` import torch, torchvision or Ultralytics.
 * The core — ``fogsim.fog``, ``fogsim.readers``, ``fogsim.scene``, ``fogsim.dataset``,
   ``fogsim.presets`` and the top-level modules — never reaches ``fogsim.render.blender``,
   ``fogsim.depth.ila``, ``fogsim.detection`` nor those heavy packages, not even through an
@@ -445,8 +446,8 @@ def test_only_ila_and_yolo_import_torch_or_ultralytics():
     bad = [str(e) for m, edges in EDGES.items() if m not in TORCH_OWNERS
            for e in edges if e.target.split(".")[0] in TORCH_MODULES]
     if bad:
-        pytest.fail(_report("torch/torchvision/ultralytics imported outside fogsim.depth.ila and "
-                            "fogsim.detection.yolo:", bad), pytrace=False)
+        pytest.fail(_report("torch/torchvision/ultralytics imported outside fogsim.depth.ila, "
+                            "fogsim.augment.torch_fog and fogsim.detection.{yolo,augmented}:", bad), pytrace=False)
 
 
 def test_core_never_reaches_blender_ila_detection_or_heavy_packages():

@@ -85,7 +85,9 @@ def fog_batch(images, depth, beta, airlight=255.0, spec: FogSpec = FogSpec()):
     if (b < 0).any() or not torch.isfinite(b).all():
         raise ValueError("β must be finite and ≥ 0 (1/m)")
     clear = b == 0
-    t = torch.where(clear, torch.ones_like(distance), torch.exp(-b * distance))
+    # β·ℓ capped at 80: exp(−80) ≈ 2e−35 is 0 to any pixel depth, and keeps exp out of float32's
+    # denormal range (arithmetic on denormals is ~10× slower on CPUs)
+    t = torch.where(clear, torch.ones_like(distance), torch.exp(-(b * distance).clamp_(max=80.0)))
     if spec.kernel is not None:
         k = spec.kernel.size
         t = F.avg_pool2d(t, k, stride=1, padding=k // 2, count_include_pad=False)
