@@ -167,7 +167,7 @@ def test_report_files(tmp_path):
         comp.add_frame(f"b{beta}", rgb, ray, mask, {beta: (noisy_render(0.4 * k, 0.05, np.random.default_rng(1)),
                                                            noisy_render(0.4 * k, 0.05, np.random.default_rng(2)))})
     result = write_report(comp, tmp_path)
-    assert [m for m in result["models"]] == ["srgb", "linear", "srgb+box19", "linear+box19"]
+    assert [m for m in result["models"]] == ["srgb", "linear", "srgb+box19", "linear+box19", "scatter"]
     stored = json.loads((tmp_path / "fog_physics.json").read_text())
     assert set(stored["per_beta"]) == {"0.03", "0.12"} and 0.5 < stored["interior_fraction"] < 1
     md = (tmp_path / "fog_physics.md").read_text()

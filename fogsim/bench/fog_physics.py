@@ -119,37 +119,57 @@ def _levels(meta: dict) -> list[dict]:
     return list(meta.get("fog", {}).get("levels", []))
 
 
+def committed_frames(out: Path) -> list[str]:
+    """The frames committed in all three runs under ``out``; none is an InputError."""
+    clear, fog0, fog1 = (DatasetLayout(out / name) for name in RUNS)
+    frames = sorted(set(clear.done_frames()) & set(fog0.done_frames()) & set(fog1.done_frames()))
+    if not frames:
+        raise InputError(out, "no frame is committed in all three runs (clear, volumetric_seed0, volumetric_seed1)")
+    return frames
+
+
+def load_frame(out: Path, frame: str) -> dict:
+    """One frame of the runs under ``out`` as :meth:`Comparison.add_frame` keyword arguments
+    (``name``, ``clear_linear``, ``distance`` (ray), ``mask``, ``renders``, ``classes``, ``camera``,
+    ``up``, ``night``), plus ``meta`` (the clear run's) and ``same_labels``."""
+    from fogsim.fog.scatter import up_from_world_to_camera
+
+    clear, fog0, fog1 = (DatasetLayout(out / name) for name in RUNS)
+    meta = read_meta(clear, frame)
+    levels = _levels(meta)
+    zero = next((lv["key"] for lv in levels if lv["beta"] == 0), None)
+    if zero is None:
+        raise InputError(clear.meta(frame), "the clear run has no β = 0 level (render it with one)")
+    K = Intrinsics.from_dict(meta["camera"]["intrinsics"])
+    depth = read_depth_file(clear.depth(frame))
+    mask = read_uint16_map(clear.mask(frame))
+    same = all(np.array_equal(read_uint16_map(other.mask(frame)), mask) for other in (fog0, fog1))
+    keep = linear_path(fog0, zero, frame)
+    if keep.is_file():
+        clear_linear = read_linear_rgb(keep)
+    else:
+        clear_linear = srgb_to_linear(read_image(clear.image(zero, frame)).astype(np.float32) / 255.0)
+    renders = {lv["beta"]: tuple(read_linear_rgb(linear_path(f, lv["key"], frame)) for f in (fog0, fog1))
+               for lv in levels if lv["beta"] > 0}
+    w2c = meta["camera"].get("world_to_camera")
+    return {"name": frame, "clear_linear": clear_linear, "distance": planar_to_ray(depth, K), "mask": mask,
+            "renders": renders, "classes": {int(r["id"]): r["class"] for r in meta["objects"]}, "camera": K,
+            "up": up_from_world_to_camera(w2c) if w2c is not None else None,
+            "night": meta.get("scene", {}).get("lighting", {}).get("time_of_day") == "night",
+            "meta": meta, "same_labels": same}
+
+
 def analyse(out: Path, frames: list[str] | None = None, comparison: Comparison | None = None) -> dict:
     """Compare the runs under ``out`` (clear, volumetric_seed0, volumetric_seed1) and write ``out/report``."""
     clear, fog0, fog1 = (DatasetLayout(out / name) for name in RUNS)
-    done = set(clear.done_frames()) & set(fog0.done_frames()) & set(fog1.done_frames())
-    frames = sorted(done) if frames is None else frames
-    if not frames:
-        raise InputError(out, "no frame is committed in all three runs (clear, volumetric_seed0, volumetric_seed1)")
+    frames = committed_frames(out) if frames is None else frames
     comparison = comparison or Comparison(models=default_models())
     same_labels, timing = True, {name: [] for name in RUNS}
     for frame in frames:
-        meta = read_meta(clear, frame)
-        levels = _levels(meta)
-        zero = next((lv["key"] for lv in levels if lv["beta"] == 0), None)
-        if zero is None:
-            raise InputError(clear.meta(frame), "the clear run has no β = 0 level (render it with one)")
-        K = Intrinsics.from_dict(meta["camera"]["intrinsics"])
-        depth = read_depth_file(clear.depth(frame))
-        mask = read_uint16_map(clear.mask(frame))
-        for other in (fog0, fog1):
-            same_labels &= bool(np.array_equal(read_uint16_map(other.mask(frame)), mask))
-        keep = linear_path(fog0, zero, frame)
-        if keep.is_file():
-            clear_linear = read_linear_rgb(keep)
-        else:
-            clear_linear = srgb_to_linear(read_image(clear.image(zero, frame)).astype(np.float32) / 255.0)
-        renders = {}
-        for lv in levels:
-            if lv["beta"] > 0:
-                renders[lv["beta"]] = tuple(read_linear_rgb(linear_path(f, lv["key"], frame)) for f in (fog0, fog1))
-        classes = {int(r["id"]): r["class"] for r in meta["objects"]}
-        comparison.add_frame(frame, clear_linear, planar_to_ray(depth, K), mask, renders, classes=classes)
+        data = load_frame(out, frame)
+        data.pop("meta")
+        same_labels &= data.pop("same_labels")
+        comparison.add_frame(**data)
         for name, layout in zip(RUNS, (clear, fog0, fog1)):
             t = read_meta(layout, frame).get("timings_s", {})  # the fog renders are timed apart ("fog_render")
             timing[name].append(float(t.get("render", float("nan"))) + float(t.get("fog_render", 0.0)))

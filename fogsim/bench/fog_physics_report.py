@@ -57,7 +57,27 @@ def markdown(result: dict, model_names: tuple[str, ...] | None = None) -> str:
             lines.append(f"| {key} | {o['frame']} | {o['id']} | {o['class'] or '—'} | {_f(o['distance_m'], '{:.1f}')} "
                          f"| {_f(o['transmission'], '{:.3f}')} | {o['contrast_clear']:.3f} | {_f(rel, '{:.3f}')} | "
                          + " | ".join(_f(o["ratio_pt_k"].get(n), "{:.2f}") for n in names) + " |")
+    lines += glow_lines(result, names)
     return "\n".join(lines) + "\n"
+
+
+def glow_lines(result: dict, names: tuple[str, ...]) -> list[str]:
+    """The night glow table: per β, the median over lamps of the mean luminance (units of A, the
+    path-traced image normalised) in rings around each lamp, path-traced against each model."""
+    rows = [(key, pb["glow"]) for key, pb in result["per_beta"].items() if pb.get("glow")]
+    if not rows:
+        return []
+    rings = rows[0][1]["rings_px"]
+    lines = ["", "Glow around the lamps of night frames: median over lamps of the mean luminance in rings "
+             "around each lamp (px), units of A (path-traced image normalised).", "",
+             "| β | lamps | image | " + " | ".join(f"{lo}-{hi} px" for lo, hi in rings) + " |",
+             "|---" * (3 + len(rings)) + "|"]
+    for key, g in rows:
+        for label, prof in (("path-traced", g["pt"]), *((n, g["models"].get(n)) for n in names)):
+            if prof is None:
+                continue
+            lines.append(f"| {key} | {g['lamps']} | {label} | " + " | ".join(_f(v, "{:.3f}") for v in prof) + " |")
+    return lines
 
 
 def write_report(comparison: Comparison, out: str | Path) -> dict:

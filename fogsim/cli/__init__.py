@@ -1,4 +1,4 @@
-"""``fogsim`` — the one front door: ``render | fog | ila | depth | study | bench | levels | demo | schema``.
+"""``fogsim`` — the one front door: ``render | fog | ila | depth | study | bench | fit-fog | levels | demo | schema``.
 
 Every subcommand's ``--help`` works without Blender, torch or Ultralytics: they are imported
 only when a command needs them. Errors end a command with one line (never a traceback) and
@@ -15,7 +15,7 @@ from fogsim.errors import run_command
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from fogsim.cli import bench, demo, depth, fog, ila, render, schema, study
+    from fogsim.cli import bench, demo, depth, fit_fog, fog, ila, render, schema, study
 
     parser = argparse.ArgumentParser(prog="fogsim", description="Labeled images in fog: render street scenes, "
                                      "fog rendered and real datasets, train and evaluate detectors per fog level.")
@@ -28,6 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
     depth.add_parsers(sub)
     study.add_parsers(sub)
     bench.add_parsers(sub)
+    fit_fog.add_parsers(sub)
     schema.add_parsers(sub)
     return parser
 

@@ -18,6 +18,11 @@ def _add_fog_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--levels", help="preset name (paper, foggy-cityscapes) or comma-separated β in 1/m "
                                      "(default: paper)")
     g.add_argument("--visibility", help="comma-separated visibilities in metres instead of β (β = ln20/V)")
+    g.add_argument("--model", choices=("koschmieder", "scatter"), default="koschmieder",
+                   help="koschmieder (the paper's law) or scatter: forward scattering, airlight by elevation "
+                   "and glow, fitted on path-traced fog (docs: Fog physics)")
+    g.add_argument("--scatter-params", metavar="FILE", help="--model scatter: a parameter file written by "
+                   "fogsim fit-fog (default: the one shipped with fogsim)")
     g.add_argument("--extended", action="store_true", help="extended (smoothed-transmission) form")
     g.add_argument("--kernel", choices=KERNELS, default="box",
                    help="weights of the extended form (default box, as the paper's reference run)")
@@ -26,8 +31,9 @@ def _add_fog_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--eps", type=float, default=1e-3, help="guided-filter regularisation (default 1e-3)")
     g.add_argument("--airlight", default="255",
                    help="airlight in 8-bit units: one value, R,G,B, or 'estimate' (dark channel)")
-    g.add_argument("--space", choices=SPACES, default="srgb",
-                   help="blend gamma-encoded values (srgb, the paper's) or linear light")
+    g.add_argument("--space", choices=SPACES, default=None,
+                   help="blend gamma-encoded values (srgb, the paper's) or linear light (default: srgb for "
+                   "koschmieder, linear for scatter)")
     g.add_argument("--fill", default=None,
                    help="hole fill for depth: none, inpaint, ipbasic (default: none; inpaint for Cityscapes)")
     g.add_argument("--heterogeneity", type=float, default=0.0,
@@ -231,6 +237,19 @@ def _job(args, out: str, classes: tuple[str, ...] = ()):
         airlight = tuple(vals * 3 if len(vals) == 1 else vals)
         airlight_rgb(airlight, name="--airlight")  # the model's range, checked before any work
     kernel = Kernel(args.kernel, args.kernel_size, args.sigma, args.eps) if args.extended else None
+    model = getattr(args, "model", "koschmieder")
+    space = args.space or ("linear" if model == "scatter" else "srgb")
+    scatter_params = None
+    if model == "scatter":
+        if args.extended or args.heterogeneity:
+            raise ValueError("--model scatter has no --extended kernel or --heterogeneity (Koschmieder only)")
+        from fogsim.fog.scatter import load_params
+
+        if args.scatter_params:
+            scatter_params = str(Path(args.scatter_params).resolve())
+        load_params(scatter_params)  # a malformed file: one line naming it, before any work
+    elif args.scatter_params:
+        raise ValueError("--scatter-params needs --model scatter")
     check_heterogeneity(args.heterogeneity, args.heterogeneity_scale, ("--heterogeneity", "--heterogeneity-scale"))
     fill = args.fill or ("inpaint" if getattr(args, "cityscapes", None) else "none")
     from fogsim.fog.fill import fill_methods
@@ -249,9 +268,10 @@ def _job(args, out: str, classes: tuple[str, ...] = ()):
         inputs["train_fraction"] = check_train_fraction(TRAIN_FRACTION if train_fraction is None else train_fraction,
                                                         "--train-fraction")
         inputs["split_by"] = getattr(args, "split_by", None) or "frame"
-    return FogJob(levels, out, airlight, args.space, kernel, fill, args.heterogeneity,
+    return FogJob(levels, out, airlight, space, kernel, fill, args.heterogeneity,
                   args.heterogeneity_scale, args.seed, getattr(args, "image_format", "png"), inputs,
-                  labels=bool(classes), classes=tuple(classes), min_pixels=min_pixels, max_pixels=max_pixels)
+                  labels=bool(classes), classes=tuple(classes), min_pixels=min_pixels, max_pixels=max_pixels,
+                  model=model, scatter_params=scatter_params)
 
 
 def _inputs(args) -> dict:

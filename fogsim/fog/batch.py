@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsim._version import __version__
+from fogsim.camera import Intrinsics
 from fogsim.dataset.layout import DatasetLayout, frame_from_key
 from fogsim.dataset.reader import frame_records
 from fogsim.dataset.writer import TRAIN_FRACTION, check_train_fraction, finalize, write_frame_labels
@@ -54,6 +55,7 @@ from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
 from fogsim.fog.labelled import SPLIT_BY, check_labelled, checked_records, key_folder
 from fogsim.fog.levels import FogLevel
 from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
+from fogsim.fog.scatter import ScatterFogger, load_params
 from fogsim.fog.visibility import attach_visibility
 from fogsim.readers.base import Sample
 from fogsim.runs import claim_output, sample_seed
@@ -82,6 +84,8 @@ class FogJob:
     classes: tuple[str, ...] = ()  # the dataset's own class list (labels only)
     min_pixels: int = 0           # kept annotations with fewer pixels → ignore regions (labels only)
     max_pixels: int = MAX_PIXELS  # an image of more pixels fails (--max-pixels; not a run parameter)
+    model: str = "koschmieder"    # or "scatter" (fogsim.fog.scatter)
+    scatter_params: str | None = None  # the scatter model's parameter file (None: the shipped one)
 
     def parameters(self) -> dict:
         """The run parameters recorded in ``fogsim_run.json`` and compared on resume."""
@@ -98,7 +102,9 @@ class FogJob:
             "seed": self.seed,
             "image_format": self.image_format,
             "inputs": self.inputs,
-        } | ({"labels": {"classes": list(self.classes), "min_pixels": self.min_pixels}} if self.labels else {})
+        } | ({"labels": {"classes": list(self.classes), "min_pixels": self.min_pixels}} if self.labels else {}) \
+            | ({"fog_model": "scatter", "scatter_params": load_params(self.scatter_params).to_dict(),
+                "scatter_params_file": self.scatter_params} if self.model == "scatter" else {})
 
     @property
     def layout(self) -> DatasetLayout:
@@ -133,11 +139,18 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
         density = density_field((h, w), np.random.default_rng(seed), job.heterogeneity,
                                 job.heterogeneity_scale)
     airlight = estimate_airlight(image) if job.airlight == "estimate" else np.asarray(job.airlight)
-    fogger = Fogger(image, dist.ray, airlight, job.space, job.kernel, density)
+    if job.model == "scatter":
+        K = dist.record.get("intrinsics") or (sample.intrinsics.to_dict() if sample.intrinsics else None)
+        fogger = ScatterFogger(image, dist.ray, airlight, job.space, load_params(job.scatter_params),
+                               Intrinsics.from_dict(K) if K else None)
+        model = "scatter"
+    else:
+        fogger = Fogger(image, dist.ray, airlight, job.space, job.kernel, density)
+        model = "extended" if job.kernel else "standard"
     common = {"source": sample.source, "key": sample.key,
               "airlight_rgb": [round(float(a), 3) for a in airlight],
               "airlight_method": "dark-channel estimate" if job.airlight == "estimate" else "constant",
-              "blend_space": job.space, "model": "extended" if job.kernel else "standard",
+              "blend_space": job.space, "model": model,
               "kernel": job.kernel.to_dict() if job.kernel else None,
               **dist.record, "sample_seed": seed if job.heterogeneity else None,
               "heterogeneity": job.parameters()["heterogeneity"], "fogsim_version": __version__,

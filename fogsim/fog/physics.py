@@ -50,6 +50,7 @@ from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.colour import linear_to_srgb, linear_to_srgb8, luminance, srgb_to_linear
 from fogsim.fog.levels import visibility_from_beta
 from fogsim.fog.model import PAPER_KERNEL, Fogger, Kernel
+from fogsim.fog.scatter import ScatterFogger, ScatterParams, load_params
 from fogsim.fog.visibility import transmission_at
 
 #: distance bins in metres: [lo, hi)
@@ -70,13 +71,18 @@ BIN_NAMES = tuple(bin_name(lo, hi) for lo, hi in BINS)
 
 @dataclass(frozen=True)
 class Model:
-    """One Koschmieder variant: blend space and kernel (None = the standard law)."""
+    """One fog model: a Koschmieder variant (blend space and kernel, None = the standard law) or,
+    with ``kind = "scatter"``, the scatter model (:mod:`fogsim.fog.scatter`) with ``params``."""
 
     space: str
     kernel: Kernel | None = None
+    kind: str = "koschmieder"
+    params: ScatterParams | None = None
 
     @property
     def name(self) -> str:
+        if self.kind == "scatter":
+            return "scatter" if self.space == "linear" else f"scatter-{self.space}"
         if self.kernel is None:
             return self.space
         k = self.kernel
@@ -84,9 +90,18 @@ class Model:
         return f"{self.space}+{k.kind}{k.size}{extra}"
 
 
-def default_models(kernels=(PAPER_KERNEL,)) -> tuple[Model, ...]:
-    """sRGB and linear blending, standard and with each extended kernel."""
-    return tuple(Model(space, k) for k in (None, *kernels) for space in ("srgb", "linear"))
+def default_models(kernels=(PAPER_KERNEL,), scatter: ScatterParams | bool = True) -> tuple[Model, ...]:
+    """sRGB and linear blending, standard and with each extended kernel; then the scatter model
+    in linear light (``scatter``: True = the shipped parameters, False = none, or the parameters)."""
+    models = tuple(Model(space, k) for k in (None, *kernels) for space in ("srgb", "linear"))
+    if scatter is not False:
+        models += (scatter_model(None if scatter is True else scatter),)
+    return models
+
+
+def scatter_model(params: ScatterParams | None = None, space: str = "linear") -> Model:
+    """The scatter model as a :class:`Model` (``params`` None: the shipped parameters)."""
+    return Model(space, kind="scatter", params=params or load_params())
 
 
 # ----------------------------------------------------------------------------- pieces
@@ -141,10 +156,17 @@ def horizon_radiance(image: np.ndarray, distance: np.ndarray, mask: np.ndarray,
             "profile_top_to_bottom": profile}
 
 
-def koschmieder_linear(clear_linear: np.ndarray, distance: np.ndarray, beta: float, model: Model) -> np.ndarray:
+def koschmieder_linear(clear_linear: np.ndarray, distance: np.ndarray, beta: float, model: Model,
+                       camera: Intrinsics | None = None, up=None) -> np.ndarray:
     """The model's fogged image in linear light, float32, from the clear render (clipped at
-    white and sRGB-encoded as the dataset stores it, but in float)."""
+    white and sRGB-encoded as the dataset stores it, but in float). ``camera`` and ``up`` (world
+    up in camera coordinates) give the scatter model its elevation map and PSF width; its image
+    is not clipped at white (the path-traced one is not either: normalised, the fog above the
+    horizon is brighter than A — a float or HDR output keeps that, an 8-bit one clips it)."""
     srgb = linear_to_srgb(np.clip(clear_linear, 0.0, 1.0))
+    if model.kind == "scatter":  # not clipped at white: its airlight exceeds A above the horizon, as the fog's does
+        out = ScatterFogger(srgb, distance, 255.0, model.space, model.params, camera, up=up).blend(beta)
+        return out if model.space == "linear" else srgb_to_linear(np.clip(out, 0.0, None))
     out = Fogger(srgb, distance, 255.0, model.space, model.kernel)(beta)
     return srgb_to_linear(np.clip(out, 0.0, 1.0))
 
@@ -191,6 +213,7 @@ class Comparison:
         self._horizon: dict = {}
         self._far: dict = {}
         self._interior = [0, 0]
+        self._glow: dict = {}
         self.frames: list[str] = []
 
     def _sum(self, beta, model, exposure, where) -> _Sums:
@@ -198,10 +221,15 @@ class Comparison:
 
     def add_frame(self, name: str, clear_linear: np.ndarray, distance: np.ndarray, mask: np.ndarray,
                   renders: dict[float, tuple[np.ndarray, np.ndarray]], intrinsics: Intrinsics | None = None,
-                  classes: dict[int, str] | None = None) -> None:
+                  classes: dict[int, str] | None = None, camera: Intrinsics | None = None, up=None,
+                  night: bool = False) -> None:
         """One frame: ``distance`` is ray distance (or planar Z when ``intrinsics`` is given);
         ``renders``: β → (seed-0 render, seed-1 render), linear float H×W×3; ``classes``:
-        mask id → class name: the objects of the object table (None: every id in the mask)."""
+        mask id → class name: the objects of the object table (None: every id in the mask);
+        ``camera`` / ``up``: the camera's intrinsics and world up in camera coordinates (the
+        scatter model's elevation and PSF width; default ``intrinsics``, a level camera);
+        ``night``: measure the glow around the lamps (:func:`lamps`)."""
+        camera = camera or intrinsics
         clear_linear = np.asarray(clear_linear, np.float32)
         if clear_linear.ndim != 3 or clear_linear.shape[2] != 3:
             raise ValueError(f"{name}: the clear render must be H×W×3, got {clear_linear.shape}")
@@ -240,7 +268,7 @@ class Comparison:
             self._far.setdefault(beta, []).append(y_far if y_far > 0 else None)
             kimgs = {}
             for model in self.models:
-                k = koschmieder_linear(clear_linear, ray, beta, model)
+                k = koschmieder_linear(clear_linear, ray, beta, model, camera, up)
                 kimgs[model.name] = k
                 for exposure, s in exposures.items():
                     e1, e2, df = s * f1 - k, s * f2 - k, s * (f1 - f2)
@@ -260,6 +288,12 @@ class Comparison:
                     "distance_m": None if math.isnan(d) else d,
                     "transmission": None if math.isnan(d) else transmission_at(d, beta),
                     "contrast_clear": c0, "contrast_pt": c_pt, "contrast_k": c_k, "ratio_pt_k": ratio})
+            if night:
+                s = exposures.get("normalised", 1.0)
+                for lamp in lamps(clear_linear, ray):
+                    self._glow.setdefault(beta, []).append({
+                        "frame": name, **lamp, "pt": radial_profile(luminance(s * fmean), lamp["centre"]),
+                        "models": {n: radial_profile(y, lamp["centre"]) for n, y in y_k.items()}})
             if len(self.panels) < self.max_panels:
                 panel_rows.append(self._panel_row(beta, clear_linear, fmean, exposures, kimgs, inner))
         self.frames.append(name)
@@ -273,9 +307,18 @@ class Comparison:
         lin = kimgs.get("linear", next(iter(kimgs.values())))
         srgb = kimgs.get("srgb", lin)
         err = luminance(s * fmean - lin)
-        tiles = [linear_to_srgb8(clear), linear_to_srgb8(fmean), linear_to_srgb8(fmean, s), linear_to_srgb8(lin),
-                 linear_to_srgb8(srgb), signed_map(err, 0.25), (inner[..., None] * 255).repeat(3, 2).astype(np.uint8)]
-        caps = [f"b={beta:g} clear", "PT raw", f"PT x{s:.2f}", "K lin", "K srgb", "PT-K +-.25", "interior"]
+        tiles = [linear_to_srgb8(clear), linear_to_srgb8(lin), linear_to_srgb8(srgb)]
+        caps = [f"b={beta:g} clear", "K lin", "K srgb"]
+        if "scatter" in kimgs:
+            tiles.append(linear_to_srgb8(kimgs["scatter"]))
+            caps.append("scatter")
+        tiles += [linear_to_srgb8(fmean, s), linear_to_srgb8(fmean), signed_map(err, 0.25)]
+        caps += [f"PT x{s:.2f}", "PT raw", "PT-K lin +-.25"]
+        if "scatter" in kimgs:
+            tiles.append(signed_map(luminance(s * fmean - kimgs["scatter"]), 0.25))
+            caps.append("PT-scatter")
+        tiles.append((inner[..., None] * 255).repeat(3, 2).astype(np.uint8))
+        caps.append("interior")
         return strip(tiles, caps, width=max(160, clear.shape[1]))
 
     def result(self) -> dict:
@@ -300,7 +343,8 @@ class Comparison:
                             "frames": self._horizon.get(beta, [])},
                 "far_luminance_mean": _mean(self._far.get(beta, [])),
                 "models": models, "objects": self._objects.get(beta, []),
-                "objects_summary": _object_summary(self._objects.get(beta, []), [m.name for m in self.models])}
+                "objects_summary": _object_summary(self._objects.get(beta, []), [m.name for m in self.models]),
+                "glow": _glow_summary(self._glow.get(beta, []), [m.name for m in self.models])}
         return {"frames": self.frames, "bins_m": [[lo, hi if math.isfinite(hi) else None] for lo, hi in self.bins],
                 "interior_fraction": self._interior[0] / self._interior[1] if self._interior[1] else None,
                 "models": [m.name for m in self.models], "units": "linear light, A = white = 1.0",
@@ -320,6 +364,56 @@ def _object_summary(objects: list[dict], names: list[str]) -> dict:
              and o["ratio_pt_k"].get(n) is not None]
         out[n] = {"median_ratio_pt_k": float(np.median(r)) if r else None, "objects": len(r)}
     return out
+
+
+#: glow rings around a lamp's centre: [lo, hi) pixels
+GLOW_RINGS = ((0, 2), (2, 4), (4, 8), (8, 16), (16, 32))
+#: a lamp: a connected region of the clear image at least this bright (linear luminance), not sky,
+#: of at most LAMP_MAX_FRACTION of the image
+LAMP_LUMINANCE = 0.9
+LAMP_MAX_FRACTION = 0.01
+MAX_LAMPS = 12
+
+
+def lamps(clear_linear: np.ndarray, distance: np.ndarray) -> list[dict]:
+    """The light sources of a (night) clear render: connected regions of linear luminance ≥
+    :data:`LAMP_LUMINANCE` that are not sky and cover ≤ :data:`LAMP_MAX_FRACTION` of the image,
+    the :data:`MAX_LAMPS` largest, as ``{"centre": [x, y], "pixels", "distance_m"}``."""
+    import cv2
+
+    y = luminance(np.clip(clear_linear, 0.0, None))
+    bright = ((y >= LAMP_LUMINANCE) & np.isfinite(distance)).astype(np.uint8)
+    n, labels, stats, cents = cv2.connectedComponentsWithStats(bright, connectivity=8)
+    found = []
+    for i in range(1, n):
+        area = int(stats[i, cv2.CC_STAT_AREA])
+        if area <= LAMP_MAX_FRACTION * y.size:
+            found.append({"centre": [float(cents[i][0]), float(cents[i][1])], "pixels": area,
+                          "distance_m": float(np.median(distance[labels == i]))})
+    return sorted(found, key=lambda d: -d["pixels"])[:MAX_LAMPS]
+
+
+def radial_profile(y: np.ndarray, centre, rings=GLOW_RINGS) -> list[float | None]:
+    """Mean of ``y`` (H×W) in each ring [lo, hi) px around ``centre`` (x, y); None for an empty ring."""
+    h, w = y.shape
+    r = np.hypot(np.arange(w)[None, :] + 0.0 - centre[0], np.arange(h)[:, None] + 0.0 - centre[1])
+    return [float(y[(r >= lo) & (r < hi)].mean()) if ((r >= lo) & (r < hi)).any() else None for lo, hi in rings]
+
+
+def _glow_summary(found: list[dict], names: list[str]) -> dict | None:
+    """Per ring: the median over lamps of the path-traced and each model's mean luminance."""
+    if not found:
+        return None
+
+    def med(rows):
+        return [_median([r[i] for r in rows]) for i in range(len(GLOW_RINGS))]
+    return {"lamps": len(found), "rings_px": [list(r) for r in GLOW_RINGS], "pt": med([f["pt"] for f in found]),
+            "models": {n: med([f["models"][n] for f in found]) for n in names}}
+
+
+def _median(values) -> float | None:
+    values = [v for v in values if v is not None]
+    return float(np.median(values)) if values else None
 
 
 def _mean(values) -> float | None:
@@ -348,5 +442,6 @@ def noisy_render(image: np.ndarray, sigma: float, rng: np.random.Generator) -> n
     return (image * (1.0 + rng.normal(0.0, sigma, image.shape))).astype(np.float32)
 
 
-__all__ = ["BINS", "BIN_NAMES", "Comparison", "Model", "default_models", "far_luminance", "horizon_radiance",
-           "interior_mask", "koschmieder_linear", "noisy_render", "signed_map"]
+__all__ = ["BINS", "BIN_NAMES", "GLOW_RINGS", "Comparison", "Model", "default_models", "far_luminance",
+           "horizon_radiance", "interior_mask", "koschmieder_linear", "lamps", "noisy_render", "radial_profile",
+           "scatter_model", "signed_map"]

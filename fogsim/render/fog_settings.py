@@ -54,7 +54,9 @@ def fog_model(config) -> FogModel:
 
 def fog_settings(config) -> dict:
     """A RenderConfig's ``fog_model`` as Fogger arguments:
-    ``{"airlight": 8-bit units (a number or [R, G, B]), "space": blend space, "kernel": Kernel | None}``.
+    ``{"airlight": 8-bit units (a number or [R, G, B]), "space": blend space, "kernel": Kernel | None,
+    "model": the kind, "scatter_params": the scatter model's parameter file or None}`` (kind
+    ``"scatter"`` always blends linear light, where it was fitted; ``space`` is Koschmieder's).
 
     Checks the whole block, the volumetric part included."""
     from fogsim.fog.model import Kernel
@@ -62,7 +64,9 @@ def fog_settings(config) -> dict:
     m = fog_model(config)
     kernel = Kernel(m.kernel, m.kernel_size, float(m.sigma), float(m.eps)) if m.extended else None
     airlight = list(m.airlight) if isinstance(m.airlight, list) else m.airlight
-    return {"airlight": airlight, "space": m.space, "kernel": kernel}
+    space = "linear" if m.kind == "scatter" else m.space
+    return {"airlight": airlight, "space": space, "kernel": kernel, "model": m.kind,
+            "scatter_params": m.scatter_params}
 
 
 def volumetric_settings(config) -> dict | None:

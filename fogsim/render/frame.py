@@ -23,6 +23,7 @@ from fogsim.depth.stereo import SGBMParams, hole_fraction, sgbm_disparity
 from fogsim.errors import InputError
 from fogsim.fileio import write_depth, write_image, write_json
 from fogsim.fog.model import Fogger
+from fogsim.fog.scatter import ScatterFogger, load_params, up_from_world_to_camera
 from fogsim.fog.visibility import attach_visibility
 from fogsim.render.labels import MIN_PIXELS, MIN_VISIBLE_FRACTION, object_records
 from fogsim.render.preset import RenderConfig, fog_settings
@@ -178,7 +179,16 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
                              min_visible_fraction=float(lab.get("min_visible_fraction", MIN_VISIBLE_FRACTION)))
     t1 = time.perf_counter()
     fs = fog_settings(config)
-    if fog is None:
+    if fog is None and fs["model"] == "scatter":
+        params = load_params(fs["scatter_params"])
+        w2c = desc["camera"].get("world_to_camera")
+        fogger = ScatterFogger(rgb, ray, fs["airlight"], fs["space"], params, K,
+                               up_from_world_to_camera(w2c) if w2c is not None else None)
+        foggy = {lv.key: fogger(lv.beta) for lv in config.levels}
+        fog_meta = {"model": "scatter", "distance": "planar→ray", "airlight": fs["airlight"],
+                    "blend_space": fs["space"], "scatter_params": params.to_dict(),
+                    "scatter_params_file": fs["scatter_params"]}
+    elif fog is None:
         fogger = Fogger(rgb, ray, fs["airlight"], fs["space"], fs["kernel"])
         foggy = {lv.key: fogger(lv.beta) for lv in config.levels}
         fog_meta = {"model": "koschmieder", "distance": "planar→ray", "airlight": fs["airlight"],

@@ -124,7 +124,7 @@ def check_overrides(**flags) -> Overrides:
         key, _, rest = str(exc).partition(": ")
         raise ValueError(f"--{key.replace('_', '-')}: {rest}") from None
     for flag, value in (("--fog-medium", ov.fog_medium), ("--fog-scale", ov.fog_scale)):
-        if value is not None and ov.fog == "koschmieder":
+        if value is not None and ov.fog not in (None, "volumetric"):
             raise ValueError(f"{flag} needs --fog volumetric")
     return ov
 

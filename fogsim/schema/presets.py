@@ -51,7 +51,7 @@ TRAIN_FRACTION = 0.8
 #: Labels: objects below this many visible pixels, or this visible fraction, are ignore regions.
 MIN_PIXELS, MIN_VISIBLE_FRACTION = 25, 0.1
 VEHICLES = ("car", "van", "truck", "bus")
-FOG_KINDS = ("koschmieder", "volumetric")
+FOG_KINDS = ("koschmieder", "volumetric", "scatter")
 #: The participating media of ``fog_model.kind = "volumetric"`` (fogsim.render.blender.fog_volume).
 FOG_MEDIA = ("full", "hybrid", "ea")
 FOG_EXPOSURES = ("none", "auto")
@@ -239,7 +239,8 @@ class FogModel(Closed):
     sigma: Number = 5.0
     eps: Number = 1e-3
     airlight: Airlight = 255.0  # 8-bit units, a number or [R, G, B]
-    space: Literal[SPACES] = "srgb"
+    space: Literal[SPACES] = "srgb"  # Koschmieder's blend space (kind "scatter" always blends linear light)
+    scatter_params: Text | None = None  # kind "scatter": a fogsim fit-fog parameter file (None: the shipped one)
     volumetric: Volumetric = Volumetric()
 
     @model_validator(mode="after")

@@ -41,6 +41,7 @@ class FogsimSettings(bpy.types.PropertyGroup):
     fog_model: EnumProperty(name="Fog", default="PRESET", items=[
         ("PRESET", "Preset's", "The preset's fog_model.kind (Koschmieder unless it says otherwise)"),
         ("koschmieder", "Koschmieder", "Post-process on the clear render (fast)"),
+        ("scatter", "Scatter", "Post-process with forward scattering, elevation airlight and glow (fast)"),
         ("volumetric", "Volumetric", "One Cycles render per fog level with a participating medium (slow)")])
     fog_medium: EnumProperty(name="Medium", default="PRESET", items=[
         ("PRESET", "Preset's", "The preset's fog_model.volumetric.medium (full unless it says otherwise)"),

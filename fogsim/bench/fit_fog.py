@@ -1,0 +1,197 @@
+"""``fogsim fit-fog``: fit the scatter fog model's parameters on path-traced renders.
+
+Reads one or more ``fogsim bench fog-physics`` folders (each: a clear run and two volumetric
+runs of the same frames, see :mod:`fogsim.bench.fog_physics`) and fits, by a bounded pattern
+search (Hooke–Jeeves: coordinate steps that halve when nothing improves; deterministic):
+
+1. on the day frames, ``forward``, ``spread``, ``illumination``, minimising the
+   noise-free normalised RMS (path-traced image scaled so its horizon is A, interior non-sky
+   pixels, :mod:`fogsim.fog.physics`), pooled over frames, averaged over β;
+   (and ``level``, ``elevation`` of the airlight);
+2. on the night frames (if any), ``glow``, minimising the squared log-ratio of the model's and
+   the path-traced radial luminance profile around each lamp (:func:`fogsim.fog.physics.lamps`).
+
+Writes a small versioned JSON (:class:`fogsim.schema.scatter.ScatterParamsFile`) with the
+presets, seeds, frames, β and the objective before (Koschmieder: every term off) and after.
+
+    fogsim fit-fog RUN_DIR [RUN_DIR …] [--out fogsim/fog/scatter_params.json]
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from fogsim.bench.fog_physics import committed_frames, load_frame
+from fogsim.colour import luminance
+from fogsim.errors import InputError
+from fogsim.fileio import read_json
+from fogsim.fog.physics import horizon_radiance, interior_mask, koschmieder_linear, lamps, radial_profile, scatter_model
+from fogsim.fog.scatter import ScatterParams
+
+#: the day parameters: name → (low, high, first step); ``spread`` and ``glow`` are searched in log10
+DAY_BOUNDS = {"forward": (0.0, 0.95, 0.2), "spread": (-3.0, 1.0, 0.5), "illumination": (-20.0, 40.0, 8.0),
+              "level": (0.2, 2.0, 0.2), "elevation": (-3.0, 6.0, 1.0)}
+GLOW_BOUNDS = (-1.0, 4.0, 1.0)  # log10 G
+LOG_PARAMS = ("spread", "glow")
+MIN_STEP = 1 / 64  # stop when every step has halved this far (relative to the first step)
+
+
+@dataclass
+class FitFrame:
+    """One frame and β, ready for the objective: the scaled path-traced renders at the counted pixels."""
+
+    data: dict
+    beta: float
+    scale: float
+    where: np.ndarray
+    f1: np.ndarray
+    f2: np.ndarray
+
+
+def prepare(folders: list[Path]) -> tuple[list[FitFrame], list[dict], dict]:
+    """(day frames × β, night frames, what was read: presets, styles, dataset seeds, frames, β,
+    resolution, samples)."""
+    day, night = [], []
+    info = {"presets": [], "styles": [], "seeds": [], "frames": 0, "betas": set(), "resolution": "", "samples": 0}
+    for folder in folders:
+        run_file = folder / "clear" / "render_run.json"
+        run_params = read_json(run_file).get("parameters", {}) if run_file.is_file() else {}
+        for key, value in (("presets", run_params.get("name")), ("styles", run_params.get("style")),
+                           ("seeds", run_params.get("seed"))):
+            if value is not None and value not in info[key]:
+                info[key].append(value)
+        for frame in committed_frames(folder):
+            data = load_frame(folder, frame)
+            meta = data.pop("meta")
+            data.pop("same_labels")
+            run = meta.get("render", {})
+            info["frames"] += 1
+            info["resolution"] = f"{meta['width']}x{meta['height']}"
+            info["samples"] = int(run.get("samples", info["samples"]) or 0)
+            info["betas"] |= set(data["renders"])
+            if data["night"]:
+                night.append(data)
+                continue
+            ray, mask = data["distance"], data["mask"]
+            where = interior_mask(ray, mask) & ~(np.isinf(ray) & (mask == 0))
+            for beta, (f1, f2) in sorted(data["renders"].items()):
+                hz = horizon_radiance(0.5 * (f1 + f2), ray, mask)
+                if hz is None or not hz["luminance"] > 0 or not where.any():
+                    continue
+                s = 1.0 / hz["luminance"]
+                day.append(FitFrame(data, beta, s, where, s * f1[where], s * f2[where]))
+    info["betas"] = sorted(info["betas"])
+    if not day:
+        raise InputError(folders[0], "no day frame with sky to fit on (fit-fog needs fog-physics runs)")
+    return day, night, info
+
+
+def day_objective(params: ScatterParams, frames: list[FitFrame]) -> float:
+    """Mean over β of the pooled noise-free normalised RMS (√mean(E₁·E₂)) of the scatter model."""
+    model = scatter_model(params)
+    sums: dict[float, list[float]] = {}
+    for fr in frames:
+        d = fr.data
+        k = koschmieder_linear(d["clear_linear"], d["distance"], fr.beta, model, d["camera"], d["up"])[fr.where]
+        acc = sums.setdefault(fr.beta, [0.0, 0])
+        acc[0] += float(((fr.f1 - k) * (fr.f2 - k)).sum())
+        acc[1] += k.size
+    return float(np.mean([math.sqrt(max(c / n, 0.0)) for c, n in sums.values()]))
+
+
+def glow_objective(params: ScatterParams, frames: list[dict]) -> float | None:
+    """Mean squared log10-ratio of model and path-traced ring luminance around every lamp (None: no lamp)."""
+    model, errs = scatter_model(params), []
+    for d in frames:
+        found = lamps(d["clear_linear"], d["distance"])
+        for beta, (f1, f2) in d["renders"].items():
+            hz = horizon_radiance(0.5 * (f1 + f2), d["distance"], d["mask"])
+            s = 1.0 / hz["luminance"] if hz and hz["luminance"] > 0 else 1.0
+            y_pt = luminance(s * 0.5 * (f1 + f2))
+            y_m = luminance(koschmieder_linear(d["clear_linear"], d["distance"], beta, model, d["camera"], d["up"]))
+            for lamp in found:
+                for a, b in zip(radial_profile(y_m, lamp["centre"]), radial_profile(y_pt, lamp["centre"])):
+                    if a is not None and b is not None:
+                        errs.append((math.log10(a + 1e-3) - math.log10(b + 1e-3)) ** 2)
+    return float(np.mean(errs)) if errs else None
+
+
+def _set(params: ScatterParams, name: str, x: float) -> ScatterParams:
+    return replace(params, **{name: 10.0 ** x if name in LOG_PARAMS else x})
+
+
+def _get(params: ScatterParams, name: str) -> float:
+    v = getattr(params, name)
+    return math.log10(max(v, 1e-3)) if name in LOG_PARAMS else v
+
+
+def pattern_search(params: ScatterParams, bounds: dict, objective, log=print) -> tuple[ScatterParams, float]:
+    """Hooke–Jeeves without the pattern move: try ±step on each parameter, keep an improvement,
+    halve the steps when none helps; stop at :data:`MIN_STEP` of the first steps."""
+    best = objective(params)
+    steps = {n: b[2] for n, b in bounds.items()}
+    while any(steps[n] >= bounds[n][2] * MIN_STEP for n in bounds):
+        improved = False
+        for n, (lo, hi, _) in bounds.items():
+            for sign in (+1, -1):
+                x = min(hi, max(lo, _get(params, n) + sign * steps[n]))
+                trial = _set(params, n, x)
+                value = objective(trial)
+                if value < best - 1e-6:
+                    params, best, improved = trial, value, True
+                    break
+        if not improved:
+            steps = {n: s / 2 for n, s in steps.items()}
+        log(f"fit-fog: {best:.4f} " + " ".join(f"{n}={getattr(params, n):.4g}" for n in bounds))
+    return params, best
+
+
+def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> dict:
+    """Fit on the runs under ``folders``; returns the parameter document (not yet written)."""
+    from fogsim._version import __version__
+
+    day, night, info = prepare(folders)
+    koschmieder = ScatterParams()
+    before = day_objective(koschmieder, day)
+    log(f"fit-fog: {len(day)} day frame-levels, {len(night)} night frames; Koschmieder (linear) {before:.4f}")
+    start = start or ScatterParams(forward=0.5, spread=0.1)
+    if day_objective(start, day) > before:  # never end worse than Koschmieder: the search only improves
+        start = koschmieder
+    params, after = pattern_search(start, DAY_BOUNDS, lambda p: day_objective(p, day), log)
+    glow = None
+    if night:
+        params = replace(params, glow=max(params.glow, 1.0))
+        glow_before = glow_objective(replace(params, glow=0.0), night)
+        if glow_before is not None:
+            params, g = pattern_search(params, {"glow": GLOW_BOUNDS}, lambda p: glow_objective(p, night), log)
+            glow = {"before": glow_before, "after": g}
+        else:
+            params = replace(params, glow=0.0)
+    note = ("day: mean over β of the noise-free normalised RMS (interior non-sky pixels, A = 1); "
+            "before = Koschmieder in linear light")
+    if glow:
+        note += f"; glow: mean squared log10 ring-profile ratio {glow['before']:.3f} → {glow['after']:.3f}"
+    return {"format": "fogsim-scatter-params", "version": 1, "parameters": params.to_dict(),
+            "fitted_on": {**info, "objective": "normalised RMS (day), ring-profile log error (night glow)",
+                          "before": round(before, 5), "after": round(after, 5)},
+            "fogsim_version": __version__, "note": note}
+
+
+def run(args) -> int:
+    """``fogsim fit-fog``: fit, check the document against the schema, write it atomically."""
+    from fogsim.fileio import write_json
+    from fogsim.schema.base import check
+    from fogsim.schema.scatter import ScatterParamsFile
+
+    log = (lambda *a: None) if args.quiet else print
+    doc = fit([Path(f) for f in args.runs], log=log)
+    check(doc, ScatterParamsFile, args.out)
+    write_json(args.out, doc)
+    p = doc["parameters"]
+    print(f"fit-fog: RMS normalised {doc['fitted_on']['before']:.3f} (Koschmieder) → {doc['fitted_on']['after']:.3f} "
+          f"(scatter); k={p['forward']:.3g} ρ={p['spread']:.3g} μ={p['illumination']:.3g} m "
+          f"c={p['elevation']:.3g} G={p['glow']:.3g} → {args.out}")
+    return 0

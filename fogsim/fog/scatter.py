@@ -1,0 +1,302 @@
+"""The scatter fog model: Koschmieder's law plus forward scattering, an airlight that varies with
+viewing elevation, and glow around light sources — an image-space fog calibrated on Cycles'
+path-traced fog (``fogsim fit-fog``; parameters shipped in ``scatter_params.json``).
+
+Per pixel x with ray distance ℓ (m), extinction β (1/m), optical depth T = βℓ:
+
+    I_fog = m·I·t  +  PSF ⊛ [ m·I·(t_f − t) + G·s·m·I·(1 − t) ]  +  a·A·e^(c·sin θ)·(1 − t_f)
+
+* t = e^(−βℓ): the light that reaches the camera unscattered (Koschmieder's transmission);
+* t_f = e^(−β(1−k)ℓ): light that is unscattered *or* scattered into the forward peak of the
+  droplets' phase function — the delta-scaling approximation (Joseph et al. 1976, δ-Eddington:
+  a share k ≈ g² of scattering is treated as not deflected). The part t_f − t is the image-forming
+  light that still arrives, but spread by the atmospheric point-spread function;
+* PSF: a Gaussian in angle whose variance grows linearly with optical depth, σ_θ² = ρ·T (the
+  small-angle diffusion limit of forward-peaked multiple scattering, the regime Narasimhan &
+  Nayar's APSF covers for T ≲ 1–2), splatted from each source pixel with *its own* width
+  (energy conserving: every source pixel's light is spread, not gathered);
+* m = e^(−μβ): objects in fog are lit by the fog's diffuse light, not by the clear sky;
+* a·A·e^(c·sin θ): the airlight in units of the horizon radiance A (the ``airlight`` argument:
+  what the camera's exposure puts at the lowest sky) — a level a (the fog between camera and
+  scene is not the sky seen through all of it) that brightens with the viewing elevation θ, as
+  the path to the top of the fog layer, which is lit from above, gets shorter;
+* glow: pixels that are saturated in the clear image (linear luminance above the threshold,
+  s ∈ [0, 1]) stand for sources far brighter than white; their light is scattered by the same
+  PSF with a gain G, so lamps and headlights glow.
+
+With k = 0, μ = 0, a = 1, c = 0 and G = 0 the model is Koschmieder's law exactly (the same blend as
+:class:`fogsim.fog.model.Fogger`). ``space="linear"`` (the default here, physically right)
+blends linear light; ``"srgb"`` blends the stored values as the paper does. Distances as in
+:mod:`fogsim.fog.model` (ray distance, +inf = sky), airlight in 8-bit units, images uint8 /
+uint16 / float RGB, returned in their dtype. The PSF is computed on a copy of the image reduced
+to about :data:`WORK_WIDTH` pixels wide (the blur is wide; the direct term stays at full size).
+
+    >>> from fogsim.fog.scatter import scatter
+    >>> foggy = scatter(image, distance, 0.06)          # shipped parameters, A = 255, linear light
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, replace
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from fogsim.camera import Intrinsics
+from fogsim.colour import LUMINANCE_WEIGHTS, from_float, full_scale, linear_to_srgb, srgb_to_linear
+from fogsim.fog.model import SPACES, airlight_rgb, check_beta, check_distance
+from fogsim.schema.base import check, load_json
+from fogsim.schema.scatter import ScatterParameters, ScatterParamsFile
+
+#: the shipped parameter file (fitted by ``fogsim fit-fog``)
+PARAMS_FILE = "scatter_params.json"
+#: the width (px) of the reduced copy the PSF is computed on
+WORK_WIDTH = 480
+#: field of view assumed when no intrinsics are given (degrees, horizontal, level camera)
+DEFAULT_HFOV_DEG = 60.0
+#: the PSF's widths: layers from SIGMA_MIN px (reduced copy) up, a factor LAYER_STEP apart
+SIGMA_MIN = 0.7
+LAYER_STEP = 2.0
+#: widest PSF (rad); wider light is spread no further (it is nearly uniform by then)
+SIGMA_MAX_RAD = 0.6
+
+
+@dataclass(frozen=True)
+class ScatterParams:
+    """The model's parameters (see the module docstring). All zero but ``spread``: Koschmieder.
+
+    ``forward`` k ∈ [0, 1): share of β scattered into the forward peak; ``spread`` ρ (rad²):
+    σ_θ² = ρ·βℓ; ``illumination`` μ (m): m = e^(−μβ); ``level`` a and ``elevation`` c: airlight
+    a·A·e^(c·sin θ);
+    ``glow`` G ≥ 0 and ``glow_threshold`` (linear luminance in (0, 1]) for saturated sources.
+    """
+
+    forward: float = 0.0
+    spread: float = 0.1
+    illumination: float = 0.0
+    level: float = 1.0
+    elevation: float = 0.0
+    glow: float = 0.0
+    glow_threshold: float = 0.9
+
+    def __post_init__(self):
+        check(asdict(self), ScatterParameters)  # the one place for the ranges (ValueError naming the key)
+
+    def without(self, *terms: str) -> "ScatterParams":
+        """A copy with terms switched off: ``forward``, ``illumination``, ``level``, ``elevation``, ``glow``."""
+        return replace(self, **{t: 1.0 if t == "level" else 0.0 for t in terms})
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+KOSCHMIEDER = ScatterParams()
+TERMS = ("forward", "illumination", "level", "elevation", "glow")
+
+
+def shipped_params_path() -> Path:
+    return Path(str(resources.files("fogsim.fog").joinpath(PARAMS_FILE)))
+
+
+def load_params_file(path: str | Path | None = None) -> ScatterParamsFile:
+    """The parameter file (default: the shipped one), checked: a malformed file is an
+    :class:`~fogsim.errors.InputError` naming it and the key."""
+    return load_json(shipped_params_path() if path is None else path, ScatterParamsFile)
+
+
+@lru_cache(maxsize=1)
+def _shipped() -> ScatterParams:
+    return ScatterParams(**load_params_file().parameters.model_dump())
+
+
+def load_params(path: str | Path | None = None) -> ScatterParams:
+    """:class:`ScatterParams` from a parameter file (default: the shipped, fitted one)."""
+    if path is None:
+        return _shipped()
+    return ScatterParams(**load_params_file(path).parameters.model_dump())
+
+
+# ----------------------------------------------------------------------------- geometry
+#: world up in OpenCV camera coordinates (x right, y down, z forward) for a level camera
+LEVEL_UP = (0.0, -1.0, 0.0)
+
+
+def up_from_world_to_camera(world_to_camera) -> tuple[float, float, float]:
+    """World up (+z) in camera coordinates, from a 4×4 (or 3×3) world→camera matrix."""
+    r = np.asarray(world_to_camera, np.float64)[:3, :3]
+    return tuple(float(v) for v in r[:, 2])
+
+
+def elevation_sine(shape: tuple[int, int], intrinsics: Intrinsics | None, up=None) -> np.ndarray:
+    """sin of each pixel's viewing elevation above the horizon (H×W float32) for a camera with
+    ``intrinsics`` (None: :data:`DEFAULT_HFOV_DEG`, centred) and world ``up`` in its coordinates
+    (None: :data:`LEVEL_UP`, a level camera)."""
+    h, w = shape
+    K = intrinsics.scaled(w, h) if intrinsics is not None and (intrinsics.width, intrinsics.height) != (w, h) \
+        else intrinsics or Intrinsics.from_hfov(DEFAULT_HFOV_DEG, w, h)
+    y = (np.arange(h, dtype=np.float64) + 0.5 - K.cy) / K.fy   # image y down
+    x = (np.arange(w, dtype=np.float64) + 0.5 - K.cx) / K.fx
+    ux, uy, uz = LEVEL_UP if up is None else up
+    dot = ux * x[None, :] + uy * y[:, None] + uz                 # camera ray (x, y, 1) · up
+    norm = np.sqrt(x[None, :] ** 2 + y[:, None] ** 2 + 1.0)
+    return (dot / norm).astype(np.float32)
+
+
+def focal_px(shape: tuple[int, int], intrinsics: Intrinsics | None) -> float:
+    h, w = shape
+    K = intrinsics or Intrinsics.from_hfov(DEFAULT_HFOV_DEG, w, h)
+    return float(K.fx) * w / K.width
+
+
+# ----------------------------------------------------------------------------- the PSF
+def gaussian_by_boxes(x: np.ndarray, sigma: float) -> np.ndarray:
+    """x blurred by ≈ a Gaussian of std ``sigma`` px: three normalised box filters (running sums,
+    cost independent of σ), mirrored at the border so no light is lost or gained there."""
+    if sigma < 0.5:
+        return x
+    ideal = math.sqrt(12.0 * sigma * sigma / 3.0 + 1.0)
+    k = max(1, int(round((ideal - 1) / 2)) * 2 + 1)
+    lim = 2 * min(x.shape[:2]) - 1
+    k = min(k, lim if lim % 2 else lim - 1)
+    out = x
+    for _ in range(3):
+        out = cv2.boxFilter(out, cv2.CV_32F, (k, k), normalize=True, borderType=cv2.BORDER_REFLECT)
+    return out
+
+
+def splat(source: np.ndarray, sigma_px: np.ndarray) -> np.ndarray:
+    """Spread each pixel of ``source`` (h×w×3) by a Gaussian of its own std ``sigma_px`` (h×w, px):
+    the widths are split between layers a factor :data:`LAYER_STEP` apart (weights linear in log σ,
+    summing to 1), each layer blurred once. Energy conserving: the sum over the image is kept."""
+    top = max(SIGMA_MIN, float(sigma_px.max()))
+    n = max(1, int(math.ceil(math.log(top / SIGMA_MIN, LAYER_STEP))) + 1)
+    u = np.log(np.maximum(sigma_px, SIGMA_MIN) / SIGMA_MIN) / math.log(LAYER_STEP)
+    out = np.zeros_like(source)
+    for j in range(n):
+        wj = np.maximum(0.0, 1.0 - np.abs(u - j)).astype(np.float32)
+        if j == n - 1:
+            wj = np.where(u >= j, np.float32(1.0), wj)
+        if not wj.any():
+            continue
+        out += gaussian_by_boxes(source * wj[..., None], SIGMA_MIN * LAYER_STEP ** j)
+    return out
+
+
+def psf_sigma_rad(optical_depth: np.ndarray, spread: float) -> np.ndarray:
+    """The PSF's angular std σ_θ = √(ρ·T) in radians, capped at :data:`SIGMA_MAX_RAD`."""
+    return np.minimum(np.sqrt(np.float32(spread) * optical_depth), np.float32(SIGMA_MAX_RAD))
+
+
+# ----------------------------------------------------------------------------- the model
+class ScatterFogger:
+    """Fog one image at many densities with the scatter model, sharing the work that does not
+    depend on β (colour decoding, the reduced copy, the elevation map).
+
+    ``image`` H×W×3, ``distance`` ray distance in metres (+inf = sky), ``airlight`` the horizon
+    radiance in 8-bit units (a number or RGB), ``intrinsics`` for the elevation and the PSF's
+    width in pixels (None: :data:`DEFAULT_HFOV_DEG`), ``up`` world up in camera coordinates
+    (None: a level camera; :func:`up_from_world_to_camera`), ``params`` None = the shipped
+    fitted parameters.
+    """
+
+    def __init__(self, image: np.ndarray, distance: np.ndarray, airlight=255.0, space: str = "linear",
+                 params: ScatterParams | None = None, intrinsics: Intrinsics | None = None, up=None):
+        if image.ndim != 3 or image.shape[2] != 3:
+            raise ValueError(f"image must be H×W×3 RGB, got shape {image.shape}")
+        if space not in SPACES:
+            raise ValueError(f"blend space must be one of {', '.join(SPACES)}, got {space!r}")
+        check_distance(distance, image.shape[:2])
+        self.image, self.dtype, self.space = image, image.dtype, space
+        self.params = params if params is not None else load_params()
+        p = self.params
+        h, w = image.shape[:2]
+        scale = np.float32(full_scale(image.dtype))
+        self.distance = distance.astype(np.float32, copy=False)
+        a = airlight_rgb(airlight, image.dtype) / scale
+        rgb = image.astype(np.float32) / scale
+        if space == "linear":
+            a, rgb = srgb_to_linear(a), srgb_to_linear(rgb)
+        self._a, self._rgb = a.astype(np.float32), rgb
+        self._sky_gain = None
+        if p.elevation:
+            self._sky_gain = np.exp(np.float32(p.elevation) * elevation_sine((h, w), intrinsics, up))
+        self._scatter = p.forward > 0 or p.glow > 0
+        if self._scatter:
+            f = max(1, int(math.ceil(w / WORK_WIDTH)))
+            self._small = (max(1, w // f), max(1, h // f))
+            self._f_small = focal_px((h, w), intrinsics) * self._small[0] / w
+            lin = rgb if space == "linear" else srgb_to_linear(rgb)
+            self._rgb_small = cv2.resize(rgb, self._small, interpolation=cv2.INTER_AREA)
+            self._dist_small = cv2.resize(self.distance, self._small, interpolation=cv2.INTER_NEAREST)
+            self._glow_small = None
+            if p.glow > 0:
+                lum = sum(lin[..., c] * np.float32(wt) for c, wt in enumerate(LUMINANCE_WEIGHTS))
+                thr = np.float32(p.glow_threshold)
+                sat = np.clip((lum - thr) / max(np.float32(1e-3), 1 - thr), 0.0, 1.0)
+                sat[np.isinf(self.distance)] = 0.0  # the sky is not a lamp
+                self._glow_small = cv2.resize(rgb * sat[..., None], self._small, interpolation=cv2.INTER_AREA)
+
+    def scattered(self, beta: float) -> np.ndarray | None:
+        """The PSF term (forward-scattered light and glow) for β, H×W×3 float32 in the blend
+        space's scale (0–1), or None when the model has no such term."""
+        p = self.params
+        if not self._scatter or beta == 0:
+            return None
+        m = np.float32(math.exp(-p.illumination * beta))
+        d = self._dist_small
+        t = np.exp(d * np.float32(-beta))
+        tf = np.exp(d * np.float32(-beta * (1.0 - p.forward)))
+        src = self._rgb_small * ((tf - t) * m)[..., None]
+        if self._glow_small is not None:
+            src += self._glow_small * ((1.0 - t) * m * np.float32(p.glow))[..., None]
+        sigma = psf_sigma_rad(np.where(np.isinf(d), np.float32(0.0), d * np.float32(beta)), p.spread) * self._f_small
+        small = splat(src, sigma)
+        h, w = self.image.shape[:2]
+        return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR) if (w, h) != self._small else small
+
+    def blend(self, beta: float) -> np.ndarray:
+        """The fogged image for β as H×W×3 float32 in the blend space (0–1, not clipped)."""
+        p = self.params
+        m = np.float32(math.exp(-p.illumination * beta))
+        if beta == 0:
+            return self._rgb.copy()
+        t = np.exp(self.distance * np.float32(-beta))
+        tf = t if p.forward == 0 else np.exp(self.distance * np.float32(-beta * (1.0 - p.forward)))
+        air = 1.0 - tf
+        if self._sky_gain is not None:
+            air *= self._sky_gain
+        if p.level != 1:
+            air *= np.float32(p.level)
+        direct = t * m if m != 1 else t
+        out = self._rgb * direct[..., None] + air[..., None] * self._a
+        s = self.scattered(beta)
+        if s is not None:
+            out += s
+        return out
+
+    def __call__(self, beta: float) -> np.ndarray:
+        check_beta(beta)
+        if beta == 0:
+            return self.image.copy()
+        out = self.blend(beta)
+        if self.space == "linear":
+            out = linear_to_srgb(out)
+        np.clip(out, 0.0, 1.0, out=out)
+        return from_float(out * np.float32(full_scale(self.dtype)), self.dtype)
+
+
+def scatter(image: np.ndarray, distance: np.ndarray, beta: float, airlight=255.0, space: str = "linear",
+            params: ScatterParams | None = None, intrinsics: Intrinsics | None = None, up=None) -> np.ndarray:
+    """Scatter fog at one β (see the module docstring): ``image`` H×W×3 uint8/uint16/float RGB,
+    ``distance`` ray distance in metres (+inf = sky), β in 1/m, ``airlight`` the horizon radiance
+    in 8-bit units; ``params`` None = the shipped fitted parameters; returns the image's dtype."""
+    check_beta(beta)
+    return ScatterFogger(image, distance, airlight, space, params, intrinsics, up)(beta)
+
+
+__all__ = ["KOSCHMIEDER", "PARAMS_FILE", "TERMS", "ScatterFogger", "ScatterParams", "elevation_sine",
+           "gaussian_by_boxes", "load_params", "load_params_file", "psf_sigma_rad", "scatter", "shipped_params_path",
+           "splat", "up_from_world_to_camera"]

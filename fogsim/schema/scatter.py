@@ -1,0 +1,56 @@
+"""The fitted parameters of the scatter fog model (:mod:`fogsim.fog.scatter`), as
+``fogsim fit-fog`` writes them and fogsim ships them (``fogsim/fog/scatter_params.json``).
+
+A small versioned JSON document: the model's parameters, and what they were fitted on (scenes,
+seeds, β, the objective before and after). Checked where it is read; a malformed file is refused
+with one line naming it and the key (:func:`fogsim.schema.base.load_json`).
+"""
+from __future__ import annotations
+
+from typing import Literal
+
+from fogsim.schema.base import Closed, Int, Number, Text, int_in, number_in
+
+#: the version of the parameter file this fogsim reads and writes
+SCATTER_PARAMS_VERSION = 1
+
+
+class ScatterParameters(Closed):
+    """The model's parameters (units and meaning: :class:`fogsim.fog.scatter.ScatterParams`)."""
+
+    forward: number_in(0, 0.99) = 0.0       # k: share of β that is forward scattering kept near its direction
+    spread: number_in(0, 10) = 0.1          # ρ (rad²): PSF angular variance per unit optical depth βℓ
+    illumination: number_in(-100, 100) = 0.0  # μ (m): object radiance × exp(−μ·β) (fog-lit objects)
+    level: number_in(0.05, 5) = 1.0          # a: the airlight of the scene, × the horizon radiance A
+    elevation: number_in(-10, 10) = 0.0     # c: airlight × exp(c·sin θ), θ the viewing elevation
+    glow: number_in(0, 1e4) = 0.0           # G: saturated pixels' scattered light × (1 + G)
+    glow_threshold: number_in(0, 1, lo_open=True) = 0.9  # linear luminance where saturation begins
+
+
+class FittedOn(Closed):
+    """What the parameters were fitted on."""
+
+    presets: list[Text] = []
+    styles: list[Text] = []
+    seeds: list[Int] = []
+    frames: int_in(0) = 0
+    betas: list[Number] = []
+    resolution: Text = ""
+    samples: int_in(0) = 0
+    objective: Text = ""
+    before: Number | None = None
+    after: Number | None = None
+
+
+class ScatterParamsFile(Closed):
+    """``scatter_params.json``: ``{"format": "fogsim-scatter-params", "version": 1, "parameters": {…}, …}``."""
+
+    format: Literal["fogsim-scatter-params"] = "fogsim-scatter-params"
+    version: Literal[SCATTER_PARAMS_VERSION] = SCATTER_PARAMS_VERSION
+    parameters: ScatterParameters
+    fitted_on: FittedOn = FittedOn()
+    fogsim_version: Text = ""
+    note: Text = ""
+
+
+__all__ = ["SCATTER_PARAMS_VERSION", "FittedOn", "ScatterParameters", "ScatterParamsFile"]

@@ -1,0 +1,265 @@
+"""The scatter fog model (fogsim.fog.scatter): Koschmieder when its terms are off, the PSF's
+energy and width, glow only around emitters, the parameter file, and the front doors
+(``fogsim fog --model scatter``, presets, ``fogsim fit-fog``, ``bench fog-physics`` columns)."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from fogsim.camera import Intrinsics
+from fogsim.errors import InputError
+from fogsim.fog.model import Fogger
+from fogsim.fog.scatter import (
+    KOSCHMIEDER,
+    TERMS,
+    ScatterFogger,
+    ScatterParams,
+    elevation_sine,
+    load_params,
+    load_params_file,
+    scatter,
+    shipped_params_path,
+    splat,
+    up_from_world_to_camera,
+)
+from test_fog_physics_bench import bench_dir  # noqa: F401  (the fixture: stand-in fog-physics runs)
+
+H, W = 60, 80
+K = Intrinsics(fx=70.0, fy=70.0, cx=40.0, cy=30.0, width=W, height=H)
+
+
+def street(seed=0, dtype=np.float32):
+    """Random colours; sky in the top 12 rows, a ground 80 → 3 m below, a box at 15 m."""
+    rng = np.random.default_rng(seed)
+    img = rng.uniform(0.05, 0.9, (H, W, 3)).astype(np.float32)
+    ray = np.full((H, W), np.inf, np.float32)
+    ray[12:] = np.geomspace(80, 3, H - 12)[:, None]
+    ray[20:35, 30:50] = 15.0
+    if dtype == np.uint8:
+        img = (img * 255 + 0.5).astype(np.uint8)
+    return img, ray
+
+
+@pytest.mark.parametrize("space", ["srgb", "linear"])
+@pytest.mark.parametrize("params", [KOSCHMIEDER, "shipped-without-terms"])
+def test_reduces_to_koschmieder_with_the_extra_terms_off(space, params):
+    params = load_params().without(*TERMS) if params == "shipped-without-terms" else params
+    img, ray = street()
+    for beta in (0.0, 0.03, 0.12):
+        got = ScatterFogger(img, ray, 200.0, space, params, K)(beta)
+        ref = Fogger(img, ray, 200.0, space)(beta)
+        assert np.abs(got - ref).max() < 2e-6
+    img8, _ = street(dtype=np.uint8)
+    got, ref = ScatterFogger(img8, ray, 255, space, params, K)(0.06), Fogger(img8, ray, 255, space)(0.06)
+    assert np.abs(got.astype(int) - ref).max() <= 1 and (got == ref).mean() > 0.999  # float rounding only
+    # and each term on its own changes the image
+    for term, value in (("forward", 0.5), ("illumination", 10.0), ("level", 0.8), ("elevation", 1.0)):
+        on = ScatterFogger(img, ray, 255, "linear", ScatterParams(**{term: value}), K)(0.06)
+        assert np.abs(on - Fogger(img, ray, 255, "linear")(0.06)).max() > 0.01, term
+
+
+def test_psf_conserves_energy_and_has_the_asked_width():
+    src = np.zeros((101, 121, 3), np.float32)
+    src[50, 60] = (1.0, 2.0, 3.0)
+    src[20, 15] = (0.5, 0.5, 0.5)  # near the border: mirrored back, not lost
+    for sigma in (1.0, 3.0, 6.0, 12.0):
+        out = splat(src, np.full(src.shape[:2], sigma, np.float32))
+        assert out.sum(axis=(0, 1)) == pytest.approx(src.sum(axis=(0, 1)), rel=1e-4)
+        point = np.zeros_like(src)
+        point[50, 60] = 1.0
+        one = splat(point, np.full(src.shape[:2], sigma, np.float32))[..., 0]
+        x = np.arange(121) - 60
+        var = float((one.sum(axis=0) * x ** 2).sum() / one.sum())
+        assert math.sqrt(var) == pytest.approx(sigma, rel=0.25)  # layers 2× apart, three boxes ≈ a Gaussian
+    # the model's scattered light: exactly the energy taken from the direct beam, m·I·(t_f − t)
+    img, ray = street()
+    ray[np.isinf(ray)] = 50.0
+    p = ScatterParams(forward=0.6, spread=0.2)
+    f = ScatterFogger(img, ray, 255, "linear", p, K)
+    s = f.scattered(0.06)
+    lin = f._rgb
+    lost = lin * (np.exp(-0.06 * 0.4 * ray) - np.exp(-0.06 * ray))[..., None]
+    assert s.sum(axis=(0, 1)) == pytest.approx(lost.sum(axis=(0, 1)), rel=1e-3)
+    assert np.abs(s - lost).max() > 1e-3  # but moved
+
+
+def test_glow_appears_around_an_emitter_and_nowhere_else():
+    img = np.full((90, 120, 3), 0.02, np.float32)
+    ray = np.full((90, 120), 30.0, np.float32)
+    ray[:20] = np.inf
+    lamp = img.copy()
+    lamp[44:47, 29:32] = 1.0  # saturated: a lamp
+    base = ScatterParams(forward=0.5, spread=0.002)  # σ = √(ρβℓ)·f ≈ 6 px: the PSF ends within 20 px
+    glow = ScatterParams(forward=0.5, spread=0.002, glow=50.0)
+    def fog(image, params):
+        return ScatterFogger(image, ray, 255, "linear", params, K)(0.06)
+
+    diff = fog(lamp, glow) - fog(lamp, base)
+    y = diff.mean(axis=2)
+    yy, xx = np.mgrid[:90, :120]
+    r = np.hypot(xx - 30, yy - 45)
+    assert y[(r > 2) & (r < 6)].mean() > 0.05  # a halo around the lamp
+    assert np.abs(y[r > 40]).max() < 1e-3      # and nothing far from it (running-sum rounding only)
+    assert (y >= -1e-3).all()
+    # no emitter, no glow: the glow term changes nothing
+    same = fog(img, glow) - fog(img, base)
+    assert np.abs(same).max() < 1e-6
+    # a saturated sky is not a lamp
+    sky = img.copy()
+    sky[:20] = 1.0
+    same = fog(sky, glow) - fog(sky, base)
+    assert np.abs(same).max() < 1e-6
+
+
+def test_elevation_map_and_world_up():
+    s = elevation_sine((H, W), K)
+    assert abs(s[30, 40]) < 0.01 and s[0, 40] > 0.35 and s[-1, 40] < -0.35
+    assert s[0, 40] == pytest.approx(math.sin(math.atan(29.5 / 70)), abs=1e-4)
+    pitch = math.radians(10)  # camera pitched up: the centre looks 10° above the horizon
+    up = (0.0, -math.cos(pitch), math.sin(pitch))
+    assert elevation_sine((H, W), K, up)[30, 40] == pytest.approx(math.sin(pitch), abs=0.01)
+    w2c = np.eye(4)
+    w2c[:3, :3] = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]  # world z up → camera −y (a level camera)
+    assert up_from_world_to_camera(w2c) == (0.0, -1.0, 0.0)
+
+
+def test_shipped_parameters_load_and_malformed_files_are_refused(tmp_path):
+    doc = load_params_file()
+    assert doc.version == 1 and doc.format == "fogsim-scatter-params"
+    assert shipped_params_path().is_file() and load_params() == ScatterParams(**doc.parameters.model_dump())
+    good = json.loads(shipped_params_path().read_text())
+    cases = {
+        "range": ({**good, "parameters": {**good["parameters"], "forward": 1.5}}, "parameters.forward"),
+        "unknown": ({**good, "parameters": {**good["parameters"], "fwd": 0.1}}, "fwd"),
+        "version": ({**good, "version": 2}, "version"),
+        "missing": ({k: v for k, v in good.items() if k != "parameters"}, "parameters"),
+        "type": ({**good, "parameters": {**good["parameters"], "spread": "wide"}}, "parameters.spread"),
+    }
+    for name, (bad, where) in cases.items():
+        path = tmp_path / f"{name}.json"
+        path.write_text(json.dumps(bad))
+        with pytest.raises(InputError) as exc:
+            load_params(path)
+        line = str(exc.value)
+        assert str(path) in line and where in line and "\n" not in line, line
+    (tmp_path / "broken.json").write_text("{")
+    with pytest.raises(InputError):
+        load_params(tmp_path / "broken.json")
+    with pytest.raises(ValueError, match="glow"):
+        ScatterParams(glow=-1.0)
+
+
+def test_scatter_function_keeps_the_dtype_and_brightens_the_far_field_above_the_horizon():
+    img, ray = street(dtype=np.uint8)
+    as_float = (img / 255.0).astype(np.float32)
+    for dtype, im in ((np.uint8, img), (np.uint16, img.astype(np.uint16) * 257), (np.float32, as_float)):
+        out = scatter(im, ray, 0.06, intrinsics=K)
+        assert out.dtype == dtype and out.shape == im.shape
+    p = ScatterParams(level=0.8, elevation=2.0)
+    out = scatter(img, ray, 0.12, airlight=150, params=p, intrinsics=K).astype(float).mean(axis=2)
+    assert out[2].mean() > out[11].mean() + 5  # the sky gets brighter with elevation
+
+
+def test_fog_cli_with_the_scatter_model(folder_dataset, tmp_path, capsys):
+    from fogsim.cli import main
+    from fogsim.fileio import read_image
+
+    ds = folder_dataset
+    base = ["fog", "--input", str(ds / "images"), "--depth", str(ds / "depth"), "--intrinsics", str(ds / "K.json"),
+            "--levels", "0.06", "--quiet"]
+    assert main([*base, "--out", str(tmp_path / "k")]) == 0
+    assert main([*base, "--model", "scatter", "--out", str(tmp_path / "s")]) == 0
+    side = json.loads((tmp_path / "s" / "beta0.06" / "a.json").read_text())
+    assert side["model"] == "scatter" and side["blend_space"] == "linear"
+    run = json.loads((tmp_path / "s" / "fogsim_run.json").read_text())
+    assert run["parameters"]["scatter_params"] == load_params().to_dict()
+    a, b = (read_image(tmp_path / d / "beta0.06" / "a.png") for d in ("k", "s"))
+    assert np.abs(a.astype(int) - b).mean() > 1
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"format": "fogsim-scatter-params", "version": 1, "parameters": {"forward": 2}}))
+    capsys.readouterr()
+    assert main([*base, "--model", "scatter", "--scatter-params", str(bad), "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.json" in err[0] and "forward" in err[0]
+    assert not (tmp_path / "x").exists()
+    assert main([*base, "--model", "scatter", "--extended", "--out", str(tmp_path / "y")]) == 2
+
+
+def test_preset_kind_scatter_is_declared_and_fogs_a_rendered_frame(tmp_path):
+    from fogsim.render.fog_settings import fog_settings
+    from fogsim.render.preset import load_render_preset
+
+    config = load_render_preset("default", frames=1, resolution="64x48", levels="0,0.06", fog="scatter")
+    fs = fog_settings(config)
+    assert fs["model"] == "scatter" and fs["space"] == "linear" and fs["scatter_params"] is None
+    from fogsim.dataset.layout import DatasetLayout
+    from fogsim.render.frame import DescribedFrame, FramePasses, commit_frame
+
+    rng = np.random.default_rng(0)
+    rgb = np.clip(rng.normal(0.25, 0.05, (48, 64, 3)), 0, 1).astype(np.float32)
+    depth = np.vstack([np.full((10, 64), np.inf, np.float32),
+                       np.tile(np.geomspace(60, 5, 38)[:, None], (1, 64)).astype(np.float32)])
+    meta = commit_frame(DatasetLayout(tmp_path / "ds"), config, DescribedFrame.of(config, 0),
+                        FramePasses(rgb, depth, np.zeros((48, 64), np.uint16)))
+    assert meta["fog"]["model"] == "scatter" and meta["fog"]["scatter_params"] == load_params().to_dict()
+
+
+def test_fog_physics_on_a_tiny_night_frame_has_every_new_column():
+    from fogsim.bench.fog_physics_report import markdown
+    from fogsim.fog.physics import (
+        BIN_NAMES,
+        Comparison,
+        default_models,
+        koschmieder_linear,
+        noisy_render,
+        scatter_model,
+    )
+
+    img, ray = street()
+    img *= 0.1  # night
+    img[40:43, 10:13] = 1.0  # a lamp on the ground, 15–20 m away
+    mask = np.zeros((H, W), np.uint16)
+    mask[20:35, 30:50] = 1
+    clear = img ** 2.2
+    truth = scatter_model(ScatterParams(forward=0.5, spread=0.01, glow=20.0))
+    rng = np.random.default_rng(1)
+    renders = {b: tuple(noisy_render(0.3 * koschmieder_linear(clear, ray, b, truth, K), 0.05, rng) for _ in range(2))
+               for b in (0.03, 0.09)}
+    comp = Comparison(models=default_models(scatter=truth.params))
+    comp.add_frame("night", clear, ray, mask, renders, camera=K, night=True)
+    result = comp.result()
+    assert "scatter" in result["models"]
+    for key in ("0.03", "0.09"):
+        pb = result["per_beta"][key]
+        for exposure in ("raw", "normalised", "far"):
+            cols = pb["models"]["scatter"][exposure]
+            assert {"all", "sky", *BIN_NAMES} <= set(cols) and cols["all"]["rms"] is not None
+        assert pb["objects_summary"]["scatter"]["objects"] >= 0
+        assert "scatter" in pb["objects"][0]["ratio_pt_k"]
+        glow = pb["glow"]
+        assert glow["lamps"] == 1 and len(glow["pt"]) == len(glow["rings_px"])
+        # the stand-in renders are the scatter model: it matches their glow, Koschmieder does not
+        near_pt, near_s, near_k = glow["pt"][1], glow["models"]["scatter"][1], glow["models"]["linear"][1]
+        assert abs(near_s - near_pt) < abs(near_k - near_pt)
+    md = markdown(result)
+    assert "| scatter |" in md and "Glow around the lamps" in md and "| path-traced |" in md
+    assert comp.panels["night"].shape[1] > 9 * W  # clear | K lin | K srgb | scatter | PT… | error maps
+
+
+def test_fit_fog_and_the_bench_column_on_fog_physics_runs(bench_dir, tmp_path, capsys):  # noqa: F811
+    """The stand-in "path-traced" runs are linear Koschmieder × 0.35 plus noise: the fit must not
+    do worse than Koschmieder, write a file that loads, and record what it was fitted on."""
+    from fogsim.bench.fog_physics import analyse
+    from fogsim.cli import main
+
+    out = tmp_path / "params.json"
+    assert main(["fit-fog", str(bench_dir), "--out", str(out), "--quiet"]) == 0
+    said = capsys.readouterr().out.strip().splitlines()
+    assert len(said) == 1 and "fit-fog: RMS normalised" in said[0]
+    doc = load_params_file(out)
+    assert doc.fitted_on.after <= doc.fitted_on.before + 1e-6 and doc.fitted_on.betas == [0.06, 0.12]
+    assert doc.fitted_on.frames == 1 and doc.fitted_on.resolution == "96x64"
+    assert load_params(out) == ScatterParams(**doc.parameters.model_dump())
+    result = analyse(bench_dir)
+    assert "scatter" in result["models"] and "| scatter |" in (bench_dir / "report" / "fog_physics.md").read_text()
