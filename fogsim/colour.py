@@ -83,6 +83,12 @@ def _decode_table(dtype) -> np.ndarray:
 _DECODE: dict[int, np.ndarray] = {}
 
 
+def decode_codes(values: np.ndarray) -> np.ndarray:
+    """uint8 / uint16 sRGB code values → linear light (float32, 0–1) through a lookup table of
+    :func:`srgb_to_linear` (the same numbers, faster)."""
+    return _decode_table(values.dtype)[values]
+
+
 def srgb_luminance(image: np.ndarray) -> np.ndarray:
     """A stored (sRGB-encoded) image of any supported dtype → relative luminance Y in linear light,
     H×W float32, 0–1 (white = 1): decode the transfer function per channel, then weight (8- and

@@ -78,7 +78,7 @@ def test_psf_conserves_energy_and_has_the_asked_width():
     p = ScatterParams(forward=0.6, spread=0.2)
     f = ScatterFogger(img, ray, 255, "linear", p, K)
     s = f.scattered(0.06)
-    lin = f._rgb
+    lin = f.blend(0.0)  # β = 0: the image itself, in the blend space
     lost = lin * (np.exp(-0.06 * 0.4 * ray) - np.exp(-0.06 * ray))[..., None]
     assert s.sum(axis=(0, 1)) == pytest.approx(lost.sum(axis=(0, 1)), rel=1e-3)
     assert np.abs(s - lost).max() > 1e-3  # but moved

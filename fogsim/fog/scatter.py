@@ -46,7 +46,7 @@ import cv2
 import numpy as np
 
 from fogsim.camera import Intrinsics
-from fogsim.colour import LUMINANCE_WEIGHTS, from_float, full_scale, linear_to_srgb, srgb_to_linear
+from fogsim.colour import LUMINANCE_WEIGHTS, decode_codes, from_float, full_scale, linear_to_srgb, srgb_to_linear
 from fogsim.fog.model import SPACES, airlight_rgb, check_beta, check_distance
 from fogsim.schema.base import check, load_json
 from fogsim.schema.scatter import ScatterParameters, ScatterParamsFile
@@ -54,7 +54,7 @@ from fogsim.schema.scatter import ScatterParameters, ScatterParamsFile
 #: the shipped parameter file (fitted by ``fogsim fit-fog``)
 PARAMS_FILE = "scatter_params.json"
 #: the width (px) of the reduced copy the PSF is computed on
-WORK_WIDTH = 480
+WORK_WIDTH = 240
 #: field of view assumed when no intrinsics are given (degrees, horizontal, level camera)
 DEFAULT_HFOV_DEG = 60.0
 #: the PSF's widths: layers from SIGMA_MIN px (reduced copy) up, a factor LAYER_STEP apart
@@ -216,10 +216,17 @@ class ScatterFogger:
         scale = np.float32(full_scale(image.dtype))
         self.distance = distance.astype(np.float32, copy=False)
         a = airlight_rgb(airlight, image.dtype) / scale
-        rgb = image.astype(np.float32) / scale
+        if space == "linear" and image.dtype in (np.uint8, np.uint16):
+            planes = [decode_codes(np.ascontiguousarray(image[:, :, c])) for c in range(3)]
+        else:
+            planes = [np.ascontiguousarray(image[:, :, c], dtype=np.float32) / scale for c in range(3)]
+            if space == "linear":
+                planes = [srgb_to_linear(q) for q in planes]
         if space == "linear":
-            a, rgb = srgb_to_linear(a), srgb_to_linear(rgb)
-        self._a, self._rgb = a.astype(np.float32), rgb
+            a = srgb_to_linear(a)
+        self._a = [float(v) for v in a]
+        self._planes = planes  # colour planes in the blend space, 0–1 (contiguous: fast elementwise work)
+        self._buffers: dict[str, np.ndarray] = {}
         self._sky_gain = None
         if p.elevation:
             self._sky_gain = np.exp(np.float32(p.elevation) * elevation_sine((h, w), intrinsics, up))
@@ -228,20 +235,19 @@ class ScatterFogger:
             f = max(1, int(math.ceil(w / WORK_WIDTH)))
             self._small = (max(1, w // f), max(1, h // f))
             self._f_small = focal_px((h, w), intrinsics) * self._small[0] / w
-            lin = rgb if space == "linear" else srgb_to_linear(rgb)
+            rgb = cv2.merge(planes)
             self._rgb_small = cv2.resize(rgb, self._small, interpolation=cv2.INTER_AREA)
             self._dist_small = cv2.resize(self.distance, self._small, interpolation=cv2.INTER_NEAREST)
             self._glow_small = None
             if p.glow > 0:
-                lum = sum(lin[..., c] * np.float32(wt) for c, wt in enumerate(LUMINANCE_WEIGHTS))
+                lin = planes if space == "linear" else [srgb_to_linear(q) for q in planes]
+                lum = sum(q * np.float32(wt) for q, wt in zip(lin, LUMINANCE_WEIGHTS))
                 thr = np.float32(p.glow_threshold)
                 sat = np.clip((lum - thr) / max(np.float32(1e-3), 1 - thr), 0.0, 1.0)
                 sat[np.isinf(self.distance)] = 0.0  # the sky is not a lamp
                 self._glow_small = cv2.resize(rgb * sat[..., None], self._small, interpolation=cv2.INTER_AREA)
 
-    def scattered(self, beta: float) -> np.ndarray | None:
-        """The PSF term (forward-scattered light and glow) for β, H×W×3 float32 in the blend
-        space's scale (0–1), or None when the model has no such term."""
+    def _scattered_small(self, beta: float) -> np.ndarray | None:
         p = self.params
         if not self._scatter or beta == 0:
             return None
@@ -253,38 +259,75 @@ class ScatterFogger:
         if self._glow_small is not None:
             src += self._glow_small * ((1.0 - t) * m * np.float32(p.glow))[..., None]
         sigma = psf_sigma_rad(np.where(np.isinf(d), np.float32(0.0), d * np.float32(beta)), p.spread) * self._f_small
-        small = splat(src, sigma)
-        h, w = self.image.shape[:2]
-        return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR) if (w, h) != self._small else small
+        return splat(src, sigma)
 
-    def blend(self, beta: float) -> np.ndarray:
-        """The fogged image for β as H×W×3 float32 in the blend space (0–1, not clipped)."""
+    def _buffer(self, name: str) -> np.ndarray:
+        """A full-size float32 work plane kept between calls (fresh 10 MB arrays cost page faults)."""
+        buf = self._buffers.get(name)
+        if buf is None:
+            buf = self._buffers[name] = np.empty(self.image.shape[:2], np.float32)
+        return buf
+
+    def _scattered_planes(self, beta: float) -> list[np.ndarray] | None:
+        small = self._scattered_small(beta)
+        if small is None:
+            return None
+        h, w = self.image.shape[:2]
+        planes = cv2.split(small)
+        if (w, h) == self._small:
+            return planes
+        return [cv2.resize(q, (w, h), dst=self._buffer(f"s{c}"), interpolation=cv2.INTER_LINEAR)
+                for c, q in enumerate(planes)]
+
+    def scattered(self, beta: float) -> np.ndarray | None:
+        """The PSF term (forward-scattered light and glow) for β, H×W×3 float32 in the blend
+        space's scale (0–1), or None when the model has no such term."""
+        planes = self._scattered_planes(beta)
+        return None if planes is None else cv2.merge(planes)
+
+    def _blend_planes(self, beta: float) -> list[np.ndarray]:
+        """The fogged colour planes for β (work buffers: valid until the next call)."""
         p = self.params
-        m = np.float32(math.exp(-p.illumination * beta))
         if beta == 0:
-            return self._rgb.copy()
-        t = np.exp(self.distance * np.float32(-beta))
-        tf = t if p.forward == 0 else np.exp(self.distance * np.float32(-beta * (1.0 - p.forward)))
-        air = 1.0 - tf
+            return [q.copy() for q in self._planes]
+        t = np.exp(np.multiply(self.distance, np.float32(-beta), out=self._buffer("t")), out=self._buffer("t"))
+        air = self._buffer("air")
+        if p.forward == 0:
+            np.subtract(np.float32(1.0), t, out=air)
+        else:
+            tf = np.multiply(self.distance, np.float32(-beta * (1.0 - p.forward)), out=air)
+            np.subtract(np.float32(1.0), np.exp(tf, out=tf), out=air)
         if self._sky_gain is not None:
             air *= self._sky_gain
         if p.level != 1:
             air *= np.float32(p.level)
-        direct = t * m if m != 1 else t
-        out = self._rgb * direct[..., None] + air[..., None] * self._a
-        s = self.scattered(beta)
-        if s is not None:
-            out += s
+        m = math.exp(-p.illumination * beta)
+        if m != 1:
+            t *= np.float32(m)  # now the direct term's factor m·t
+        s = self._scattered_planes(beta)
+        tmp, out = self._buffer("tmp"), []
+        for c, (q, a) in enumerate(zip(self._planes, self._a)):
+            o = np.multiply(q, t, out=self._buffer(f"o{c}"))
+            o += np.multiply(air, np.float32(a), out=tmp)
+            if s is not None:
+                o += s[c]
+            out.append(o)
         return out
+
+    def blend(self, beta: float) -> np.ndarray:
+        """The fogged image for β as H×W×3 float32 in the blend space (0–1, not clipped)."""
+        return cv2.merge(self._blend_planes(beta))
 
     def __call__(self, beta: float) -> np.ndarray:
         check_beta(beta)
         if beta == 0:
             return self.image.copy()
-        out = self.blend(beta)
+        out = self._blend_planes(beta)
         if self.space == "linear":
-            out = linear_to_srgb(out)
-        np.clip(out, 0.0, 1.0, out=out)
+            out = [linear_to_srgb(q) for q in out]
+        if self.dtype == np.uint8:  # scaled, rounded to nearest and saturated by OpenCV (all terms are ≥ 0)
+            return cv2.merge([cv2.convertScaleAbs(q, alpha=255.0) for q in out])
+        out = np.clip(cv2.merge(out), 0.0, 1.0)
         return from_float(out * np.float32(full_scale(self.dtype)), self.dtype)
 
 
