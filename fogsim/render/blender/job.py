@@ -29,8 +29,8 @@ from fogsim.render.blender import build as scene_build
 from fogsim.render.blender import fog_volume
 from fogsim.render.blender.compat import has_mie_phase
 from fogsim.render.blender.cycles import configure, render, render_combined
-from fogsim.render.blender.motion import motion_blur
 from fogsim.render.blender.library import load_library
+from fogsim.render.blender.motion import motion_blur
 from fogsim.render.frame import DescribedFrame, FogRenders, FramePasses, check_scene, commit_frame, frame_name
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
 from fogsim.render.preset import RenderConfig, frame_volumetric, volumetric_settings
