@@ -36,28 +36,30 @@ def rss_mb() -> float:
     return float("nan")
 
 
-def factory_render_seconds(job, index: int) -> float:
-    """Render frame ``index``'s scene with factory light paths and world sampling (baseline)."""
-    desc = describe_frame(job.config, index)
-    scene = bpy.data.scenes.new("baseline")
-    cycles.configure(
-        scene,
-        {
-            "samples": job.config.quality["samples"],
-            "denoise": job.config.quality.get("denoise", True),
-            "bounces": {"total": 12, "diffuse": 4, "glossy": 4, "transmission": 12, "transparent": 8},
-        },
-        frame_seed(job.config.seed, index),
-    )
-    scene.cycles.use_adaptive_sampling = True
+def _timed_render(config, index: int, quality: dict, factory: bool = False) -> float:
+    """Cycles seconds of frame ``index``'s scene of ``config``, built in a scene of its own
+    (configured with ``quality``; ``factory``: Blender's automatic world sampling), then removed."""
+    desc = describe_frame(config, index)
+    scene = bpy.data.scenes.new("bench")
+    cycles.configure(scene, quality, frame_seed(config.seed, index))
+    if factory:
+        scene.cycles.use_adaptive_sampling = True
     built = build.build(desc, scene, scene_meshes(desc))
-    scene.world.cycles.sampling_method = "AUTOMATIC"
+    if factory:
+        scene.world.cycles.sampling_method = "AUTOMATIC"
     t0 = time.perf_counter()
     cycles.render(scene)
     seconds = time.perf_counter() - t0
     build.clear(built)
     bpy.data.scenes.remove(scene)
     return seconds
+
+
+def factory_render_seconds(job, index: int) -> float:
+    """Render frame ``index``'s scene with factory light paths and world sampling (baseline)."""
+    quality = {"samples": job.config.quality["samples"], "denoise": job.config.quality.get("denoise", True),
+               "bounces": {"total": 12, "diffuse": 4, "glossy": 4, "transmission": 12, "transparent": 8}}
+    return _timed_render(job.config, index, quality, factory=True)
 
 
 #: the skies ``fogsim bench render`` times against each other (the bundled presets' lighting)
@@ -71,16 +73,7 @@ def sky_render_seconds(job, index: int, lighting: dict) -> float:
     from fogsim.render.preset import check_lighting
 
     config = replace(job.config, lighting=check_lighting(lighting))
-    desc = describe_frame(config, index)
-    scene = bpy.data.scenes.new("sky_bench")
-    cycles.configure(scene, config.quality, frame_seed(config.seed, index))
-    built = build.build(desc, scene, scene_meshes(desc))
-    t0 = time.perf_counter()
-    cycles.render(scene)
-    seconds = time.perf_counter() - t0
-    build.clear(built)
-    bpy.data.scenes.remove(scene)
-    return seconds
+    return _timed_render(config, index, config.quality)
 
 
 def sky_costs(job, frames: int) -> dict[str, float]:
