@@ -434,3 +434,10 @@ def test_stereo_pair_in_cityscapes_layout(tmp_path):
     assert inpaint["holes"]["pixels"] > 0 and 0 < inpaint["holes"]["abs_rel"] < 1
     assert set(inpaint["fog"]) == {"beta0.03", "beta0.06", "beta0.09", "beta0.12"}
     assert all(v["psnr"] > 10 for v in inpaint["fog"].values())
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_a_script_that_used_tqdm_exits_cleanly(kind):
+    res = run(runner(kind)(SCRIPTS / "tqdm_exit.py"))
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]  # Blender 3.4: -11 without the fix
+    assert "written above the bar" in res.stdout + res.stderr

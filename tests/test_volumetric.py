@@ -121,7 +121,8 @@ def test_render_fog_bench_and_fog_flags_have_help_without_extras():
     res = run_without_extras("bench", "render-fog", "--help")
     assert res.returncode == 0 and "--fog-samples" in res.stdout, res.stderr
     res = run_without_extras("render", "--help")
-    assert res.returncode == 0 and "--fog {koschmieder,volumetric,scatter}" in res.stdout and "--fog-medium" in res.stdout
+    assert res.returncode == 0, res.stderr
+    assert "--fog {koschmieder,volumetric,scatter}" in res.stdout and "--fog-medium" in res.stdout
 
 
 # ----------------------------------------------------------------------------- pure helpers (fast)
