@@ -262,3 +262,14 @@ def test_study_augment_gives_the_augmented_row(depth_dataset, tmp_path):
     bare = make_dataset(tmp_path / "bare", frames=4, train_fraction=0.5)
     r = driver("--out", tmp_path / "s2", "--dataset", bare, "--augment", "continuous", *TINY, "--shard", "6/7")
     assert r.returncode == 2 and "no depth for this frame" in r.stderr, r.stderr[-2000:]
+
+
+@pytest.mark.detect
+@pytest.mark.slow
+def test_bench_augment_times_an_ultralytics_sample_with_and_without_fog(monkeypatch):
+    pytest.importorskip("ultralytics", reason="the detect extra is not installed")
+    import fogsim.bench.augment as bench
+
+    monkeypatch.setattr(bench, "ULTRALYTICS_FRAMES", 2)
+    ms = bench.ultralytics_ms(1)  # its frames must pass the frame-record schema the reader checks
+    assert set(ms) == {"plain", "foggy", "depth read"} and all(v > 0 for v in ms.values())

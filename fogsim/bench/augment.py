@@ -73,7 +73,8 @@ def write_frames(root: Path, n: int) -> Path:
         (root / "labels" / "clear").mkdir(parents=True, exist_ok=True)
         (root / "labels" / "clear" / f"{frame}.txt").write_text("0 0.5 0.6 0.1 0.1\n1 0.3 0.7 0.05 0.2\n")
         write_depth(root / "depth" / f"{frame}.exr", depth)
-        write_json(root / "meta" / f"{frame}.json", {"frame": frame, "camera": {"intrinsics": K.to_dict()},
+        write_json(root / "meta" / f"{frame}.json", {"frame": frame, "width": 1920, "height": 1280, "objects": [],
+                                                     "camera": {"intrinsics": K.to_dict()},
                                                      "depth": {"file": f"depth/{frame}.exr", "kind": "planar Z"}})
     return root
 
