@@ -76,3 +76,43 @@ def test_addon_sources_sky_assets_and_panel_errors(tmp_path):
         lines = (ds / "labels" / "beta0.06" / f"{name}.txt").read_text().split("\n")
         assert len([ln for ln in lines if ln.strip()]) == 2
     assert (ds / "contact_sheet.png").is_file() and (ds / "coco" / "clear.json").is_file()
+
+
+@pytest.mark.slow
+def test_addon_current_scene_runs_modal_in_a_window(tmp_path):
+    """Debian's Blender 3.4 with a window (Xvfb): *Render dataset* invoked as a click runs the
+    scene job on the window manager's timer, one frame per event, progress 50 → 100 %, and leaves
+    the user's scene as it was."""
+    import os
+    import shutil
+    import subprocess
+
+    from test_blender import BLENDER, _need_binary, run, runner
+
+    _need_binary()
+    if shutil.which("Xvfb") is None:
+        pytest.skip("Xvfb is not installed (apt-get install xvfb)")
+    blend = tmp_path / "user" / "scene.blend"
+    blend.parent.mkdir()
+    (tmp_path / "spec.json").write_text(json.dumps(SPEC))
+    res = run(runner("blender")(SCRIPTS / "make_scene_blend.py", str(tmp_path / "spec.json"), str(blend)))
+    assert res.returncode == 0, res.stderr[-3000:]
+    read, write = os.pipe()
+    xvfb = subprocess.Popen(["Xvfb", "-displayfd", str(write), "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
+                            pass_fds=(write,), stderr=subprocess.DEVNULL)
+    try:
+        os.close(write)
+        display = os.read(read, 16).decode().strip()
+        env = dict(os.environ, DISPLAY=f":{display}")
+        res = run([BLENDER, "--factory-startup", "-noaudio", str(blend), "-P", str(SCRIPTS / "addon_modal.py"), "--",
+                   str(tmp_path / "ds"), str(tmp_path / "r.json")], timeout=300, env=env)
+    finally:
+        os.close(read)
+        xvfb.terminate()
+        xvfb.wait(10)
+    assert res.returncode == 0 and (tmp_path / "r.json").is_file(), res.stderr[-3000:]
+    r = json.loads((tmp_path / "r.json").read_text())
+    assert r["invoke"] == ["RUNNING_MODAL"] and r["modal"]
+    assert r["status"][-1] == "done: 2 frames" and "frame 0 done (1/2)" in r["status"] and 50 in r["progress"]
+    assert r["same_state"]
+    assert sorted(p.name for p in (tmp_path / "ds" / "meta").iterdir()) == ["000000.json", "000001.json"]
