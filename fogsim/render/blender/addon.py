@@ -1,12 +1,14 @@
 """The add-on's panel and operators (registered by ``blender_addon/__init__.py``).
 
-Panel: 3D Viewport ▸ Sidebar ▸ fogsim. "Build scene" puts frame N of the chosen preset in the
-viewport; "Render dataset" renders the preset's frames with a progress bar (Esc or "Cancel"
-stops after the current frame; a later run resumes). The panel overrides the preset's fog levels
-(β or visibility list), fog model and medium and time of day; "Preview fog" renders frame N at one
-β and shows it, boxes drawn, in an Image Editor; "Assign" sets ``fogsim_class`` on the selected
-objects. Every operator reports its errors in the panel (status line and Blender's report), never
-as a traceback.
+Panel: 3D Viewport ▸ Sidebar ▸ fogsim. *Source*: a procedural preset or the current scene.
+"Build scene" puts frame N of the chosen preset in the viewport; "Render dataset" renders the
+preset's frames (or the open scene's frame range through scene mode,
+:func:`fogsim.render.blender.scene_mode.scene_job`) with a progress bar (Esc or "Cancel" stops
+after the current frame; a later run resumes). The panel overrides the preset's fog levels (β or
+visibility list), fog model and medium, time of day, sky (procedural, HDRI, overcast) and asset
+folder (``--assets``); "Preview fog" renders frame N at one β and shows it, boxes drawn, in an
+Image Editor; "Assign" sets ``fogsim_class`` on the selected objects. Every operator reports its
+errors in the panel (status line and Blender's report), never as a traceback.
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from fogsim.scene.classes import LABELLED
+from fogsim.schema.presets import HDRI_SUFFIXES, WORLD_HDRIS
 
 _state = {"built": None, "job": None, "loop": None, "timer": None, "cancel": False, "preview": None}
 CLASS_PROPERTY = "fogsim_class"  # the custom property scene mode reads an object's class from
@@ -30,6 +33,28 @@ def _preset_items(self, context):
 
 
 class FogsimSettings(bpy.types.PropertyGroup):
+    source: EnumProperty(name="Source", default="PRESET", items=[
+        ("PRESET", "Procedural preset", "Streets built from the preset (fogsim render --preset)"),
+        ("SCENE", "Current scene", "The open scene through scene mode (fogsim render --scene): objects "
+                                   "labelled by fogsim_class or the class map; the scene is left as it was")])
+    camera: StringProperty(name="Camera", default="", description="Camera object to render through "
+                                                                  "(empty = the scene's camera)")
+    frame_range: StringProperty(name="Frame range", default="", description="START:END[:STEP], inclusive "
+                                                                           "(empty = the scene's own range)")
+    class_map: StringProperty(name="Class map", default="", subtype="FILE_PATH",
+                              description="JSON file (or inline JSON) mapping object-name patterns to classes")
+    sky: EnumProperty(name="Sky", default="PRESET", items=[
+        ("PRESET", "Preset's", "The preset's lighting (procedural unless it says HDRI or overcast)"),
+        ("procedural", "Procedural", "Blender's physical sky texture and a sun lamp"),
+        ("hdri", "HDRI", "A world HDRI (Blender's own or your .exr/.hdr), turned at random per frame; no sun lamp"),
+        ("overcast", "Overcast", "CIE standard overcast sky, no sun: soft shadows")])
+    hdri: EnumProperty(name="HDRI", default="city", items=[(n, n.capitalize(), f"Blender's world HDRI {n!r}")
+                                                          for n in WORLD_HDRIS]
+                       + [("FILE", "File…", "Your own .exr or .hdr file")])
+    hdri_file: StringProperty(name="HDRI file", default="", subtype="FILE_PATH", description="An .exr or .hdr file")
+    assets: StringProperty(name="Assets", default="", subtype="DIR_PATH",
+                           description="Your own models: a folder with one sub-folder per class (car, pedestrian …); "
+                                       "empty = the preset's")
     preset: EnumProperty(name="Preset", items=_preset_items, description="Dataset preset")
     seed: IntProperty(name="Seed", default=0, min=0, description="Dataset seed")
     frame: IntProperty(name="Frame", default=0, min=0, description="Frame to build in the viewport")
@@ -74,19 +99,75 @@ def _config(s: FogsimSettings, frames: int | None = None):
     from dataclasses import replace
 
     from fogsim.fog.levels import parse_levels
-    from fogsim.render.preset import check_lighting, load_render_preset
+    from fogsim.render.preset import load_render_preset
 
     volumetric = s.fog_model == "volumetric"
     config = load_render_preset(
         s.preset, frames=frames, seed=s.seed, resolution=s.resolution or None, samples=s.samples or None,
         levels=s.levels if s.levels_kind == "beta" else None,
         fog=None if s.fog_model == "PRESET" else s.fog_model,
-        fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None)
+        fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None,
+        assets=bpy.path.abspath(s.assets) if s.assets.strip() else None)
     if s.levels_kind == "visibility":
         config = replace(config, levels=tuple(parse_levels(visibility=s.levels or "-")))
-    if s.time_of_day != "PRESET":
-        config = replace(config, lighting=check_lighting({"time_of_day": s.time_of_day}))
+    lighting = _lighting(s, config.lighting)
+    if lighting is not None:
+        config = replace(config, lighting=lighting)
     return config
+
+
+def _lighting(s: FogsimSettings, preset_lighting: dict) -> dict | None:
+    """The checked ``lighting`` of the panel's *Time of day* and *Sky* (None: the preset's)."""
+    from fogsim.render.preset import check_lighting
+
+    if s.sky == "PRESET":
+        return None if s.time_of_day == "PRESET" else check_lighting({"time_of_day": s.time_of_day})
+    night = s.time_of_day if s.time_of_day != "PRESET" else (preset_lighting or {}).get("time_of_day")
+    if night == "night":
+        raise ValueError(f"Sky {s.sky!r} is a day sky: set Time of day to Day (the night has its own sky and lights)")
+    sky = {"sky": "hdri", "hdri": _hdri(s)} if s.sky == "hdri" else {"overcast": True} if s.sky == "overcast" else {}
+    return check_lighting({"time_of_day": "day", **sky})
+
+
+def _hdri(s: FogsimSettings) -> str:
+    """The panel's HDRI: a Blender world HDRI name (its file checked) or an absolute file path."""
+    from pathlib import Path
+
+    from fogsim.errors import InputError
+    from fogsim.render.blender.sky import blender_hdri
+
+    if s.hdri != "FILE":
+        if not blender_hdri(s.hdri).is_file():
+            raise InputError(blender_hdri(s.hdri), f"HDRI {s.hdri!r}: this Blender does not ship it")
+        return s.hdri
+    if not s.hdri_file.strip():
+        raise ValueError("HDRI file: choose an .exr or .hdr file")
+    path = Path(bpy.path.abspath(s.hdri_file)).expanduser()
+    if path.suffix.lower() not in HDRI_SUFFIXES:
+        raise InputError(path, f"HDRI file: must be {' or '.join(HDRI_SUFFIXES)}")
+    if not path.is_file():
+        raise InputError(path, "HDRI file: no such file")
+    return str(path.resolve())
+
+
+def _scene_job(s: FogsimSettings, scene):
+    """*Source: current scene*: a scene-mode job over ``scene`` with the panel's options (refusals
+    are InputErrors raised before the output folder is touched)."""
+    from fogsim.fog.levels import parse_levels
+    from fogsim.render.blender.scene_mode import scene_job
+    from fogsim.render.scene_classes import load_class_map
+
+    text = s.class_map.strip()
+    class_map = load_class_map(text if text.startswith("{") or not text else bpy.path.abspath(text))
+    levels = {"beta": s.levels, "visibility": None}.get(s.levels_kind)
+    if s.levels_kind == "visibility":
+        levels = parse_levels(visibility=s.levels or "-")
+    volumetric = s.fog_model == "volumetric"
+    return scene_job(scene, bpy.path.abspath(s.output), camera=s.camera or None, frame_range=s.frame_range or None,
+                     class_map=class_map, levels=levels, samples=s.samples or None,
+                     resolution=s.resolution or None, seed=s.seed, gpu=s.use_gpu, quiet=True,
+                     fog=None if s.fog_model == "PRESET" else s.fog_model,
+                     fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None)
 
 
 def _fail(op, s, message: str):
@@ -151,7 +232,7 @@ def _clear_built():
 
 
 class FOGSIM_OT_render_dataset(bpy.types.Operator):
-    """Render the preset's frames into the output folder (resumes; Esc cancels)"""
+    """Render the preset's frames, or the current scene's frame range, into the output folder (resumes; Esc cancels)"""
 
     bl_idname = "fogsim.render_dataset"
     bl_label = "Render dataset"
@@ -168,9 +249,14 @@ class FOGSIM_OT_render_dataset(bpy.types.Operator):
             self.report({"WARNING"}, "a render is already running")
             return {"CANCELLED"}
         try:
-            job = RenderJob(_config(s, frames=s.frames), bpy.path.abspath(s.output), gpu=s.use_gpu)
+            if s.source == "SCENE":
+                job = _scene_job(s, context.scene)
+            else:
+                job = RenderJob(_config(s, frames=s.frames), bpy.path.abspath(s.output), gpu=s.use_gpu)
         except Exception as exc:
             return _fail(self, s, _problem(exc))
+        for note in getattr(job, "notes", ()):
+            self.report({"INFO"}, note)
         loop = FrameLoop(job)
         _state.update(job=job, loop=loop, cancel=False)
         if bpy.app.background or context.window is None:  # no event loop: run to the end
@@ -179,7 +265,7 @@ class FOGSIM_OT_render_dataset(bpy.types.Operator):
         context.window_manager.progress_begin(0, 100)
         _state["timer"] = context.window_manager.event_timer_add(0.1, window=context.window)
         context.window_manager.modal_handler_add(self)
-        s.status = f"rendering {loop.total} frames…"
+        s.status = f"rendering {loop.total} frames…" + (f" ({job.summary})" if s.source == "SCENE" else "")
         return {"RUNNING_MODAL"}
 
     def _report_failure(self, index, error):
@@ -288,14 +374,31 @@ class FOGSIM_PT_panel(bpy.types.Panel):
 
     def draw(self, context):
         s, layout = context.scene.fogsim, self.layout
-        layout.prop(s, "preset")
-        row = layout.row(align=True)
-        row.prop(s, "seed")
-        row.prop(s, "frame")
-        row = layout.row(align=True)
-        row.operator("fogsim.build_scene", icon="SCENE_DATA")
-        row.operator("fogsim.clear_scene", icon="TRASH")
-        layout.prop(s, "time_of_day")
+        layout.row().prop(s, "source", expand=True)
+        scene_source = s.source == "SCENE"
+        if scene_source:
+            box = layout.box()
+            box.label(text="Current scene", icon="SCENE_DATA")
+            box.prop_search(s, "camera", context.scene, "objects", icon="CAMERA_DATA")
+            box.prop(s, "frame_range")
+            box.prop(s, "class_map")
+        else:
+            layout.prop(s, "preset")
+            row = layout.row(align=True)
+            row.prop(s, "seed")
+            row.prop(s, "frame")
+            row = layout.row(align=True)
+            row.operator("fogsim.build_scene", icon="SCENE_DATA")
+            row.operator("fogsim.clear_scene", icon="TRASH")
+            box = layout.box()
+            box.label(text="Light and models", icon="LIGHT_SUN")
+            box.prop(s, "time_of_day")
+            box.prop(s, "sky")
+            if s.sky == "hdri":
+                box.prop(s, "hdri")
+                if s.hdri == "FILE":
+                    box.prop(s, "hdri_file")
+            box.prop(s, "assets")
 
         box = layout.box()
         box.label(text="Fog", icon="MOD_FLUIDSIM")
@@ -305,10 +408,11 @@ class FOGSIM_PT_panel(bpy.types.Panel):
         box.prop(s, "fog_model")
         if s.fog_model == "volumetric":
             box.prop(s, "fog_medium")
-        row = box.row(align=True)
-        row.prop(s, "preview_beta", text="Preview β")
-        row.prop(s, "preview_boxes", toggle=True, icon="SELECT_SET", icon_only=True)
-        box.operator("fogsim.preview_fog", icon="IMAGE_DATA")
+        if not scene_source:
+            row = box.row(align=True)
+            row.prop(s, "preview_beta", text="Preview β")
+            row.prop(s, "preview_boxes", toggle=True, icon="SELECT_SET", icon_only=True)
+            box.operator("fogsim.preview_fog", icon="IMAGE_DATA")
 
         box = layout.box()
         box.label(text="Label selected objects", icon="OBJECT_DATA")
@@ -318,7 +422,10 @@ class FOGSIM_PT_panel(bpy.types.Panel):
 
         box = layout.box()
         box.label(text="Dataset", icon="RENDER_ANIMATION")
-        box.prop(s, "frames")
+        if scene_source:
+            box.prop(s, "seed")
+        else:
+            box.prop(s, "frames")
         box.prop(s, "resolution")
         box.prop(s, "samples")
         box.prop(s, "use_gpu")

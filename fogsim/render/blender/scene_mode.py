@@ -450,7 +450,7 @@ class SceneJob(RenderJob):
     shares). Build it with :func:`scene_job`."""
 
     def __init__(self, scene, out, *, source: str, camera: str | None = None, frame_range: str | None = None,
-                 class_map: ClassMap = ClassMap(), levels: str | None = None, samples: int | None = None,
+                 class_map: ClassMap = ClassMap(), levels: str | list | None = None, samples: int | None = None,
                  resolution: str | None = None, seed: int = 0, shard=(0, 1), resume: bool = True,
                  gpu: bool = False, quiet: bool = False, max_pixels: int | None = None,
                  fog: str | None = None, fog_medium: str | None = None, fog_model: dict | None = None):
@@ -486,7 +486,7 @@ class SceneJob(RenderJob):
                                   "class_map": class_map.to_dict()}},
             camera={"object": self.camera.name}, resolution=(w, h),
             quality={"samples": samples} if samples else {},  # {}: the scene's own Cycles settings
-            levels=tuple(parse_levels(levels if levels is not None else "paper")), fog_model=fog_model,
+            levels=_levels(levels), fog_model=fog_model,
             frames=len(self.frames), seed=seed)
         self.fog = volumetric_settings(self.config)  # None: Koschmieder fog (post-process)
         if self.fog is not None and self.fog["samples"] is None:  # the scene's own samples, not a preset's
@@ -588,11 +588,19 @@ class SceneJob(RenderJob):
         self.user_scene.frame_set(self.frame_before)
 
 
+def _levels(levels) -> tuple:
+    """``levels``: a ``--levels`` string (None: the paper's five) or FogLevel objects as they are."""
+    if levels is None or isinstance(levels, str):
+        return tuple(parse_levels(levels if levels is not None else "paper"))
+    return tuple(levels)
+
+
 def scene_job(scene, out, **options) -> SceneJob:
     """The add-on's *Source: current scene* (and the CLI's ``--scene``): a :class:`SceneJob` over
     ``scene`` writing the dataset to ``out``. ``options``: ``source`` (what error messages name;
     default the .blend path), ``camera``, ``frame_range`` ("S:E[:STEP]"), ``class_map``
-    (:class:`~fogsim.render.scene_classes.ClassMap`), ``levels``, ``samples``, ``resolution``
+    (:class:`~fogsim.render.scene_classes.ClassMap`), ``levels`` (a ``--levels`` string or a list of
+    :class:`~fogsim.fog.levels.FogLevel`, e.g. from visibilities), ``samples``, ``resolution``
     ("WxH"), ``seed``, ``shard``, ``resume``, ``gpu``, ``quiet``, ``fog`` ("koschmieder" | "volumetric"),
     ``fog_medium``, ``fog_model`` (a preset's ``fog_model`` block). Every refusal (no labelled object,
     missing / orthographic / panoramic camera …) is an InputError raised before ``out`` is touched."""
