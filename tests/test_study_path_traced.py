@@ -156,6 +156,10 @@ def test_report_has_the_two_rows_with_numbers(renders, tmp_path):
     assert "scatter − Koschmieder training on path-traced fog: clear +0.000, beta0.03 -1.000" in md
     assert "| scatter | 20 |" in md  # the training table: scatter trains the mixed model's epochs
     assert (out / "map50_heatmap.png").stat().st_size > 0
+    moved = tmp_path / "volumetric_copy"  # predictions of another eval render: the report refuses
+    shutil.copytree(volumetric, moved)
+    with pytest.raises(InputError, match="path-traced predictions were made without, or on other renders"):
+        Study(ds, tmp_path / "study", TrainConfig(), eval_dataset=moved, scatter_dataset=scatter).report()
 
 
 @pytest.mark.detect

@@ -157,10 +157,12 @@ class Study:
         if self.augment is not None:  # only then: a study without it keeps its study.json
             params["augment"] = {"beta": list(self.augment.beta), "sample": self.augment.sample}
         if self.eval_layout is not None:  # likewise
-            params["path_traced"] = {"scatter_dataset": str(self.scatter_layout.root),
-                                     "eval_dataset": str(self.eval_layout.root),
-                                     "eval_validation_images_sha256": _images_digest(self.eval_ground_truth())}
+            params["path_traced"] = self._path_traced_parameters()
         claim_output(self.files.study_file(), params, what="study")
+
+    def _path_traced_parameters(self) -> dict:
+        return {"scatter_dataset": str(self.scatter_layout.root), "eval_dataset": str(self.eval_layout.root),
+                "eval_validation_images_sha256": _images_digest(self.eval_ground_truth())}
 
     def stored_config(self, gts: dict) -> TrainConfig:
         """The training parameters in ``study.json``, after checking it is this dataset's study."""
@@ -171,6 +173,10 @@ class Study:
         keys = ("dataset", "levels", "validation_images_sha256")
         if {k: getattr(stored, k) for k in keys} != self._dataset_parameters(gts):
             raise InputError(path, f"this study was run on another dataset or validation split than {self.dataset}")
+        if self.eval_layout is not None and read_json(path)["parameters"].get("path_traced") != \
+                self._path_traced_parameters():
+            raise InputError(path, "this study's path-traced predictions were made without, or on other renders "
+                                   "than, this --eval-dataset and --scatter-dataset")
         return TrainConfig(**stored.train.model_dump())
 
     def ground_truth(self) -> dict:
