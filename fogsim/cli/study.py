@@ -13,6 +13,8 @@ Paper scale on a GPU (8,100 train / 4,800 val frames, 640 px, 100 epochs, YOLOv1
     fogsim study --out study --dataset ds … --report-only
 On a fogged real dataset (fogsim fog --cityscapes/--waymo writes one), with a sim-to-real row:
     fogsim study --out study --dataset cityscapes_fog --sim-dataset ds    (class map: fogsim-to-cityscapes)
+Post-process fog vs path-traced fog (three renders of the same scenes; docs/study.md):
+    fogsim study --out study --dataset ds --scatter-dataset ds_scatter --eval-dataset ds_volumetric
 
 Resumable: finished models and prediction files are skipped, an interrupted training resumes
 from its last.pt. Needs the 'detect' extra. Exit 0 done, 1 failed, 2 bad input.
@@ -43,6 +45,13 @@ def add_parsers(sub) -> None:
     src.add_argument("--sim-dataset", metavar="RENDERED",
                      help="a rendered dataset: train its models too (OUT/sim_to_real/study) and add rows 'sim <model>' "
                           "evaluating them on --dataset's levels, through the class map")
+    src.add_argument("--eval-dataset", metavar="VOLUMETRIC",
+                     help="a render of --dataset's scenes with path-traced fog (fogsim render --fog volumetric, same "
+                          "preset, seed, frames): every model is evaluated on it too, and the report gains rows "
+                          "'trained on Koschmieder fog' (mixed) and 'trained on scatter fog'; needs --scatter-dataset")
+    src.add_argument("--scatter-dataset", metavar="SCATTER",
+                     help="with --eval-dataset: a render of the same scenes with fog kind scatter (fogsim render "
+                          "--fog scatter): a model 'scatter' is trained on every level of it, as mixed is")
     src.add_argument("--render", type=int, metavar="FRAMES",
                      help="render (or complete) this many frames into the dataset first")
     src.add_argument("--preset", default="default", help="render preset (with --render)")
@@ -104,6 +113,12 @@ def check_args(args) -> None:
     if args.render and args.sim_dataset:
         raise ValueError("--render renders the study's own dataset: render the --sim-dataset first "
                          "(fogsim render), then pass both")
+    if (args.eval_dataset is None) != (args.scatter_dataset is None):
+        raise ValueError("--eval-dataset and --scatter-dataset come together (path-traced fog to evaluate on, "
+                         "scatter fog to train on)")
+    if args.eval_dataset and args.sim_dataset:
+        raise ValueError("--eval-dataset compares fog models on renders; --sim-dataset is for a real --dataset: "
+                         "give one of them")
     if args.render and args.shard:
         raise ValueError("--render with --shard would make every array task render the same dataset: "
                          "render first (fogsim render --shard), then train with --dataset")
@@ -131,8 +146,9 @@ def cmd_study(args) -> int:
     from fogsim.detection.yolo import TrainConfig
     from fogsim.runs import check_output, parse_shard
 
-    check_output(args.out, {"--dataset": args.dataset, "--sim-dataset": args.sim_dataset},
-                 allow_inside_out=("--dataset", "--sim-dataset"))  # read through a view
+    inputs = {"--dataset": args.dataset, "--sim-dataset": args.sim_dataset, "--eval-dataset": args.eval_dataset,
+              "--scatter-dataset": args.scatter_dataset}
+    check_output(args.out, inputs, allow_inside_out=tuple(inputs))  # read through a view
     out = Path(args.out)
     dataset = Path(args.dataset) if args.dataset else out / "dataset"
     cfg = TrainConfig(model=args.model, epochs=args.epochs, mixed_epochs=args.mixed_epochs, imgsz=args.imgsz,
@@ -147,7 +163,8 @@ def cmd_study(args) -> int:
         render(dataset, args)
     class_map = load_class_map(args.class_map) if args.class_map else None
     study = Study(dataset, out, cfg, unknown_distance=args.unknown_distance, class_map=class_map,
-                  sim_dataset=args.sim_dataset, augment=augment)
+                  sim_dataset=args.sim_dataset, augment=augment, eval_dataset=args.eval_dataset,
+                  scatter_dataset=args.scatter_dataset)
     if not args.report_only:
         study.run_models(shard, progress=not args.quiet)
     if args.no_report:

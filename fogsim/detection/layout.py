@@ -14,6 +14,9 @@ Layout under the root::
                                         fog_level_<estimator>.png, distance_policy.json, report.md
     sim_to_real/study/                  the rendered dataset's own study (a study folder itself)
     sim_to_real/predictions/<model>/<level>.json   its models on this dataset's validation images
+    yolo_scatter/                       training view of the scatter-fogged render (--scatter-dataset)
+    path_traced/predictions/<model>/<level>.json   every model on the path-traced render's
+                                        validation images (--eval-dataset)
 
 Models are named by fog level key, and :data:`~fogsim.dataset.layout.MIXED_MODEL` for the model
 trained on every level.
@@ -68,3 +71,14 @@ class StudyLayout:
     def sim_prediction(self, model: str, level: str) -> Path:
         """Detections of the sim study's model ``model`` on this study's dataset, level ``level``."""
         return self.root / "sim_to_real" / "predictions" / model / f"{level}.json"
+
+    def scatter_view(self) -> Path:
+        """The training view of the scatter-fogged render (``--scatter-dataset``)."""
+        return self.root / "yolo_scatter"
+
+    def eval_predictions(self, model: str) -> Path:
+        return self.root / "path_traced" / "predictions" / model
+
+    def eval_prediction(self, model: str, level: str) -> Path:
+        """Detections of model ``model`` on the path-traced render's (``--eval-dataset``) level ``level``."""
+        return self.eval_predictions(model) / f"{level}.json"

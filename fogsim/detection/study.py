@@ -27,6 +27,13 @@ their detections go through the class map sim → real (given, or the identity f
 whose lists match: ``fogsim-to-waymo``, ``fogsim-to-cityscapes``) and appear as rows
 ``sim <model>``. Then every row is evaluated on the real classes the map reaches, so the rows
 are comparable (Cityscapes' train, motorcycle, bicycle have no fogsim source).
+
+**Post-process vs path-traced fog** (``eval_dataset`` + ``scatter_dataset``, renders of this
+render's scenes with volumetric and scatter fog, :mod:`fogsim.detection.fog_models`): a model
+``scatter`` is trained on every level of the scatter render, every model predicts on the
+path-traced render's validation images (``path_traced/predictions/<model>/<level>.json``), and the
+table gains rows ``trained on Koschmieder fog`` (``mixed``) and ``trained on scatter fog``
+evaluated on the path-traced levels.
 """
 from __future__ import annotations
 
@@ -52,10 +59,19 @@ from fogsim.dataset.reader import (
 )
 from fogsim.detection.class_map import BUILTIN, ClassMap, identity, map_detections, map_ground_truth, restriction
 from fogsim.detection.coco_eval import BINS, UNKNOWN_DISTANCE, distance_coverage
+from fogsim.detection.fog_models import ROWS, check_same_scenes, path_traced_lines
 from fogsim.detection.layout import StudyLayout
 from fogsim.detection.level_estimation import LevelEstimator, confusion, image_features, route
 from fogsim.detection.table import cross_density, heatmap, markdown, write_report
-from fogsim.detection.yolo import AUGMENTED_MODEL, TrainConfig, check_model, predict, train, training_view
+from fogsim.detection.yolo import (
+    AUGMENTED_MODEL,
+    SCATTER_MODEL,
+    TrainConfig,
+    check_model,
+    predict,
+    train,
+    training_view,
+)
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes, read_image, read_json, write_image, write_json
 from fogsim.fog.visibility import INVISIBLE_RULE
@@ -73,7 +89,8 @@ class Study:
 
     def __init__(self, dataset: str | Path, out: str | Path, cfg: TrainConfig | None = None, *,
                  unknown_distance: str = "ignore", class_map: ClassMap | None = None,
-                 sim_dataset: str | Path | None = None, augment: FogSpec | None = None):
+                 sim_dataset: str | Path | None = None, augment: FogSpec | None = None,
+                 eval_dataset: str | Path | None = None, scatter_dataset: str | Path | None = None):
         self.dataset, self.out, self.cfg = Path(dataset).resolve(), Path(out).resolve(), cfg
         self.layout, self.files = DatasetLayout(self.dataset), StudyLayout(self.out)
         self.levels = dataset_levels(self.layout)
@@ -93,10 +110,11 @@ class Study:
             if class_map is not None:
                 class_map.check_source(self.classes, str(self.layout.manifest()))
             self.eval_map = class_map
-        clash = [lv for lv in self.levels if lv in (MIXED_MODEL, AUGMENTED_MODEL, "oracle") or lv.startswith("routed")]
+        clash = [lv for lv in self.levels if lv in (MIXED_MODEL, AUGMENTED_MODEL, SCATTER_MODEL, "oracle", *ROWS)
+                 or lv.startswith("routed")]
         if clash:
             raise InputError(self.layout.manifest(), f"fog level keys {clash} clash with the study's "
-                                                     "row names (mixed, augmented, oracle, routed …)")
+                                                     "row names (mixed, augmented, scatter, oracle, routed …)")
         self.models = [*self.levels, MIXED_MODEL]
         self.augment, self.clear = augment, None
         if augment is not None:
@@ -105,6 +123,19 @@ class Study:
                 raise InputError(self.layout.manifest(), "--augment trains on the clear images: the dataset "
                                                          "has no level with β = 0")
             self.models.append(AUGMENTED_MODEL)
+        self.eval_layout = self.scatter_layout = None
+        if (eval_dataset is None) != (scatter_dataset is None):
+            raise ValueError("--eval-dataset and --scatter-dataset come together (path-traced fog to evaluate on, "
+                             "scatter fog to train on)")
+        if eval_dataset is not None:
+            if self.sim is not None:
+                raise ValueError("--eval-dataset compares fog models on renders; --sim-dataset is for a real "
+                                 "--dataset: give one of them")
+            self.scatter_layout = DatasetLayout(Path(scatter_dataset).resolve())
+            self.eval_layout = DatasetLayout(Path(eval_dataset).resolve())
+            check_same_scenes(self.layout, self.scatter_layout, "--scatter-dataset", "scatter")
+            check_same_scenes(self.layout, self.eval_layout, "--eval-dataset", "volumetric")
+            self.models.append(SCATTER_MODEL)
         self.config_dir = self.files.config_dir()
 
     def prediction(self, model: str, level: str) -> Path:
@@ -118,16 +149,20 @@ class Study:
     def _dataset_parameters(self, gts: dict) -> dict:
         """What ties predictions to the dataset: its path, levels and validation images (ids and
         files — they change when frames are added or the split is redrawn)."""
-        images = {lv: [[im["id"], im["file_name"]] for im in gts[lv]["images"]] for lv in self.levels}
-        digest = hashlib.sha256(json.dumps(images, sort_keys=True).encode()).hexdigest()
-        return {"dataset": str(self.dataset), "levels": self.levels, "validation_images_sha256": digest}
+        return {"dataset": str(self.dataset), "levels": self.levels, "validation_images_sha256": _images_digest(gts)}
 
     def check_parameters(self, gts: dict) -> None:
         """Write ``study.json``, or refuse when OUT holds a study with other parameters."""
         params = self._dataset_parameters(gts) | {"train": asdict(self.cfg)}
         if self.augment is not None:  # only then: a study without it keeps its study.json
             params["augment"] = {"beta": list(self.augment.beta), "sample": self.augment.sample}
+        if self.eval_layout is not None:  # likewise
+            params["path_traced"] = self._path_traced_parameters()
         claim_output(self.files.study_file(), params, what="study")
+
+    def _path_traced_parameters(self) -> dict:
+        return {"scatter_dataset": str(self.scatter_layout.root), "eval_dataset": str(self.eval_layout.root),
+                "eval_validation_images_sha256": _images_digest(self.eval_ground_truth())}
 
     def stored_config(self, gts: dict) -> TrainConfig:
         """The training parameters in ``study.json``, after checking it is this dataset's study."""
@@ -138,15 +173,28 @@ class Study:
         keys = ("dataset", "levels", "validation_images_sha256")
         if {k: getattr(stored, k) for k in keys} != self._dataset_parameters(gts):
             raise InputError(path, f"this study was run on another dataset or validation split than {self.dataset}")
+        if self.eval_layout is not None and read_json(path)["parameters"].get("path_traced") != \
+                self._path_traced_parameters():
+            raise InputError(path, "this study's path-traced predictions were made without, or on other renders "
+                                   "than, this --eval-dataset and --scatter-dataset")
         return TrainConfig(**stored.train.model_dump())
 
     def ground_truth(self) -> dict:
         return {lv: val_ground_truth(self.layout, lv) for lv in self.levels}
 
+    def eval_ground_truth(self) -> dict:
+        """The path-traced render's validation ground truth per level (``--eval-dataset``)."""
+        return {lv: val_ground_truth(self.eval_layout, lv) for lv in self.levels}
+
     def run_models(self, shard: tuple[int, int] = (0, 1), progress: bool = True) -> None:
         """Train every model of this shard and predict with it on every level (resumable)."""
         gts = self.ground_truth()
         self.check_files(gts)  # a missing image named in the dataset, not as Ultralytics' link to it
+        eval_gts = None
+        if self.eval_layout is not None:
+            eval_gts = self.eval_ground_truth()
+            self.check_files(eval_gts, self.eval_layout)
+            self.check_files({lv: val_ground_truth(self.scatter_layout, lv) for lv in self.levels}, self.scatter_layout)
         mine = self.models[shard[0]::shard[1]]
         if any(not self.files.run_done(m).is_file() for m in mine):
             check_model(self.cfg.model, self.config_dir)  # before study.json: a typo must not lock OUT
@@ -154,14 +202,21 @@ class Study:
             self.check_depth()
         self.check_parameters(gts)
         data = training_view(self.dataset, self.files.training_view(), self.levels, self.classes, self.clear)
+        if self.scatter_layout is not None:  # the scatter render's own mixed view
+            data[SCATTER_MODEL] = training_view(self.scatter_layout.root, self.files.scatter_view(), self.levels,
+                                                self.classes)[MIXED_MODEL]
         for name in tqdm(mine, desc="models", unit="model", disable=not progress):
             if not self.files.run_done(name).is_file():
                 shutil.rmtree(self.files.predictions(name), ignore_errors=True)  # from older weights
+                shutil.rmtree(self.files.eval_predictions(name), ignore_errors=True)
             best = train(name, data[name], self.files.run(name), self.cfg, self.config_dir, self.trainer(name))
             for lv in self.levels:
                 path = self.prediction(name, lv)
                 if not path.is_file():
                     write_json(path, predict(best, gts[lv], self.dataset, self.cfg, self.config_dir))
+                path = self.files.eval_prediction(name, lv)
+                if eval_gts is not None and not path.is_file():
+                    write_json(path, predict(best, eval_gts[lv], self.eval_layout.root, self.cfg, self.config_dir))
         if self.sim is not None:
             self.run_sim_models(gts, shard, progress)
 
@@ -188,12 +243,14 @@ class Study:
                 if not path.is_file():
                     write_json(path, predict(best, gts[lv], self.dataset, self.cfg, self.config_dir))
 
-    def check_files(self, gts: dict) -> None:
-        """Every image and label the split lists and the COCO files name must be in the dataset,
-        before training starts (Ultralytics would fail mid-study naming its links under OUT/yolo)."""
-        missing = missing_files(self.layout, self.levels)
+    def check_files(self, gts: dict, layout: DatasetLayout | None = None) -> None:
+        """Every image and label the split lists and the COCO files name must be in the dataset
+        (``layout``, default the study's), before training starts (Ultralytics would fail
+        mid-study naming its links under OUT/yolo)."""
+        layout = self.layout if layout is None else layout
+        missing = missing_files(layout, self.levels)
         missing += [p for lv in self.levels for im in gts[lv]["images"]
-                    if not (p := self.dataset / im["file_name"]).is_file()]
+                    if not (p := layout.root / im["file_name"]).is_file()]
         missing = list(dict.fromkeys(missing))  # a validation image is in both
         if missing:
             more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
@@ -215,6 +272,8 @@ class Study:
         paths = [self.prediction(m, lv) for m in self.models for lv in self.levels]
         if self.sim is not None:
             paths += [self.sim_prediction(m, lv) for m in self.sim.models for lv in self.levels]
+        if self.eval_layout is not None:
+            paths += [self.files.eval_prediction(m, lv) for m in self.models for lv in self.levels]
         return [p for p in paths if not p.is_file()]
 
     def evaluation_rows(self, gts: dict, preds: dict) -> tuple[dict, dict]:
@@ -258,10 +317,16 @@ class Study:
             rows[f"routed ({method})"] = route(preds, estimates)
             levels_out[method] = confusion(est_true, est_pred, self.levels)
         eval_gts, rows = self.evaluation_rows(gts, rows)
-        table = cross_density(eval_gts, rows, max_distance_m=max_distance_m, unknown_distance=self.unknown_distance,
-                              visible_only=visible_only)
+        policy = {"max_distance_m": max_distance_m, "unknown_distance": self.unknown_distance,
+                  "visible_only": visible_only}
+        table = cross_density(eval_gts, rows, **policy)
+        path_traced = self.path_traced_table(policy)
+        if path_traced is not None:
+            table |= {row: path_traced[model] for row, model in ROWS.items()}
         out = self.files.report()
         write_report(table, out)
+        if path_traced is not None:
+            write_json(out / "path_traced.json", path_traced)
         write_json(out / "fog_level.json", levels_out)
         coverage = self.coverage(gts, max_distance_m)
         write_json(out / "distance_policy.json", {
@@ -275,9 +340,24 @@ class Study:
                     for i, t in enumerate(self.levels)}
             write_image(out / f"fog_level_{method}.png",
                         heatmap(grid, "share", title=f"fog level, {method}: share (row: true, column: estimated)"))
-        md = self.report_markdown(table, levels_out, max_distance_m, cfg, coverage, visible_only, training)
+        md = self.report_markdown(table, levels_out, max_distance_m, cfg, coverage, visible_only, training,
+                                  path_traced)
         atomic_write_bytes(out / "report.md", md.encode())
         return table
+
+    def path_traced_table(self, policy: dict) -> dict | None:
+        """Every model on the path-traced render's levels (``{model: {level: cell}}``, in the
+        evaluation's classes), None without ``--eval-dataset``."""
+        if self.eval_layout is None:
+            return None
+        gts = self.eval_ground_truth()
+        preds = {m: {lv: read_predictions(self.files.eval_prediction(m, lv)) for lv in self.levels}
+                 for m in self.models}
+        if self.eval_map is not None:
+            gts = {lv: map_ground_truth(gt, self.eval_map, self.classes) for lv, gt in gts.items()}
+            preds = {m: {lv: map_detections(d, self.eval_map, self.classes) for lv, d in by.items()}
+                     for m, by in preds.items()}
+        return cross_density(gts, preds, **policy)
 
     def _classes_lines(self) -> list[str]:
         lines = [f"Classes of the dataset: {', '.join(self.classes)}."]
@@ -323,7 +403,7 @@ class Study:
 
     def report_markdown(self, table: dict, levels_out: dict, max_distance_m: float, cfg: TrainConfig,
                         coverage: dict | None = None, visible_only: bool = False,
-                        training: dict[str, DoneFile] | None = None) -> str:
+                        training: dict[str, DoneFile] | None = None, path_traced: dict | None = None) -> str:
         n_train = len(read_split(self.layout, self.levels[0], "train"))
         n_val = len(read_split(self.layout, self.levels[0], "val"))
         ignored = (f"farther ones, and invisible ones ({INVISIBLE_RULE}), are ignored in map50 and by distance"
@@ -350,6 +430,8 @@ class Study:
                 lines.append(f"| {row} | {lv} | " + " | ".join(vals) + " |")
         if AUGMENTED_MODEL in table:
             lines += ["", *_winner_lines(table, self.levels, self.augment)]
+        if path_traced is not None:
+            lines += ["", *path_traced_lines(path_traced, self.levels, self.eval_layout.root, self.scatter_layout.root)]
         lines += ["", "**training** (seconds of the run that finished each model)", "",
                   "| model | epochs | seconds | state |", "|---|---|---|---|"]
         training = self.training_records() if training is None else training
@@ -366,6 +448,13 @@ class Study:
                       for lv, row in zip(self.levels, conf["matrix"])]
             lines.append("")
         return "\n".join(lines)
+
+
+def _images_digest(gts: dict) -> str:
+    """SHA-256 of every level's validation images (ids and files: they change when frames are
+    added or the split is redrawn)."""
+    images = {lv: [[im["id"], im["file_name"]] for im in gt["images"]] for lv, gt in gts.items()}
+    return hashlib.sha256(json.dumps(images, sort_keys=True).encode()).hexdigest()
 
 
 def read_predictions(path: Path) -> list[dict]:

@@ -32,6 +32,7 @@ from fogsim.errors import FogsimError, InputError
 from fogsim.fileio import atomic_write_bytes, write_json
 
 AUGMENTED_MODEL = "augmented"  # trained on clear images fogged on the fly (fogsim.detection.augmented)
+SCATTER_MODEL = "scatter"  # trained on every level of a scatter-fogged render (fogsim.detection.fog_models)
 MIN_ULTRALYTICS = (8, 4, 37)  # earlier releases inflate mAP (PR curve extended to recall 1)
 # MIXED_MODEL ("mixed", the model trained on every level at once) is defined in
 # fogsim.dataset.layout beside MIXED_SPLIT ("all", the dataset's every-level split).
@@ -43,7 +44,8 @@ class TrainConfig:
 
     model: str = "yolov8n.yaml"   # a model YAML: trained from scratch
     epochs: int = 20
-    mixed_epochs: int | None = None  # default: epochs (same compute as the five specialists together)
+    mixed_epochs: int | None = None  # mixed, augmented, scatter; default: epochs (the compute of the
+                                     # five specialists together)
     imgsz: int = 320
     batch: int = 8
     nbs: int | None = None        # nominal batch: gradients accumulate to it; None = batch (no
@@ -56,7 +58,7 @@ class TrainConfig:
     plots: bool = True
 
     def epochs_for(self, model_name: str) -> int:
-        every_level = model_name in (MIXED_MODEL, AUGMENTED_MODEL)  # both see every level's worth per epoch
+        every_level = model_name in (MIXED_MODEL, AUGMENTED_MODEL, SCATTER_MODEL)  # every level's worth per epoch
         return self.mixed_epochs if every_level and self.mixed_epochs else self.epochs
 
 
