@@ -55,22 +55,25 @@ def prepare(folders: list[Path]) -> tuple[list[FitFrame], list[dict], dict]:
     """(day frames × β, night frames, what was read: presets, styles, dataset seeds, frames, β,
     resolution, samples)."""
     day, night = [], []
-    info = {"presets": [], "styles": [], "seeds": [], "frames": 0, "betas": set(), "resolution": "", "samples": 0}
+    info = {"runs": [], "presets": [], "styles": [], "seeds": [], "times_of_day": [], "frames": 0, "betas": set(),
+            "resolution": "", "samples": 0}
     for folder in folders:
         run_file = folder / "clear" / "render_run.json"
         run_params = read_json(run_file).get("parameters", {}) if run_file.is_file() else {}
-        for key, value in (("presets", run_params.get("name")), ("styles", run_params.get("style")),
-                           ("seeds", run_params.get("seed"))):
-            if value is not None and value not in info[key]:
-                info[key].append(value)
+        style = run_params.get("style")
+        style = style.get("name") if isinstance(style, dict) else style  # render_run.json keeps the whole style
+        record = {"folder": folder.name, "preset": str(run_params.get("name") or ""), "style": str(style or ""),
+                  "seed": run_params.get("seed"), "time_of_day": "", "frames": 0, "resolution": "", "samples": 0}
         for frame in committed_frames(folder):
             data = load_frame(folder, frame)
             meta = data.pop("meta")
             data.pop("same_labels")
             run = meta.get("render", {})
             info["frames"] += 1
-            info["resolution"] = f"{meta['width']}x{meta['height']}"
-            info["samples"] = int(run.get("samples", info["samples"]) or 0)
+            record["frames"] += 1
+            record["resolution"] = info["resolution"] = f"{meta['width']}x{meta['height']}"
+            record["samples"] = info["samples"] = int(run.get("samples", info["samples"]) or 0)
+            record["time_of_day"] = "night" if data["night"] else "day"
             info["betas"] |= set(data["renders"])
             if data["night"]:
                 night.append(data)
@@ -83,6 +86,11 @@ def prepare(folders: list[Path]) -> tuple[list[FitFrame], list[dict], dict]:
                     continue
                 s = 1.0 / hz["luminance"]
                 day.append(FitFrame(data, beta, s, where, s * f1[where], s * f2[where]))
+        info["runs"].append(record)
+        for key, value in (("presets", record["preset"]), ("styles", record["style"]), ("seeds", record["seed"]),
+                           ("times_of_day", record["time_of_day"])):
+            if value not in (None, "") and value not in info[key]:
+                info[key].append(value)
     info["betas"] = sorted(info["betas"])
     if not day:
         raise InputError(folders[0], "no day frame with sky to fit on (fit-fog needs fog-physics runs)")

@@ -18,6 +18,7 @@ whether they are.
 
     fogsim bench fog-physics [--frames 1] [--resolution 160x107] [--samples 16] [--out bench/fog-physics]
                              [--medium full|hybrid|ea] [--denoise]
+    fogsim bench fog-physics --analyse-only --out DIR --pool DIR2 [--pool DIR3 …]   # frames pooled
 
 ``--medium ea`` (the camera-only emission–absorption medium) is the zero-error control: linear
 Koschmieder must match it to noise level in every bin.
@@ -159,24 +160,31 @@ def load_frame(out: Path, frame: str) -> dict:
             "meta": meta, "same_labels": same}
 
 
-def analyse(out: Path, frames: list[str] | None = None, comparison: Comparison | None = None) -> dict:
-    """Compare the runs under ``out`` (clear, volumetric_seed0, volumetric_seed1) and write ``out/report``."""
-    clear, fog0, fog1 = (DatasetLayout(out / name) for name in RUNS)
-    frames = committed_frames(out) if frames is None else frames
+def analyse(out: Path, frames: list[str] | None = None, comparison: Comparison | None = None,
+            pool: list[Path] | tuple = ()) -> dict:
+    """Compare the runs under ``out`` (clear, volumetric_seed0, volumetric_seed1) and write ``out/report``;
+    ``pool``: more such folders whose frames are pooled with ``out``'s (frames named ``<folder>-<frame>``)."""
     comparison = comparison or Comparison(models=default_models())
     same_labels, timing = True, {name: [] for name in RUNS}
-    for frame in frames:
-        data = load_frame(out, frame)
-        data.pop("meta")
-        same_labels &= data.pop("same_labels")
-        comparison.add_frame(**data)
-        for name, layout in zip(RUNS, (clear, fog0, fog1)):
-            t = read_meta(layout, frame).get("timings_s", {})  # the fog renders are timed apart ("fog_render")
-            timing[name].append(float(t.get("render", float("nan"))) + float(t.get("fog_render", 0.0)))
+    for folder in (out, *pool):
+        folder = Path(folder)
+        layouts = [DatasetLayout(folder / name) for name in RUNS]
+        names = frames if frames is not None and folder == out else committed_frames(folder)
+        for frame in names:
+            data = load_frame(folder, frame)
+            data.pop("meta")
+            same_labels &= data.pop("same_labels")
+            if pool:
+                data["name"] = f"{folder.name}-{frame}"
+            comparison.add_frame(**data)
+            for name, layout in zip(RUNS, layouts):
+                t = read_meta(layout, frame).get("timings_s", {})  # the fog renders are timed apart ("fog_render")
+                timing[name].append(float(t.get("render", float("nan"))) + float(t.get("fog_render", 0.0)))
     seconds = {name: statistics.median(v) for name, v in timing.items()}
-    run_file = clear.root / "render_run.json"
+    run_file = out / "clear" / "render_run.json"
     exposure = load_json(run_file, RenderRunFile).parameters.exposure if run_file.is_file() else 1.0
     result = write_report(comparison, out / "report")
+    result["pooled_folders"] = [str(Path(f)) for f in (out, *pool)] if pool else []
     result["labels_identical"] = same_labels
     result["preset_exposure"] = exposure  # the clear image has it; the linear fog renders are compared as written
     result["render_seconds_per_frame"] = seconds
@@ -213,7 +221,11 @@ def run(args) -> int:
                 print(f"fog-physics: the {name} render failed (exit {code}); --fog volumetric needs the "
                       "volumetric renderer", file=sys.stderr)
                 return code
-    result = analyse(out)
+    pool = [Path(p) for p in getattr(args, "pool", None) or []]
+    for folder in pool:
+        if not folder.is_dir():
+            raise InputError(folder, "not a fogsim bench fog-physics folder (--pool)")
+    result = analyse(out, pool=pool)
     print(markdown(result) + footer(result), end="")
     print(f"report: {out / 'report' / 'fog_physics.md'} (JSON, panels_<frame>.png beside it)")
     return 0

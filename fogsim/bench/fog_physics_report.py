@@ -58,7 +58,63 @@ def markdown(result: dict, model_names: tuple[str, ...] | None = None) -> str:
                          f"| {_f(o['transmission'], '{:.3f}')} | {o['contrast_clear']:.3f} | {_f(rel, '{:.3f}')} | "
                          + " | ".join(_f(o["ratio_pt_k"].get(n), "{:.2f}") for n in names) + " |")
     lines += glow_lines(result, names)
+    lines += target_lines(result)
     return "\n".join(lines) + "\n"
+
+
+#: issue 19's targets for the scatter model: RMS ≤ this × Koschmieder's at every β, median object
+#: contrast ratio PT/model within CONTRAST_BAND
+RMS_TARGET = 0.5
+CONTRAST_BAND = (0.8, 1.25)
+
+
+def _rms(pb: dict, name: str, exposure: str):
+    return pb["models"].get(name, {}).get(exposure, {}).get("all", {}).get("rms")
+
+
+def target_summary(result: dict, koschmieder=("srgb", "linear"), model: str = "scatter") -> list[dict]:
+    """Per β: the scatter model's RMS (normalised, far-normalised) over the better Koschmieder
+    blend's (sRGB or linear), and its median object contrast ratio PT/model, with the targets
+    (:data:`RMS_TARGET`, :data:`CONTRAST_BAND`) met or not; [] without a scatter model."""
+    if model not in result.get("models", []):
+        return []
+    rows = []
+    for key, pb in result["per_beta"].items():
+        row = {"beta": pb["beta"]}
+        for exposure in ("normalised", "far"):
+            ks = [v for v in (_rms(pb, k, exposure) for k in koschmieder) if v is not None]
+            s = _rms(pb, model, exposure)
+            row[exposure] = {"koschmieder": min(ks) if ks else None, "scatter": s,
+                             "ratio": s / min(ks) if ks and s is not None and min(ks) > 0 else None}
+        summ = pb.get("objects_summary", {})
+        row["contrast"] = {n: summ.get(n, {}).get("median_ratio_pt_k") for n in (*koschmieder, model)}
+        c = row["contrast"][model]
+        row["rms_met"] = row["normalised"]["ratio"] is not None and row["normalised"]["ratio"] <= RMS_TARGET
+        row["contrast_met"] = c is not None and CONTRAST_BAND[0] <= c <= CONTRAST_BAND[1]
+        rows.append(row)
+    return rows
+
+
+def target_lines(result: dict) -> list[str]:
+    """The scatter model against Koschmieder and issue 19's targets, one row per β."""
+    rows = target_summary(result)
+    if not rows:
+        return []
+    lo, hi = CONTRAST_BAND
+    lines = ["", f"Scatter against Koschmieder (the better of sRGB and linear blending, per β): RMS normalised and "
+             f"far-normalised, scatter / Koschmieder (target ≤ {RMS_TARGET:g}), and the median object contrast "
+             f"ratio PT/model (target {lo:g}–{hi:g}).", "",
+             "| β | RMS norm. K → scatter | ratio | RMS far K → scatter | ratio | contrast PT/K sRGB, linear | "
+             "contrast PT/scatter | targets |", "|---" * 8 + "|"]
+    for r in rows:
+        n, f, c = r["normalised"], r["far"], r["contrast"]
+        met = ("RMS " + ("met" if r["rms_met"] else "missed") + ", contrast "
+               + ("met" if r["contrast_met"] else "missed"))
+        lines.append(f"| {r['beta']:g} | {_f(n['koschmieder'], '{:.3f}')} → {_f(n['scatter'], '{:.3f}')} "
+                     f"| {_f(n['ratio'], '{:.2f}')} | {_f(f['koschmieder'], '{:.3f}')} → {_f(f['scatter'], '{:.3f}')} "
+                     f"| {_f(f['ratio'], '{:.2f}')} | {_f(c['srgb'], '{:.2f}')}, {_f(c['linear'], '{:.2f}')} "
+                     f"| {_f(c['scatter'], '{:.2f}')} | {met} |")
+    return lines
 
 
 def glow_lines(result: dict, names: tuple[str, ...]) -> list[str]:
@@ -86,6 +142,7 @@ def write_report(comparison: Comparison, out: str | Path) -> dict:
 
     out = Path(out)
     result = comparison.result()
+    result["targets"] = target_summary(result)
     write_json(out / "fog_physics.json", result)
     atomic_write_bytes(out / "fog_physics.md", markdown(result).encode())
     for frame, panel in comparison.panels.items():

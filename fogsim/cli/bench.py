@@ -18,6 +18,7 @@ def add_parsers(sub) -> None:
     fog = bsub.add_parser("fog", help="fog engine speed, 1920×1280, one core, against Eq. 2 in float64 "
                           "and the reference's per-pixel loop")
     fog.add_argument("--repeat", type=int, default=15, help="interleaved repeats (medians)")
+    fog.add_argument("--size", default="1920x1280", help="frame WIDTHxHEIGHT (the targets are for 1920x1280)")
     _quiet_option(fog)
     fog.set_defaults(run=lambda args: _fog(args))
 
@@ -98,6 +99,8 @@ def add_parsers(sub) -> None:
                     "independent noise in the two seeds)")
     fp.add_argument("--gpu", action="store_true", help="render on the GPU when one is available")
     fp.add_argument("--analyse-only", action="store_true", help="only analyse the datasets already under OUT")
+    fp.add_argument("--pool", action="append", metavar="DIR", help="another fog-physics folder whose frames are "
+                    "analysed with OUT's, pooled into OUT/report (repeatable; e.g. held-out styles and seeds)")
     _quiet_option(fp)
     fp.set_defaults(run=lambda args: _fog_physics(args))
 
@@ -127,9 +130,14 @@ def _positive(**values) -> None:
 
 def _fog(args) -> int:
     from fogsim.bench.fog import run
+    from fogsim.render.preset import parse_resolution
 
     _positive(repeat=args.repeat)
-    return run(args.repeat)
+    try:
+        size = parse_resolution(args.size)
+    except ValueError as e:
+        raise ValueError(str(e).replace("--resolution", "--size")) from None
+    return run(args.repeat, size)
 
 
 def _augment(args) -> int:

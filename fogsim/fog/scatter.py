@@ -62,6 +62,10 @@ SIGMA_MIN = 0.7
 LAYER_STEP = 2.0
 #: widest PSF (rad); wider light is spread no further (it is nearly uniform by then)
 SIGMA_MAX_RAD = 0.6
+#: a PSF layer wider than 2× this (px) is blurred on a copy reduced by a power of two, at least
+#: REDUCE_MIN_SIDE px a side (speed; the PSF term moves by ≤ 0.005 of A, ``docs/speed.md``)
+REDUCE_ABOVE = 3.0
+REDUCE_MIN_SIDE = 8
 
 
 @dataclass(frozen=True)
@@ -167,21 +171,42 @@ def gaussian_by_boxes(x: np.ndarray, sigma: float) -> np.ndarray:
     return out
 
 
+def _blur_reduced(layer: np.ndarray, sigma: float) -> np.ndarray:
+    """``layer`` blurred by ≈ a Gaussian of std ``sigma`` px; a wide blur on a copy reduced by a
+    power of two (area average, then bilinear back up, rescaled to keep each channel's sum) so the reduced
+    σ stays ≥ :data:`REDUCE_ABOVE` px and the copy ≥ :data:`REDUCE_MIN_SIDE` px a side."""
+    h, w = layer.shape[:2]
+    r = 1
+    while sigma / (2 * r) >= REDUCE_ABOVE and min(h, w) // (2 * r) >= REDUCE_MIN_SIDE:
+        r *= 2
+    if r == 1:
+        return gaussian_by_boxes(layer, sigma)
+    size = (max(1, round(w / r)), max(1, round(h / r)))
+    small = gaussian_by_boxes(cv2.resize(layer, size, interpolation=cv2.INTER_AREA), sigma * size[0] / w)
+    up = cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+    have, want = cv2.sumElems(up)[:3], cv2.sumElems(layer)[:3]   # resampling keeps the sum only nearly
+    return cv2.multiply(up, tuple(float(a / b) if b > 0 else 0.0 for a, b in zip(want, have)) + (0.0,))
+
+
 def splat(source: np.ndarray, sigma_px: np.ndarray) -> np.ndarray:
     """Spread each pixel of ``source`` (h×w×3) by a Gaussian of its own std ``sigma_px`` (h×w, px):
     the widths are split between layers a factor :data:`LAYER_STEP` apart (weights linear in log σ,
-    summing to 1), each layer blurred once. Energy conserving: the sum over the image is kept."""
+    summing to 1), each layer blurred once (wide ones on a reduced copy, :func:`_blur_reduced`;
+    layers no pixel reaches are skipped). Energy conserving: the sum over the image is kept."""
     top = max(SIGMA_MIN, float(sigma_px.max()))
     n = max(1, int(math.ceil(math.log(top / SIGMA_MIN, LAYER_STEP))) + 1)
-    u = np.log(np.maximum(sigma_px, SIGMA_MIN) / SIGMA_MIN) / math.log(LAYER_STEP)
+    u = np.log(np.maximum(sigma_px, SIGMA_MIN) / SIGMA_MIN).astype(np.float32) * np.float32(1 / math.log(LAYER_STEP))
+    lo, hi = float(u.min()), float(u.max())
     out = np.zeros_like(source)
     for j in range(n):
-        wj = np.maximum(0.0, 1.0 - np.abs(u - j)).astype(np.float32)
-        if j == n - 1:
-            wj = np.where(u >= j, np.float32(1.0), wj)
-        if not wj.any():
+        if j <= lo - 1 or (j >= hi + 1 and j != n - 1):  # no pixel has weight in this layer
             continue
-        out += gaussian_by_boxes(source * wj[..., None], SIGMA_MIN * LAYER_STEP ** j)
+        wj = cv2.max(cv2.subtract(1.0, cv2.absdiff(u, float(j))), 0.0)   # max(0, 1 − |u − j|)
+        if j == n - 1:
+            wj[u >= j] = 1.0
+        if not cv2.countNonZero(wj):
+            continue
+        out += _blur_reduced(cv2.multiply(source, cv2.merge([wj, wj, wj])), SIGMA_MIN * LAYER_STEP ** j)
     return out
 
 
@@ -227,9 +252,14 @@ class ScatterFogger:
         self._a = [float(v) for v in a]
         self._planes = planes  # colour planes in the blend space, 0–1 (contiguous: fast elementwise work)
         self._buffers: dict[str, np.ndarray] = {}
-        self._sky_gain = None
+        # β-independent parts of the blend: the airlight's gain a·e^(c·sin θ) (None: 1) and ℓ + μ,
+        # so that the direct term's factor m·t = e^(−β(ℓ + μ)) is one exponential
+        self._air_gain = None
         if p.elevation:
-            self._sky_gain = np.exp(np.float32(p.elevation) * elevation_sine((h, w), intrinsics, up))
+            self._air_gain = np.exp(np.float32(p.elevation) * elevation_sine((h, w), intrinsics, up))
+            if p.level != 1:
+                self._air_gain *= np.float32(p.level)
+        self._dist_mu = self.distance + np.float32(p.illumination) if p.illumination else self.distance
         self._scatter = p.forward > 0 or p.glow > 0
         if self._scatter:
             f = max(1, int(math.ceil(w / WORK_WIDTH)))
@@ -255,9 +285,11 @@ class ScatterFogger:
         d = self._dist_small
         t = np.exp(d * np.float32(-beta))
         tf = np.exp(d * np.float32(-beta * (1.0 - p.forward)))
-        src = self._rgb_small * ((tf - t) * m)[..., None]
+        wt = (tf - t) * m
+        src = cv2.multiply(self._rgb_small, cv2.merge([wt, wt, wt]))  # OpenCV: numpy's broadcast is slower here
         if self._glow_small is not None:
-            src += self._glow_small * ((1.0 - t) * m * np.float32(p.glow))[..., None]
+            wg = (1.0 - t) * (m * np.float32(p.glow))
+            src += cv2.multiply(self._glow_small, cv2.merge([wg, wg, wg]))
         sigma = psf_sigma_rad(np.where(np.isinf(d), np.float32(0.0), d * np.float32(beta)), p.spread) * self._f_small
         return splat(src, sigma)
 
@@ -285,32 +317,39 @@ class ScatterFogger:
         planes = self._scattered_planes(beta)
         return None if planes is None else cv2.merge(planes)
 
+    def _exp(self, distance: np.ndarray, beta: float, name: str) -> np.ndarray:
+        """e^(−β·distance) into the work plane ``name`` (OpenCV's exp: ≈ 2e-7 relative to numpy's)."""
+        buf = np.multiply(distance, np.float32(-beta), out=self._buffer(name))
+        return cv2.exp(buf, dst=buf)
+
     def _blend_planes(self, beta: float) -> list[np.ndarray]:
-        """The fogged colour planes for β (work buffers: valid until the next call)."""
+        """The fogged colour planes for β (work buffers: valid until the next call):
+        m·t·I + air·A + PSF term, per plane in two passes (scale-add, multiply-accumulate)."""
         p = self.params
         if beta == 0:
             return [q.copy() for q in self._planes]
-        t = np.exp(np.multiply(self.distance, np.float32(-beta), out=self._buffer("t")), out=self._buffer("t"))
-        air = self._buffer("air")
-        if p.forward == 0:
-            np.subtract(np.float32(1.0), t, out=air)
+        mt = self._exp(self._dist_mu, beta, "t")               # m·t
+        if p.forward == 0 and not p.illumination:
+            tf = mt
         else:
-            tf = np.multiply(self.distance, np.float32(-beta * (1.0 - p.forward)), out=air)
-            np.subtract(np.float32(1.0), np.exp(tf, out=tf), out=air)
-        if self._sky_gain is not None:
-            air *= self._sky_gain
-        if p.level != 1:
-            air *= np.float32(p.level)
-        m = math.exp(-p.illumination * beta)
-        if m != 1:
-            t *= np.float32(m)  # now the direct term's factor m·t
+            tf = self._exp(self.distance, beta * (1.0 - p.forward), "air")
+        air = self._buffer("air")
+        if self._air_gain is not None:                          # a·e^(c·sin θ)·(1 − t_f)
+            np.multiply(tf, self._air_gain, out=air)
+            np.subtract(self._air_gain, air, out=air)
+        else:
+            np.subtract(np.float32(1.0), tf, out=air)
+            if p.level != 1:
+                air *= np.float32(p.level)
         s = self._scattered_planes(beta)
-        tmp, out = self._buffer("tmp"), []
+        out = []
         for c, (q, a) in enumerate(zip(self._planes, self._a)):
-            o = np.multiply(q, t, out=self._buffer(f"o{c}"))
-            o += np.multiply(air, np.float32(a), out=tmp)
+            o = self._buffer(f"o{c}")
             if s is not None:
-                o += s[c]
+                cv2.scaleAdd(air, a, s[c], dst=o)
+            else:
+                np.multiply(air, np.float32(a), out=o)
+            cv2.accumulateProduct(q, mt, o)
             out.append(o)
         return out
 

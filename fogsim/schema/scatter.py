@@ -27,12 +27,27 @@ class ScatterParameters(Closed):
     glow_threshold: number_in(0, 1, lo_open=True) = 0.9  # linear luminance where saturation begins
 
 
-class FittedOn(Closed):
-    """What the parameters were fitted on."""
+class FitRun(Closed):
+    """One ``fogsim bench fog-physics`` folder the parameters were fitted on."""
 
+    folder: Text = ""
+    preset: Text = ""
+    style: Text = ""
+    seed: Int | None = None
+    time_of_day: Text = ""
+    frames: int_in(0) = 0
+    resolution: Text = ""
+    samples: int_in(0) = 0
+
+
+class FittedOn(Closed):
+    """What the parameters were fitted on (``runs``: each folder; the lists: their union)."""
+
+    runs: list[FitRun] = []
     presets: list[Text] = []
     styles: list[Text] = []
     seeds: list[Int] = []
+    times_of_day: list[Text] = []
     frames: int_in(0) = 0
     betas: list[Number] = []
     resolution: Text = ""
@@ -53,4 +68,4 @@ class ScatterParamsFile(Closed):
     note: Text = ""
 
 
-__all__ = ["SCATTER_PARAMS_VERSION", "FittedOn", "ScatterParameters", "ScatterParamsFile"]
+__all__ = ["SCATTER_PARAMS_VERSION", "FitRun", "FittedOn", "ScatterParameters", "ScatterParamsFile"]
