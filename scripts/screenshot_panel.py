@@ -4,7 +4,7 @@
     python scripts/screenshot_panel.py [--out docs/addon_panel.png]
 
 Starts Xvfb, runs ``blender`` with the add-on registered from this checkout, builds frame 0
-of the default preset in the viewport, runs *Preview fog* into an Image Editor beside it, opens
+of the default preset in the viewport, runs *Preview fog* (sky: the *sunset* HDRI) into an Image Editor beside it, opens
 the fogsim sidebar tab (xdotool clicks it: Blender 3.x has no API for that) and saves a screenshot.
 Needs: apt-get install blender xvfb xdotool (and Mesa's software OpenGL, libgl1-mesa-dri).
 """
@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-TAB_XY = (1308, 201)  # the "fogsim" sidebar tab in a 1600×900 factory-startup Blender 3.4 window
+TAB_XY = (1308, 201)  # the "fogsim" sidebar tab in a 1600×1000 factory-startup Blender 3.4 window
 SIDEBAR_EDGE_XY = (1102, 450)  # the sidebar's left edge there
 
 DRIVER = r'''
@@ -42,6 +42,7 @@ def setup():
     s = bpy.context.scene.fogsim
     s.preset, s.resolution, s.samples, s.frames, s.frame = "default", "640x426", 16, 8, 0
     s.levels_kind, s.levels, s.preview_beta = "visibility", "300,150,75,40", 0.04
+    s.sky, s.hdri = "hdri", "sunset"  # the preview under Blender's sunset HDRI
     s.output = "/tmp/fogsim_dataset"
     screen = bpy.context.window.screen
     view = next(a for a in screen.areas if a.type == "VIEW_3D")
@@ -102,7 +103,7 @@ def _wait_for(path: Path, proc: subprocess.Popen, timeout_s: float) -> bool:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=str(ROOT / "docs" / "addon_panel.png"))
-    ap.add_argument("--size", default="1600x900")
+    ap.add_argument("--size", default="1600x1000")
     args = ap.parse_args()
     for tool in ("blender", "Xvfb"):
         if shutil.which(tool) is None:
