@@ -20,7 +20,7 @@ for site in sorted((ROOT / ".venv" / "lib").glob("python3*/site-packages")):
 import bpy  # noqa: E402
 
 import blender_addon  # noqa: E402
-from fogsim.render.blender import addon  # noqa: E402
+from fogsim.render.blender import addon, panel_options  # noqa: E402
 from fogsim.render.blender.scene_mode import open_blend  # noqa: E402
 
 args = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
@@ -40,7 +40,7 @@ def call(op):
 
 def config_error(s) -> str | None:
     try:
-        addon._config(s)
+        panel_options.config(s)
     except Exception as exc:  # what the operators turn into a panel message
         return addon._problem(exc)
     return None
@@ -56,18 +56,18 @@ def settings(**values):
 
 # ---- preset source: Sky and Assets reach the RenderConfig
 s = settings(sky="hdri", hdri="sunset")
-r["hdri_name"] = addon._config(s).lighting
+r["hdri_name"] = panel_options.config(s).lighting
 (out / "sky.hdr").write_bytes(b"#?RADIANCE\n")  # only its existence is checked before a render
 s.hdri, s.hdri_file = "FILE", str(out / "sky.hdr")
-r["hdri_file"] = addon._config(s).lighting
+r["hdri_file"] = panel_options.config(s).lighting
 s.sky = "overcast"
-r["overcast"] = addon._config(s).lighting
+r["overcast"] = panel_options.config(s).lighting
 s.preset, s.sky = "hdri", "procedural"
-r["procedural_over_hdri_preset"] = addon._config(s).lighting
+r["procedural_over_hdri_preset"] = panel_options.config(s).lighting
 s.sky = "PRESET"
-r["hdri_preset"] = addon._config(s).lighting.get("sky")
+r["hdri_preset"] = panel_options.config(s).lighting.get("sky")
 s.preset, s.assets = "default", str(library)
-r["assets"] = {k: sorted(Path(p).name for p in v) for k, v in addon._config(s).assets["files"].items()}
+r["assets"] = {k: sorted(Path(p).name for p in v) for k, v in panel_options.config(s).assets["files"].items()}
 
 # ---- preset source: refusals become panel messages
 s = settings(sky="hdri", hdri="FILE", hdri_file=str(out / "missing.exr"))
@@ -114,7 +114,7 @@ blend_before = digest(blend)
 before = state()
 s = settings(source="SCENE", camera="Camera", frame_range="1:3:2", levels_kind="visibility", levels="100,50",
              fog_model="koschmieder", output=str(out / "probe"))
-job = addon._scene_job(s, scene)
+job = panel_options.scene_job(s, scene)
 try:
     r["job"] = {"frames": list(job.frames), "levels": [lv.key for lv in job.config.levels],
                 "camera": job.camera.name, "resolution": list(job.config.resolution), "seed": job.config.seed,

@@ -15,8 +15,10 @@ from __future__ import annotations
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
+from fogsim.render.blender.panel_options import config as _config
+from fogsim.render.blender.panel_options import scene_job as _scene_job
 from fogsim.scene.classes import LABELLED
-from fogsim.schema.presets import HDRI_SUFFIXES, WORLD_HDRIS
+from fogsim.schema.presets import WORLD_HDRIS
 
 _state = {"built": None, "job": None, "loop": None, "timer": None, "cancel": False, "preview": None}
 CLASS_PROPERTY = "fogsim_class"  # the custom property scene mode reads an object's class from
@@ -92,82 +94,6 @@ class FogsimSettings(bpy.types.PropertyGroup):
                                + [("NONE", "(background)", "Remove fogsim_class: the object becomes background")])
     progress: IntProperty(name="Progress", default=0, min=0, max=100, subtype="PERCENTAGE")
     status: StringProperty(name="Status", default="")
-
-
-def _config(s: FogsimSettings, frames: int | None = None):
-    """The panel's preset with its overrides, checked (a ValueError or InputError names the problem)."""
-    from dataclasses import replace
-
-    from fogsim.fog.levels import parse_levels
-    from fogsim.render.preset import load_render_preset
-
-    volumetric = s.fog_model == "volumetric"
-    config = load_render_preset(
-        s.preset, frames=frames, seed=s.seed, resolution=s.resolution or None, samples=s.samples or None,
-        levels=s.levels if s.levels_kind == "beta" else None,
-        fog=None if s.fog_model == "PRESET" else s.fog_model,
-        fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None,
-        assets=bpy.path.abspath(s.assets) if s.assets.strip() else None)
-    if s.levels_kind == "visibility":
-        config = replace(config, levels=tuple(parse_levels(visibility=s.levels or "-")))
-    lighting = _lighting(s, config.lighting)
-    if lighting is not None:
-        config = replace(config, lighting=lighting)
-    return config
-
-
-def _lighting(s: FogsimSettings, preset_lighting: dict) -> dict | None:
-    """The checked ``lighting`` of the panel's *Time of day* and *Sky* (None: the preset's)."""
-    from fogsim.render.preset import check_lighting
-
-    if s.sky == "PRESET":
-        return None if s.time_of_day == "PRESET" else check_lighting({"time_of_day": s.time_of_day})
-    night = s.time_of_day if s.time_of_day != "PRESET" else (preset_lighting or {}).get("time_of_day")
-    if night == "night":
-        raise ValueError(f"Sky {s.sky!r} is a day sky: set Time of day to Day (the night has its own sky and lights)")
-    sky = {"sky": "hdri", "hdri": _hdri(s)} if s.sky == "hdri" else {"overcast": True} if s.sky == "overcast" else {}
-    return check_lighting({"time_of_day": "day", **sky})
-
-
-def _hdri(s: FogsimSettings) -> str:
-    """The panel's HDRI: a Blender world HDRI name (its file checked) or an absolute file path."""
-    from pathlib import Path
-
-    from fogsim.errors import InputError
-    from fogsim.render.blender.sky import blender_hdri
-
-    if s.hdri != "FILE":
-        if not blender_hdri(s.hdri).is_file():
-            raise InputError(blender_hdri(s.hdri), f"HDRI {s.hdri!r}: this Blender does not ship it")
-        return s.hdri
-    if not s.hdri_file.strip():
-        raise ValueError("HDRI file: choose an .exr or .hdr file")
-    path = Path(bpy.path.abspath(s.hdri_file)).expanduser()
-    if path.suffix.lower() not in HDRI_SUFFIXES:
-        raise InputError(path, f"HDRI file: must be {' or '.join(HDRI_SUFFIXES)}")
-    if not path.is_file():
-        raise InputError(path, "HDRI file: no such file")
-    return str(path.resolve())
-
-
-def _scene_job(s: FogsimSettings, scene):
-    """*Source: current scene*: a scene-mode job over ``scene`` with the panel's options (refusals
-    are InputErrors raised before the output folder is touched)."""
-    from fogsim.fog.levels import parse_levels
-    from fogsim.render.blender.scene_mode import scene_job
-    from fogsim.render.scene_classes import load_class_map
-
-    text = s.class_map.strip()
-    class_map = load_class_map(text if text.startswith("{") or not text else bpy.path.abspath(text))
-    levels = {"beta": s.levels, "visibility": None}.get(s.levels_kind)
-    if s.levels_kind == "visibility":
-        levels = parse_levels(visibility=s.levels or "-")
-    volumetric = s.fog_model == "volumetric"
-    return scene_job(scene, bpy.path.abspath(s.output), camera=s.camera or None, frame_range=s.frame_range or None,
-                     class_map=class_map, levels=levels, samples=s.samples or None,
-                     resolution=s.resolution or None, seed=s.seed, gpu=s.use_gpu, quiet=True,
-                     fog=None if s.fog_model == "PRESET" else s.fog_model,
-                     fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None)
 
 
 def _fail(op, s, message: str):
