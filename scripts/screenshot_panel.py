@@ -4,8 +4,9 @@
     python scripts/screenshot_panel.py [--out docs/addon_panel.png]
 
 Starts Xvfb, runs ``blender`` with the add-on registered from this checkout, builds frame 0
-of the default preset in the viewport, runs *Preview fog* (sky: the *sunset* HDRI) into an Image Editor beside it, opens
-the fogsim sidebar tab (xdotool clicks it: Blender 3.x has no API for that) and saves a screenshot.
+of the default preset in the viewport, runs *Preview fog* (sky: the *sunset* HDRI) into an Image
+Editor beside it, opens the fogsim sidebar tab (xdotool clicks it: Blender 3.x has no API for
+that) and saves a screenshot.
 Needs: apt-get install blender xvfb xdotool (and Mesa's software OpenGL, libgl1-mesa-dri).
 """
 from __future__ import annotations
