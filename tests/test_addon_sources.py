@@ -51,7 +51,8 @@ def test_addon_sources_sky_assets_and_panel_errors(tmp_path):
     # refusals: Blender's report (a RuntimeError for a script caller) and the panel's status line
     for key, text in (("missing_hdri", "HDRI file: no such file"), ("night_sky", "is a day sky"),
                       ("bad_assets", "--assets: not a folder"), ("no_camera", "no camera object named 'NoSuchCamera'"),
-                      ("unlabelled", "no labelled object in scene 'Scene' at frame 1")):
+                      ("unlabelled", "no labelled object in scene 'Scene' at frame 1"),
+                      ("built_street", "press Clear scene first")):
         (result, report), status = r[key]
         assert result is None and text in report, (key, report)
         assert status.startswith("error: ") and text in status, (key, status)

@@ -131,6 +131,11 @@ r["blend_untouched"] = digest(blend) == blend_before
 r["is_dirty"] = bpy.data.is_dirty
 s = settings(source="SCENE", camera="NoSuchCamera", output=str(out / "no_camera"))
 r["no_camera"] = call(bpy.ops.fogsim.render_dataset), s.status
+s = settings(source="PRESET", frame=0)
+bpy.ops.fogsim.build_scene()  # a procedural street in the user's scene, then Source: current scene
+s = settings(source="SCENE", camera="Camera", output=str(out / "built_ds"))
+r["built_street"] = call(bpy.ops.fogsim.render_dataset), s.status
+bpy.ops.fogsim.clear_scene()
 
 scene = open_blend(unlabelled, quiet=True)
 s = settings(source="SCENE", output=str(out / "unlabelled_ds"))

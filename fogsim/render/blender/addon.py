@@ -176,6 +176,9 @@ class FOGSIM_OT_render_dataset(bpy.types.Operator):
             return {"CANCELLED"}
         try:
             if s.source == "SCENE":
+                if _state["built"] is not None:  # its procedural street would be labelled as the user's
+                    return _fail(self, s, "the scene holds a street built by fogsim (Build scene): "
+                                          "press Clear scene first, then render the current scene")
                 job = _scene_job(s, context.scene)
             else:
                 job = RenderJob(_config(s, frames=s.frames), bpy.path.abspath(s.output), gpu=s.use_gpu)
