@@ -104,6 +104,13 @@ KOSCHMIEDER = ScatterParams()
 TERMS = ("forward", "illumination", "level", "fade", "elevation", "glow")
 
 
+@lru_cache(maxsize=4)
+def _code_table(dtype) -> np.ndarray:
+    """Linear light of every code value of an integer dtype (the table :func:`decode_codes` uses)."""
+    top = int(full_scale(dtype))
+    return decode_codes(np.arange(top + 1, dtype=np.uint8 if top == 255 else np.uint16))
+
+
 def shipped_params_path() -> Path:
     return Path(str(resources.files("fogsim.fog").joinpath(PARAMS_FILE)))
 
@@ -271,18 +278,31 @@ class ScatterFogger:
             self._dist_small = cv2.resize(self.distance, self._small, interpolation=cv2.INTER_NEAREST)
             self._glow_small = None
             if p.glow > 0:
-                if space == "linear":
-                    lin = rgb
-                elif image.dtype in (np.uint8, np.uint16):
-                    lin = cv2.merge([decode_codes(np.ascontiguousarray(image[:, :, c])) for c in range(3)])
-                else:
-                    lin = srgb_to_linear(rgb)
-                lum = cv2.transform(lin, np.array([LUMINANCE_WEIGHTS], np.float32))  # H×W linear luminance
-                thr = float(p.glow_threshold)
-                sat = cv2.min(cv2.max(cv2.multiply(cv2.subtract(lum, thr), 1.0 / max(1e-3, 1.0 - thr)), 0.0), 1.0)
-                sat[np.isinf(self.distance)] = 0.0  # the sky is not a lamp
-                self._glow_small = cv2.resize(cv2.multiply(rgb, cv2.merge([sat, sat, sat])), self._small,
-                                              interpolation=cv2.INTER_AREA)
+                self._glow_small = self._glow_source(image, rgb, p.glow_threshold)
+
+    def _glow_source(self, image: np.ndarray, rgb: np.ndarray, threshold: float) -> np.ndarray:
+        """The saturated pixels' light, rgb × s with s = clip((Y − thr)/(1 − thr), 0, 1) from the linear
+        luminance Y (sky excluded), reduced to the PSF's copy. Only pixels whose green alone could reach
+        the threshold (Y ≤ G·w_G + w_R + w_B) are decoded: lamps are few."""
+        w_r, w_g, w_b = LUMINANCE_WEIGHTS
+        g_min = max(0.0, (threshold - w_r - w_b) / w_g)
+        green = image[:, :, 1]
+        if image.dtype in (np.uint8, np.uint16):
+            candidates = green >= np.searchsorted(_code_table(np.dtype(image.dtype)), g_min)  # first code ≥ g_min
+        else:
+            g = green.astype(np.float32) / np.float32(full_scale(image.dtype))
+            candidates = srgb_to_linear(g) >= g_min
+        candidates &= np.isfinite(self.distance)                          # the sky is not a lamp
+        ys, xs = np.nonzero(candidates)
+        src = np.zeros_like(rgb)
+        if ys.size:
+            px = image[ys, xs]
+            lin = _code_table(np.dtype(image.dtype))[px] if image.dtype in (np.uint8, np.uint16) \
+                else srgb_to_linear(px.astype(np.float32) / np.float32(full_scale(image.dtype)))
+            lum = lin @ np.array(LUMINANCE_WEIGHTS, np.float32)
+            sat = np.clip((lum - np.float32(threshold)) / np.float32(max(1e-3, 1.0 - threshold)), 0.0, 1.0)
+            src[ys, xs] = rgb[ys, xs] * sat[:, None]
+        return cv2.resize(src, self._small, interpolation=cv2.INTER_AREA)
 
     def _scattered_small(self, beta: float) -> np.ndarray | None:
         p = self.params
