@@ -263,3 +263,77 @@ def test_fit_fog_and_the_bench_column_on_fog_physics_runs(bench_dir, tmp_path, c
     assert load_params(out) == ScatterParams(**doc.parameters.model_dump())
     result = analyse(bench_dir)
     assert "scatter" in result["models"] and "| scatter |" in (bench_dir / "report" / "fog_physics.md").read_text()
+
+
+def test_shipped_parameters_are_fitted_and_say_on_what():
+    """The shipped file is the output of ``fogsim fit-fog`` on rendered frames: every term it fits
+    is recorded with the scenes, seeds, β and resolution it was fitted on."""
+    doc = load_params_file()
+    fit = doc.fitted_on
+    assert "PLACEHOLDER" not in shipped_params_path().read_text() and "not fitted" not in doc.note
+    assert fit.frames >= 2 and fit.runs and fit.styles and fit.seeds and fit.resolution
+    assert set(fit.betas) == {0.03, 0.06, 0.09, 0.12} and fit.samples > 0 and "day" in fit.times_of_day
+    for run in fit.runs:
+        assert run.style and run.seed is not None and run.frames >= 1 and run.time_of_day in ("day", "night")
+    assert fit.after < fit.before  # the fit beats Koschmieder on what it was fitted on
+    p = load_params()
+    assert p.forward > 0 and p.spread > 0 and p != KOSCHMIEDER
+
+
+def test_fade_scales_the_airlight_by_exp_minus_lambda_beta():
+    img, ray = street()
+    base = ScatterParams(level=0.8)
+    for beta in (0.03, 0.12):
+        plain = ScatterFogger(img, ray, 255, "linear", base, K).blend(beta)
+        faded = ScatterFogger(img, ray, 255, "linear", ScatterParams(level=0.8, fade=5.0), K).blend(beta)
+        t = np.exp(-beta * ray)[..., None]
+        lin = ScatterFogger(img, ray, 255, "linear", base, K).blend(0.0)  # the image in linear light
+        air_plain, air_faded = plain - lin * t, faded - lin * t
+        assert np.allclose(air_faded, air_plain * math.exp(-5.0 * beta), atol=1e-5)
+
+
+def test_splat_on_reduced_copies_matches_full_size_layers():
+    """Wide PSF layers are blurred on reduced copies: the light's sum is kept exactly and the
+    result stays within 2 % of the source's peak of the full-size layers (the tolerance docs/speed.md states)."""
+    import fogsim.fog.scatter as S
+
+    rng = np.random.default_rng(3)
+    src = rng.uniform(0, 1, (80, 120, 3)).astype(np.float32)
+    sigma = np.tile(np.geomspace(1.0, 60.0, 120, dtype=np.float32), (80, 1))
+    fast = splat(src, sigma)
+    old = S.REDUCE_ABOVE
+    try:
+        S.REDUCE_ABOVE = 1e9  # every layer at full size
+        full = splat(src, sigma)
+    finally:
+        S.REDUCE_ABOVE = old
+    assert fast.sum(axis=(0, 1)) == pytest.approx(full.sum(axis=(0, 1)), rel=1e-4)
+    assert np.abs(fast - full).max() < 0.02 * float(src.max())
+
+
+def test_bench_fog_has_the_scatter_rows_and_their_ratio(capsys):
+    from fogsim.cli import main
+
+    assert main(["bench", "fog", "--repeat", "1", "--size", "96x64"]) == 0
+    out = capsys.readouterr().out
+    assert "scatter, sRGB blend" in out and "scatter, linear blend" in out
+    assert "scatter ≤ 3× Koschmieder (sRGB)" in out
+    last = out.strip().splitlines()[-1]
+    assert last.startswith("bench fog:") and "× Koschmieder per level (sRGB" in last
+
+
+def test_fog_physics_pools_folders_and_reports_the_targets(bench_dir, tmp_path):  # noqa: F811
+    import shutil
+
+    from fogsim.bench.fog_physics import analyse
+    from fogsim.bench.fog_physics_report import target_summary
+
+    other = tmp_path / "other"
+    shutil.copytree(bench_dir, other, ignore=shutil.ignore_patterns("report"))
+    result = analyse(bench_dir, pool=[other])
+    assert len(result["frames"]) == 2 and result["frames"][0].startswith(bench_dir.name + "-")
+    assert result["pooled_folders"] == [str(bench_dir), str(other)]
+    rows = target_summary(result)
+    assert [r["beta"] for r in rows] == [0.06, 0.12] and result["targets"] == rows
+    assert all({"normalised", "far", "contrast", "rms_met", "contrast_met"} <= set(r) for r in rows)
+    assert "Scatter against Koschmieder" in (bench_dir / "report" / "fog_physics.md").read_text()

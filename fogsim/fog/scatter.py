@@ -4,7 +4,7 @@ path-traced fog (``fogsim fit-fog``; parameters shipped in ``scatter_params.json
 
 Per pixel x with ray distance ℓ (m), extinction β (1/m), optical depth T = βℓ:
 
-    I_fog = m·I·t  +  PSF ⊛ [ m·I·(t_f − t) + G·s·m·I·(1 − t) ]  +  a·A·e^(c·sin θ)·(1 − t_f)
+    I_fog = m·I·t  +  PSF ⊛ [ m·I·(t_f − t) + G·s·m·I·(1 − t) ]  +  a·e^(−λβ)·A·e^(c·sin θ)·(1 − t_f)
 
 * t = e^(−βℓ): the light that reaches the camera unscattered (Koschmieder's transmission);
 * t_f = e^(−β(1−k)ℓ): light that is unscattered *or* scattered into the forward peak of the
@@ -16,15 +16,16 @@ Per pixel x with ray distance ℓ (m), extinction β (1/m), optical depth T = β
   Nayar's APSF covers for T ≲ 1–2), splatted from each source pixel with *its own* width
   (energy conserving: every source pixel's light is spread, not gathered);
 * m = e^(−μβ): objects in fog are lit by the fog's diffuse light, not by the clear sky;
-* a·A·e^(c·sin θ): the airlight in units of the horizon radiance A (the ``airlight`` argument:
-  what the camera's exposure puts at the lowest sky) — a level a (the fog between camera and
-  scene is not the sky seen through all of it) that brightens with the viewing elevation θ, as
-  the path to the top of the fog layer, which is lit from above, gets shorter;
+* a·e^(−λβ)·A·e^(c·sin θ): the airlight in units of the horizon radiance A (the ``airlight``
+  argument: what the camera's exposure puts at the lowest sky) — a level a (the fog between
+  camera and scene is not the sky seen through all of it) that fades with β as the fog layer's
+  light from above is itself attenuated (λ, m; empirical), and brightens with the viewing
+  elevation θ, as the path to the top of the fog layer, which is lit from above, gets shorter;
 * glow: pixels that are saturated in the clear image (linear luminance above the threshold,
   s ∈ [0, 1]) stand for sources far brighter than white; their light is scattered by the same
   PSF with a gain G, so lamps and headlights glow.
 
-With k = 0, μ = 0, a = 1, c = 0 and G = 0 the model is Koschmieder's law exactly (the same blend as
+With k = 0, μ = 0, a = 1, λ = 0, c = 0 and G = 0 the model is Koschmieder's law exactly (the same blend as
 :class:`fogsim.fog.model.Fogger`). ``space="linear"`` (the default here, physically right)
 blends linear light; ``"srgb"`` blends the stored values as the paper does. Distances as in
 :mod:`fogsim.fog.model` (ray distance, +inf = sky), airlight in 8-bit units, images uint8 /
@@ -73,8 +74,8 @@ class ScatterParams:
     """The model's parameters (see the module docstring). All zero but ``spread``: Koschmieder.
 
     ``forward`` k ∈ [0, 1): share of β scattered into the forward peak; ``spread`` ρ (rad²):
-    σ_θ² = ρ·βℓ; ``illumination`` μ (m): m = e^(−μβ); ``level`` a and ``elevation`` c: airlight
-    a·A·e^(c·sin θ);
+    σ_θ² = ρ·βℓ; ``illumination`` μ (m): m = e^(−μβ); ``level`` a, ``fade`` λ (m) and
+    ``elevation`` c: airlight a·e^(−λβ)·A·e^(c·sin θ);
     ``glow`` G ≥ 0 and ``glow_threshold`` (linear luminance in (0, 1]) for saturated sources.
     """
 
@@ -82,6 +83,7 @@ class ScatterParams:
     spread: float = 0.1
     illumination: float = 0.0
     level: float = 1.0
+    fade: float = 0.0
     elevation: float = 0.0
     glow: float = 0.0
     glow_threshold: float = 0.9
@@ -90,7 +92,8 @@ class ScatterParams:
         check(asdict(self), ScatterParameters)  # the one place for the ranges (ValueError naming the key)
 
     def without(self, *terms: str) -> "ScatterParams":
-        """A copy with terms switched off: ``forward``, ``illumination``, ``level``, ``elevation``, ``glow``."""
+        """A copy with terms switched off: ``forward``, ``illumination``, ``level``, ``fade``, ``elevation``,
+        ``glow``."""
         return replace(self, **{t: 1.0 if t == "level" else 0.0 for t in terms})
 
     def to_dict(self) -> dict:
@@ -98,7 +101,14 @@ class ScatterParams:
 
 
 KOSCHMIEDER = ScatterParams()
-TERMS = ("forward", "illumination", "level", "elevation", "glow")
+TERMS = ("forward", "illumination", "level", "fade", "elevation", "glow")
+
+
+@lru_cache(maxsize=4)
+def _code_table(dtype) -> np.ndarray:
+    """Linear light of every code value of an integer dtype (the table :func:`decode_codes` uses)."""
+    top = int(full_scale(dtype))
+    return decode_codes(np.arange(top + 1, dtype=np.uint8 if top == 255 else np.uint16))
 
 
 def shipped_params_path() -> Path:
@@ -141,12 +151,12 @@ def elevation_sine(shape: tuple[int, int], intrinsics: Intrinsics | None, up=Non
     h, w = shape
     K = intrinsics.scaled(w, h) if intrinsics is not None and (intrinsics.width, intrinsics.height) != (w, h) \
         else intrinsics or Intrinsics.from_hfov(DEFAULT_HFOV_DEG, w, h)
-    y = (np.arange(h, dtype=np.float64) + 0.5 - K.cy) / K.fy   # image y down
-    x = (np.arange(w, dtype=np.float64) + 0.5 - K.cx) / K.fx
-    ux, uy, uz = LEVEL_UP if up is None else up
-    dot = ux * x[None, :] + uy * y[:, None] + uz                 # camera ray (x, y, 1) · up
-    norm = np.sqrt(x[None, :] ** 2 + y[:, None] ** 2 + 1.0)
-    return (dot / norm).astype(np.float32)
+    y = ((np.arange(h, dtype=np.float64) + 0.5 - K.cy) / K.fy).astype(np.float32)   # image y down
+    x = ((np.arange(w, dtype=np.float64) + 0.5 - K.cx) / K.fx).astype(np.float32)
+    ux, uy, uz = (np.float32(v) for v in (LEVEL_UP if up is None else up))
+    dot = (ux * x)[None, :] + (uy * y + uz)[:, None]              # camera ray (x, y, 1) · up
+    norm = np.sqrt((x * x)[None, :] + (y * y + np.float32(1.0))[:, None])
+    return np.divide(dot, norm, out=dot)
 
 
 def focal_px(shape: tuple[int, int], intrinsics: Intrinsics | None) -> float:
@@ -252,13 +262,11 @@ class ScatterFogger:
         self._a = [float(v) for v in a]
         self._planes = planes  # colour planes in the blend space, 0–1 (contiguous: fast elementwise work)
         self._buffers: dict[str, np.ndarray] = {}
-        # β-independent parts of the blend: the airlight's gain a·e^(c·sin θ) (None: 1) and ℓ + μ,
+        # β-independent parts of the blend: the airlight's gain e^(c·sin θ) (None: 1) and ℓ + μ,
         # so that the direct term's factor m·t = e^(−β(ℓ + μ)) is one exponential
         self._air_gain = None
         if p.elevation:
             self._air_gain = np.exp(np.float32(p.elevation) * elevation_sine((h, w), intrinsics, up))
-            if p.level != 1:
-                self._air_gain *= np.float32(p.level)
         self._dist_mu = self.distance + np.float32(p.illumination) if p.illumination else self.distance
         self._scatter = p.forward > 0 or p.glow > 0
         if self._scatter:
@@ -270,12 +278,31 @@ class ScatterFogger:
             self._dist_small = cv2.resize(self.distance, self._small, interpolation=cv2.INTER_NEAREST)
             self._glow_small = None
             if p.glow > 0:
-                lin = planes if space == "linear" else [srgb_to_linear(q) for q in planes]
-                lum = sum(q * np.float32(wt) for q, wt in zip(lin, LUMINANCE_WEIGHTS))
-                thr = np.float32(p.glow_threshold)
-                sat = np.clip((lum - thr) / max(np.float32(1e-3), 1 - thr), 0.0, 1.0)
-                sat[np.isinf(self.distance)] = 0.0  # the sky is not a lamp
-                self._glow_small = cv2.resize(rgb * sat[..., None], self._small, interpolation=cv2.INTER_AREA)
+                self._glow_small = self._glow_source(image, rgb, p.glow_threshold)
+
+    def _glow_source(self, image: np.ndarray, rgb: np.ndarray, threshold: float) -> np.ndarray:
+        """The saturated pixels' light, rgb × s with s = clip((Y − thr)/(1 − thr), 0, 1) from the linear
+        luminance Y (sky excluded), reduced to the PSF's copy. Only pixels whose green alone could reach
+        the threshold (Y ≤ G·w_G + w_R + w_B) are decoded: lamps are few."""
+        w_r, w_g, w_b = LUMINANCE_WEIGHTS
+        g_min = max(0.0, (threshold - w_r - w_b) / w_g)
+        green = image[:, :, 1]
+        if image.dtype in (np.uint8, np.uint16):
+            candidates = green >= np.searchsorted(_code_table(np.dtype(image.dtype)), g_min)  # first code ≥ g_min
+        else:
+            g = green.astype(np.float32) / np.float32(full_scale(image.dtype))
+            candidates = srgb_to_linear(g) >= g_min
+        candidates &= np.isfinite(self.distance)                          # the sky is not a lamp
+        ys, xs = np.nonzero(candidates)
+        src = np.zeros_like(rgb)
+        if ys.size:
+            px = image[ys, xs]
+            lin = _code_table(np.dtype(image.dtype))[px] if image.dtype in (np.uint8, np.uint16) \
+                else srgb_to_linear(px.astype(np.float32) / np.float32(full_scale(image.dtype)))
+            lum = lin @ np.array(LUMINANCE_WEIGHTS, np.float32)
+            sat = np.clip((lum - np.float32(threshold)) / np.float32(max(1e-3, 1.0 - threshold)), 0.0, 1.0)
+            src[ys, xs] = rgb[ys, xs] * sat[:, None]
+        return cv2.resize(src, self._small, interpolation=cv2.INTER_AREA)
 
     def _scattered_small(self, beta: float) -> np.ndarray | None:
         p = self.params
@@ -334,17 +361,17 @@ class ScatterFogger:
         else:
             tf = self._exp(self.distance, beta * (1.0 - p.forward), "air")
         air = self._buffer("air")
-        if self._air_gain is not None:                          # a·e^(c·sin θ)·(1 − t_f)
+        if self._air_gain is not None:                          # e^(c·sin θ)·(1 − t_f)
             np.multiply(tf, self._air_gain, out=air)
             np.subtract(self._air_gain, air, out=air)
         else:
             np.subtract(np.float32(1.0), tf, out=air)
-            if p.level != 1:
-                air *= np.float32(p.level)
+        level = p.level * math.exp(-p.fade * beta)              # a·e^(−λβ), with A in the scale-add below
         s = self._scattered_planes(beta)
         out = []
         for c, (q, a) in enumerate(zip(self._planes, self._a)):
             o = self._buffer(f"o{c}")
+            a = a * level
             if s is not None:
                 cv2.scaleAdd(air, a, s[c], dst=o)
             else:

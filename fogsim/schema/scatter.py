@@ -22,6 +22,7 @@ class ScatterParameters(Closed):
     spread: number_in(0, 10) = 0.1          # ρ (rad²): PSF angular variance per unit optical depth βℓ
     illumination: number_in(-100, 100) = 0.0  # μ (m): object radiance × exp(−μ·β) (fog-lit objects)
     level: number_in(0.05, 5) = 1.0          # a: the airlight of the scene, × the horizon radiance A
+    fade: number_in(-50, 50) = 0.0           # λ (m): the airlight × exp(−λ·β)
     elevation: number_in(-10, 10) = 0.0     # c: airlight × exp(c·sin θ), θ the viewing elevation
     glow: number_in(0, 1e4) = 0.0           # G: saturated pixels' scattered light × (1 + G)
     glow_threshold: number_in(0, 1, lo_open=True) = 0.9  # linear luminance where saturation begins
