@@ -15,6 +15,7 @@ from fogsim.augment.spec import parse_augment
 from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.fog.levels import visibility_from_beta
 from fogsim.fog.model import Kernel, koschmieder, koschmieder_extended
+from fogsim.fog.synthetic import demo_scene
 
 
 def scene(seed=0, n=None, h=48, w=72):
@@ -172,6 +173,8 @@ def test_torch_refuses_what_it_does_not_do():
         fog_batch(x, z[:, :, :4], 0.1)
     with pytest.raises(ValueError, match="NaN or negative"):
         fog_batch(x, -z, 0.1)
+    with pytest.raises(ValueError, match="Koschmieder's law only"):
+        fog_batch(x, z, 0.1, spec=FogSpec(model="scatter"))
 
 
 @pytest.mark.torch
@@ -273,3 +276,21 @@ def test_bench_augment_times_an_ultralytics_sample_with_and_without_fog(monkeypa
     monkeypatch.setattr(bench, "ULTRALYTICS_FRAMES", 2)
     ms = bench.ultralytics_ms(1)  # its frames must pass the frame-record schema the reader checks
     assert set(ms) == {"plain", "foggy", "depth read"} and all(v > 0 for v in ms.values())
+
+
+def test_scatter_model_is_the_scatter_function_and_refused_where_unsupported():
+    from fogsim.fog.scatter import scatter
+
+    rgb, depth, K = demo_scene(np.random.default_rng(3), 96, 64)
+    ray = planar_to_ray(depth, K)
+    spec = FogSpec(beta=0.06, model="scatter", intrinsics=K)
+    draw = spec.draw(np.random.default_rng(0), rgb.shape[:2])
+    out = apply_fog(rgb, ray, draw, spec)
+    assert np.array_equal(out, scatter(rgb, ray, 0.06, draw.airlight, spec.space, intrinsics=K))
+    assert not np.array_equal(out, apply_fog(rgb, ray, draw, FogSpec(beta=0.06)))  # not Koschmieder
+    assert np.array_equal(apply_fog(rgb, ray, FogSpec(beta=0.0).draw(np.random.default_rng(0)),
+                                    FogSpec(beta=0.0, model="scatter")), rgb)
+    with pytest.raises(ValueError, match="model must be one of"):
+        FogSpec(model="mie")
+    with pytest.raises(ValueError, match="no extended kernel or heterogeneity"):
+        FogSpec(model="scatter", heterogeneity=0.3)

@@ -28,6 +28,7 @@ from fogsim.schema.presets import SPACES
 
 DEPTH_KINDS = ("ray", "planar")
 SAMPLING = ("beta", "visibility")
+MODELS = ("koschmieder", "scatter")
 
 
 @dataclass(frozen=True)
@@ -53,6 +54,9 @@ class FogSpec:
     ``kernel``: None = standard law, a :class:`~fogsim.fog.model.Kernel` = extended form.
     ``heterogeneity``: amplitude a of a smooth density field (0 = homogeneous), patches of
     ``heterogeneity_scale`` pixels (:func:`~fogsim.fog.model.density_field`).
+    ``model``: ``"koschmieder"`` (default) or ``"scatter"`` — :func:`fogsim.fog.scatter.scatter`
+    (forward scatter, elevation airlight, glow; NumPy and albumentations only, no kernel or
+    heterogeneity), with the parameter file ``scatter_params`` (None = the shipped fitted one).
     """
 
     beta: tuple[float, float] | tuple[float, ...] = (0.0, 0.12)
@@ -66,6 +70,8 @@ class FogSpec:
     kernel: Kernel | None = None
     heterogeneity: float = 0.0
     heterogeneity_scale: float = 64.0
+    model: str = "koschmieder"
+    scatter_params: str | None = None
     is_list: bool = False  # set by __post_init__: beta is a list of values (not a range)
 
     def __post_init__(self):
@@ -94,6 +100,10 @@ class FogSpec:
             raise ValueError(f"space must be one of {', '.join(SPACES)}, got {self.space!r}")
         if self.heterogeneity:
             check_heterogeneity(self.heterogeneity, self.heterogeneity_scale)
+        if self.model not in MODELS:
+            raise ValueError(f"model must be one of {', '.join(MODELS)}, got {self.model!r}")
+        if self.model == "scatter" and (self.kernel is not None or self.heterogeneity):
+            raise ValueError("the scatter model has no extended kernel or heterogeneity")
         object.__setattr__(self, "beta", beta)
         object.__setattr__(self, "is_list", is_list)
 
@@ -140,6 +150,14 @@ def apply_fog(image: np.ndarray, depth: np.ndarray, draw: Draw, spec: FogSpec = 
     """The reference: fog ``image`` (H×W×3 uint8/uint16/float) with ``draw`` over ``depth``
     (see the module docstring); same dtype back. Channel order does not matter for grey airlight."""
     distance = spec.ray_distance(depth)
+    if spec.model == "scatter":
+        if draw.beta == 0:
+            return image.copy()
+        from fogsim.fog.scatter import load_params, scatter
+
+        camera = spec.camera(*distance.shape) if spec.intrinsics is not None or spec.hfov is not None else None
+        return scatter(image, distance, draw.beta, draw.airlight, spec.space, load_params(spec.scatter_params),
+                       camera)
     if spec.kernel is None:
         return koschmieder(image, distance, draw.beta, draw.airlight, spec.space, draw.density)
     return koschmieder_extended(image, distance, draw.beta, spec.kernel, draw.airlight, spec.space, draw.density)

@@ -76,6 +76,9 @@ def fog_batch(images, depth, beta, airlight=255.0, spec: FogSpec = FogSpec()):
         raise ValueError(f"depth must be B×1×H×W = {(n, 1, h, w)}, got {tuple(depth.shape)}")
     if spec.heterogeneity:
         raise ValueError("heterogeneity is NumPy-only (fogsim.augment.apply_fog)")
+    if spec.model != "koschmieder":
+        raise ValueError(f"the torch path has Koschmieder's law only, got model {spec.model!r} "
+                         "(fogsim.augment.apply_fog has the scatter model)")
     if spec.kernel is not None and spec.kernel.kind != "box":
         raise ValueError(f"the torch path has the box kernel only, got {spec.kernel.kind!r}")
     distance = ray_distance(depth.to(torch.float32), spec)
