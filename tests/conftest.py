@@ -40,6 +40,32 @@ def tree_digest(root: Path) -> str:
     return h.hexdigest()
 
 
+def run_hostile_case(case, tmp_path: Path, capsys) -> str:
+    """Run a hostile case's command line (``case.build(tmp_path)``, ``{tmp}`` = tmp_path) through
+    ``fogsim.cli.main`` in ``tmp_path``; check its exit code, no traceback, the expected texts and
+    that ``tmp_path/in`` (the inputs) is unchanged, and that nothing partial is left. Returns stderr."""
+    from fogsim.cli import main
+    from fogsim.fileio import PART_SUFFIX
+
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in case.build(tmp_path)]
+    capsys.readouterr()
+    before = tree_digest(tmp_path / "in")
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse's own usage errors
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == case.code, err
+    assert "Traceback" not in err
+    for text in case.says:
+        assert text.replace("{tmp}", str(tmp_path)) in err, err
+    assert tree_digest(tmp_path / "in") == before, "an input changed"
+    outputs = [p for p in tmp_path.rglob("*") if p.is_file() and p.relative_to(tmp_path).parts[0] != "in"]
+    left = list(tmp_path.rglob(f"*{PART_SUFFIX}")) + [p for p in outputs if p.stat().st_size == 0]
+    assert not left, f"partial files left: {left}"
+    return err
+
+
 @pytest.fixture
 def folder_dataset(tmp_path):
     """images/{a,sub/b}.png + depth/{a,sub/b}.exr (planar Z, sky inf) + K.json."""

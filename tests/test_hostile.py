@@ -16,10 +16,10 @@ from typing import Callable
 import numpy as np
 import pytest
 
-from conftest import tree_digest
+from conftest import run_hostile_case, tree_digest
 from fogsim.camera import Intrinsics, depth_to_disparity, encode_disparity_png
 from fogsim.cli import main
-from fogsim.fileio import PART_SUFFIX, write_depth, write_image
+from fogsim.fileio import write_depth, write_image
 
 
 # ----------------------------------------------------------------------------- inputs
@@ -264,22 +264,7 @@ def test_hostile_case(case: Case, tmp_path, capsys, monkeypatch):
     if case.id.startswith("ila-"):
         pytest.importorskip("torch")
     monkeypatch.chdir(tmp_path)  # a relative or empty --out lands here, never in the checkout
-    argv = [a.replace("{tmp}", str(tmp_path)) for a in case.build(tmp_path)]
-    capsys.readouterr()
-    before = tree_digest(tmp_path / "in")
-    try:
-        code = main(argv)
-    except SystemExit as exc:  # argparse's own usage errors
-        code = exc.code
-    err = capsys.readouterr().err
-    assert code == case.code, err
-    assert "Traceback" not in err
-    for text in case.says:
-        assert text.replace("{tmp}", str(tmp_path)) in err, err
-    assert tree_digest(tmp_path / "in") == before, "an input changed"
-    outputs = [p for p in tmp_path.rglob("*") if p.is_file() and p.relative_to(tmp_path).parts[0] != "in"]
-    left = [p for p in tmp_path.rglob(f"*{PART_SUFFIX}")] + [p for p in outputs if p.stat().st_size == 0]
-    assert not left, f"partial files left: {left}"
+    run_hostile_case(case, tmp_path, capsys)
     assert not (tmp_path / "PWNED").exists(), "a checkpoint ran code"
     if case.code == 2 and case.id != "out-holds-another-run":
         assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir()), "a usage error wrote output"

@@ -85,7 +85,7 @@ def load_library(assets: dict, quiet: bool = False) -> BlenderLibrary:
 
 def _model(file: str, cls: str, parts: list, assets: dict) -> LibraryModel:
     """Normalise ``parts`` in place (their matrices become part → asset frame) and size-check them."""
-    tris = [_triangles(mesh) for mesh, _ in parts]
+    tris = [mesh_triangles(mesh) for mesh, _ in parts]
     world = np.concatenate([v @ M[:3, :3].T + M[:3, 3] for (v, _), (_, M) in zip(tris, parts)])
     N = normalise(world, assets["forward"], assets["units"])
     local = world @ N[:3, :3].T + N[:3, 3]
@@ -99,14 +99,14 @@ def _model(file: str, cls: str, parts: list, assets: dict) -> LibraryModel:
     return LibraryModel(file, cls, vertices, faces, extent(vertices), scale)
 
 
-def _triangles(mesh) -> tuple[np.ndarray, np.ndarray]:
-    """A mesh's vertices (N×3, its own frame) and triangles (F×3)."""
+def mesh_triangles(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh's vertices (N×3 float64, its own frame) and triangles (F×3 int64)."""
     mesh.calc_loop_triangles()
-    v = np.empty(len(mesh.vertices) * 3, np.float32)
+    v = np.empty(len(mesh.vertices) * 3, np.float64)
     mesh.vertices.foreach_get("co", v)
-    f = np.empty(len(mesh.loop_triangles) * 3, np.int32)
+    f = np.empty(len(mesh.loop_triangles) * 3, np.int64)
     mesh.loop_triangles.foreach_get("vertices", f)
-    return v.reshape(-1, 3).astype(np.float64), f.reshape(-1, 3).astype(np.int64)
+    return v.reshape(-1, 3), f.reshape(-1, 3)
 
 
 def import_parts(file: str) -> list[tuple[object, np.ndarray]]:

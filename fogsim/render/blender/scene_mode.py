@@ -52,6 +52,7 @@ from fogsim.render.blender.compat import has_denoiser, has_mie_phase, set_multil
 from fogsim.render.blender.cycles import render
 from fogsim.render.blender.device import use_device
 from fogsim.render.blender.job import RUN_FILE, RenderJob, dataset_parameters
+from fogsim.render.blender.library import mesh_triangles
 from fogsim.render.blender.output import blender_output
 from fogsim.render.fog_settings import fog_overrides
 from fogsim.render.frame import DescribedFrame, commit_frame, frame_name
@@ -284,15 +285,6 @@ class Realised:
     skipped: Counter = field(default_factory=Counter)  # object types not rendered
 
 
-def _local_triangles(mesh) -> tuple[np.ndarray, np.ndarray]:
-    mesh.calc_loop_triangles()
-    v = np.empty(len(mesh.vertices) * 3, np.float64)
-    mesh.vertices.foreach_get("co", v)
-    f = np.empty(len(mesh.loop_triangles) * 3, np.int64)
-    mesh.loop_triangles.foreach_get("vertices", f)
-    return v.reshape(-1, 3), f.reshape(-1, 3)
-
-
 def _copy_visibility(src, dst, holdout: bool) -> None:
     for attr in ("visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
                  "visible_volume_scatter", "visible_shadow", "is_shadow_catcher", "is_holdout"):
@@ -343,7 +335,7 @@ def realise(user_scene, render_scene, classes: _Classes, camera) -> Realised:
                                                     "kind": KINDS[inst.is_instance], "blender_objects": []})
                 rec["blender_objects"].append(orig.name)
                 if meshes[mkey][1] is None:
-                    meshes[mkey] = (mesh, _local_triangles(mesh))
+                    meshes[mkey] = (mesh, mesh_triangles(mesh))
                 v, f = meshes[mkey][1]
                 M = np.array(matrix, dtype=np.float64)
                 out.parts.setdefault(oid, []).append((v @ M[:3, :3].T + M[:3, 3], f, ""))
