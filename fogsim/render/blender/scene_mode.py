@@ -8,8 +8,8 @@ The add-on's *Source: current scene* calls :func:`scene_job` (``scene_job(bpy.co
 :class:`~fogsim.render.blender.job.RenderJob`; :meth:`SceneJob.close` puts the scene back.
 
 Per frame the user's scene is set to that frame and its evaluated depsgraph walked
-(:func:`realise`): every visible geometry *instance* (plain objects, linked duplicates, collection
-instances, particle and geometry-nodes instances) becomes one realised mesh object — modifiers
+(:mod:`fogsim.render.blender.realise`): every visible geometry *instance* (plain objects, linked
+duplicates, collection instances, particle and geometry-nodes instances) becomes one realised mesh object — modifiers
 applied, the world matrix of that instance, its materials and ray-visibility flags — in a render
 scene, a copy of the user's scene (its render settings, world, view layer) whose own collection
 holds only those objects, its lights and its camera. An object's pass index is its fogsim id, so
@@ -24,7 +24,7 @@ of its children); a collection instance is one object per instancer (its class m
 instanced collection); particle and geometry-nodes instances are one object each.
 Hidden (``hide_render``, an excluded or render-disabled collection) objects are left out; holdout
 and camera-invisible objects render as Blender renders them and are never labelled.
-Blender's viewport evaluation is walked, made to see what a render sees (:func:`render_visibility`:
+Blender's viewport evaluation is walked, made to see what a render sees (``render_visibility``:
 objects hidden in viewports but not in renders shown, modifiers as in renders; put back after).
 Limits: viewport levels of subdivision and viewport particle amounts apply; volumes, point clouds
 and hair curves are not rendered; motion blur is turned off (the realised objects do not move
@@ -34,12 +34,9 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from contextlib import contextmanager
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import bpy
-import mathutils
 import numpy as np
 
 from fogsim.dataset.layout import DatasetLayout
@@ -52,23 +49,17 @@ from fogsim.render.blender.compat import has_denoiser, has_mie_phase, set_multil
 from fogsim.render.blender.cycles import render
 from fogsim.render.blender.device import use_device
 from fogsim.render.blender.job import RUN_FILE, RenderJob, dataset_parameters
-from fogsim.render.blender.library import mesh_triangles
 from fogsim.render.blender.output import blender_output
+from fogsim.render.blender.realise import SceneClasses, clear, realise, render_visibility
 from fogsim.render.fog_settings import fog_overrides
 from fogsim.render.frame import DescribedFrame, commit_frame, frame_name
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
 from fogsim.render.preset import RenderConfig, check_size, frame_volumetric, parse_resolution, volumetric_settings
 from fogsim.render.scene_classes import PROPERTY, ClassMap
 from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
-from fogsim.scene.classes import is_labelled
 from fogsim.scene.pose import blender_intrinsics, opencv_world_to_camera
 
-GEOMETRY = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
-#: object types Blender renders that scene mode does not (counted in the run's summary)
-NOT_RENDERED = {"VOLUME", "POINTCLOUD", "CURVES", "GPENCIL", "GREASEPENCIL"}
 RENDER_SCENE = "fogsim_scene_mode"
-#: what a visible labelled object's ``kind`` says: one object, or one instance
-KINDS = ("object", "instance")
 
 
 def open_blend(path: str | Path, quiet: bool = False):
@@ -122,251 +113,6 @@ def scene_camera(scene, name: str | None, source: str):
         raise InputError(source, f"camera {cam.name!r} is {kind}; fogsim needs a perspective camera "
                                  "(depth, boxes and fog assume a pinhole)")
     return cam
-
-
-# ----------------------------------------------------------------------------- classes
-@dataclass
-class _Classes:
-    """Class lookups over one scene: objects, parents and collections (render visibility too)."""
-
-    scene: object
-    class_map: ClassMap
-    parents: dict = field(default_factory=dict)  # collection name → parent collections
-    in_scene: set = field(default_factory=set)   # names of the collections of this view layer
-    hidden: set = field(default_factory=set)     # names of render-hidden collections of this view layer
-    holdout: set = field(default_factory=set)    # names of holdout collections
-
-    def __post_init__(self):
-        for coll in [self.scene.collection, *bpy.data.collections]:
-            for child in coll.children:
-                self.parents.setdefault(child.name, []).append(coll)
-        self._walk(bpy.context.view_layer.layer_collection, False, False)
-
-    def _walk(self, lc, hidden: bool, holdout: bool) -> None:
-        hidden = hidden or lc.exclude or lc.collection.hide_render
-        holdout = holdout or lc.holdout
-        self.in_scene.add(lc.collection.name)
-        if hidden:
-            self.hidden.add(lc.collection.name)
-        if holdout:
-            self.holdout.add(lc.collection.name)
-        for child in lc.children:
-            self._walk(child, hidden, holdout)
-
-    def direct(self, idblock) -> str | None:
-        return self.class_map.direct(idblock.name, idblock.get(PROPERTY), f"{type(idblock).__name__} "
-                                     f"{idblock.name!r} ({PROPERTY})")
-
-    def own_chain(self, obj) -> tuple[object, str] | tuple[None, None]:
-        """The nearest of ``obj`` and its parents that carries a class itself, and that class."""
-        while obj is not None:
-            cls = self.direct(obj)
-            if cls is not None:
-                return obj, cls
-            obj = obj.parent
-        return None, None
-
-    def of_collections(self, collections) -> str | None:
-        """The class of the nearest labelled collection among ``collections`` and their parents."""
-        todo, seen = list(collections), set()
-        while todo:
-            coll = todo.pop(0)
-            if coll.name in seen:
-                continue
-            seen.add(coll.name)
-            cls = self.direct(coll)
-            if cls is not None:
-                return cls
-            todo += self.parents.get(coll.name, [])
-        return None
-
-    def render_hidden(self, obj) -> bool:
-        if obj.hide_render:
-            return True
-        colls = [c.name for c in obj.users_collection if c.name in self.in_scene]
-        return bool(colls) and all(c in self.hidden for c in colls)
-
-    def in_holdout(self, obj) -> bool:
-        return any(c.name in self.holdout for c in obj.users_collection)
-
-
-def _identity(inst, classes: _Classes) -> tuple[tuple, str | None]:
-    """(object key, class) of one depsgraph instance: who it belongs to, and its class (None:
-    background). See the module docstring for the rules."""
-    obj = inst.object.original
-    if not inst.is_instance:
-        owner, cls = classes.own_chain(obj)
-        if owner is not None:
-            return ("object", owner.name), cls
-        return ("object", obj.name), classes.of_collections(obj.users_collection)
-    parent = inst.parent.original
-    if parent.instance_type == "COLLECTION" and parent.instance_collection is not None:
-        group = ("instance", parent.name)
-        inner = [parent.instance_collection]
-    else:  # particles, geometry nodes: every instance its own object
-        pid = list(inst.persistent_id)
-        while pid and pid[-1] == 2**31 - 1:  # the unused levels
-            pid.pop()
-        group = ("instance", parent.name, *pid)
-        inner = []
-    owner, cls = classes.own_chain(obj) if obj != parent else (None, None)
-    if owner is not None:
-        return (*group, owner.name), cls
-    cls = classes.of_collections(inner) if inner else None
-    if cls is None:
-        cls = classes.own_chain(parent)[1] or classes.of_collections(parent.users_collection)
-    if cls is None and obj != parent:
-        cls = classes.of_collections(obj.users_collection)
-    return group, cls
-
-
-# ----------------------------------------------------------------------------- what a render sees
-@contextmanager
-def render_visibility(scene):
-    """Blender's viewport evaluation made to see what a render sees, for the ``with`` block:
-    objects and collections disabled in viewports (monitor) or hidden with the eye, but not
-    hidden from renders, are shown, and every modifier is shown as in renders. Restored after."""
-    undo, eye = [], []
-
-    def put(block, attr, value):
-        if getattr(block, attr) != value:
-            try:
-                old = getattr(block, attr)
-                setattr(block, attr, value)
-                undo.append((block, attr, old))
-            except (AttributeError, TypeError, RuntimeError):  # linked (library) data is read only
-                pass
-
-    layer = bpy.context.view_layer
-    try:
-        for obj in bpy.data.objects:
-            if not obj.hide_render:
-                put(obj, "hide_viewport", False)
-            for mod in obj.modifiers:
-                put(mod, "show_viewport", mod.show_render)
-        for coll in bpy.data.collections:
-            if not coll.hide_render:
-                put(coll, "hide_viewport", False)
-        todo = [layer.layer_collection]
-        while todo:
-            lc = todo.pop()
-            if not lc.collection.hide_render:
-                put(lc, "hide_viewport", False)
-            todo += list(lc.children)
-        for obj in scene.objects:
-            try:
-                if not obj.hide_render and obj.hide_get(view_layer=layer):
-                    obj.hide_set(False, view_layer=layer)
-                    eye.append(obj)
-            except RuntimeError:  # not in this view layer (an excluded collection)
-                pass
-        layer.update()
-        yield
-    finally:
-        for obj in eye:
-            obj.hide_set(True, view_layer=layer)
-        for block, attr, old in reversed(undo):
-            setattr(block, attr, old)
-        layer.update()
-
-
-# ----------------------------------------------------------------------------- one frame
-@dataclass
-class Realised:
-    """One frame's render scene content: what to remove afterwards, and the ground truth."""
-
-    collection: object
-    objects: list = field(default_factory=list)
-    meshes: list = field(default_factory=list)
-    labelled: dict = field(default_factory=dict)   # id → {"class", "key", "kind", "blender_objects"}
-    parts: dict = field(default_factory=dict)      # id → [(world vertices, triangles, "")]
-    others: list = field(default_factory=list)     # (bpy.data collection name, datablock): the fog domain's
-    background: int = 0                            # unlabelled geometry instances rendered
-    skipped: Counter = field(default_factory=Counter)  # object types not rendered
-
-
-def _copy_visibility(src, dst, holdout: bool) -> None:
-    for attr in ("visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
-                 "visible_volume_scatter", "visible_shadow", "is_shadow_catcher", "is_holdout"):
-        if hasattr(src, attr):
-            setattr(dst, attr, getattr(src, attr))
-    dst.is_holdout = dst.is_holdout or holdout
-
-
-def realise(user_scene, render_scene, classes: _Classes, camera) -> Realised:
-    """Every visible geometry instance of ``user_scene`` at its current frame as a realised
-    object (pass index = fogsim id of a labelled object, 0 for background), lights as lights,
-    and ``camera`` placed, all in a fresh collection of ``render_scene``."""
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    out = Realised(bpy.data.collections.new("fogsim_realised"))
-    render_scene.collection.children.link(out.collection)
-    ids: dict[tuple, int] = {}
-    meshes: dict[tuple, tuple] = {}
-    for inst in depsgraph.object_instances:
-        src, orig = inst.object, inst.object.original
-        if orig.type == "CAMERA" or classes.render_hidden(orig) or (
-                inst.is_instance and classes.render_hidden(inst.parent.original)):
-            continue
-        matrix = mathutils.Matrix(inst.matrix_world)
-        if src.type == "LIGHT":
-            obj = bpy.data.objects.new(f"fogsim_{orig.name}", orig.data)
-        elif src.type in GEOMETRY:
-            mkey = (src.name, src.data.name if src.data is not None else "", src.type)
-            if mkey not in meshes:
-                mesh = bpy.data.meshes.new_from_object(src, preserve_all_data_layers=True, depsgraph=depsgraph)
-                out.meshes.append(mesh)
-                meshes[mkey] = (mesh, None)
-            mesh = meshes[mkey][0]
-            if not len(mesh.polygons):
-                continue
-            obj = bpy.data.objects.new(f"fogsim_{orig.name}", mesh)
-            for i, slot in enumerate(src.material_slots):
-                if i < len(obj.material_slots) and slot.material is not None:
-                    obj.material_slots[i].link = "OBJECT"
-                    obj.material_slots[i].material = slot.material.original
-            holdout = classes.in_holdout(orig) or (inst.is_instance and classes.in_holdout(inst.parent.original))
-            _copy_visibility(orig, obj, holdout)
-            key, cls = _identity(inst, classes)
-            if cls is not None and is_labelled(cls) and obj.visible_camera and not obj.is_holdout:
-                oid = ids.setdefault(key, len(ids) + 1)
-                if oid > 65535:
-                    raise InputError(user_scene.name, "more than 65535 labelled objects (uint16 instance ids)")
-                rec = out.labelled.setdefault(oid, {"class": cls, "key": "/".join(map(str, key)),
-                                                    "kind": KINDS[inst.is_instance], "blender_objects": []})
-                rec["blender_objects"].append(orig.name)
-                if meshes[mkey][1] is None:
-                    meshes[mkey] = (mesh, mesh_triangles(mesh))
-                v, f = meshes[mkey][1]
-                M = np.array(matrix, dtype=np.float64)
-                out.parts.setdefault(oid, []).append((v @ M[:3, :3].T + M[:3, 3], f, ""))
-                obj.pass_index = oid
-            else:
-                out.background += 1
-        else:
-            if src.type in NOT_RENDERED:
-                out.skipped[src.type] += 1
-            continue
-        obj.matrix_world = matrix
-        out.collection.objects.link(obj)
-        out.objects.append(obj)
-    cam = bpy.data.objects.new("fogsim_camera", camera.data)
-    loc, rot, _ = camera.evaluated_get(depsgraph).matrix_world.decompose()
-    cam.matrix_world = mathutils.Matrix.Translation(loc) @ rot.to_matrix().to_4x4()
-    out.collection.objects.link(cam)
-    out.objects.append(cam)
-    render_scene.camera = cam
-    return out
-
-
-def clear(realised: Realised) -> None:
-    """Remove what :func:`realise` created (objects, meshes, the collection)."""
-    for obj in realised.objects:
-        bpy.data.objects.remove(obj, do_unlink=True)
-    for mesh in realised.meshes:
-        bpy.data.meshes.remove(mesh)
-    for kind, block in realised.others:
-        getattr(bpy.data, kind).remove(block)
-    bpy.data.collections.remove(realised.collection)
 
 
 def _render_scene(user_scene, resolution):
@@ -470,7 +216,7 @@ class SceneJob(RenderJob):
         h = res[1] if res else int(scene.render.resolution_y * scene.render.resolution_percentage / 100)
         if why := check_size(w, h, max_pixels or MAX_PIXELS):
             raise InputError(source, f"resolution {why}")
-        self.classes = _Classes(scene, class_map)
+        self.classes = SceneClasses(scene, class_map)
         self.config = RenderConfig(
             name="scene", source=source,
             style={"scene_mode": {"file": bpy.data.filepath or None, "scene": scene.name, "camera": self.camera.name,
