@@ -14,7 +14,7 @@ intrinsics the scene was rendered with):
   normalised point (x, y) = ((u − cx)/fx, (v − cy)/fy), r² = x² + y², lands at
   x_d = x·(1 + k1 r² + k2 r⁴ + k3 r⁶) + 2 p1 x y + p2 (r² + 2x²) (y_d likewise), pixel
   (fx x_d + cx, fy y_d + cy). The distorted image samples the rendered one where
-  ``cv2.undistortPointsIter`` maps each of its pixels; a pixel that sees outside the render is black
+  OpenCV's iterative point undistortion maps each of its pixels; a pixel seeing outside the render is black
   (mask 0, depth +inf).
 * **Vignetting**, the cos⁴ law generalised: gain(u, v) = cos(θ)^a, cos θ = 1/√(1 + x² + y²)
   (θ the angle off the optical axis), a = ``vignetting`` (4 = natural vignetting; 0 = off).
@@ -83,20 +83,30 @@ def distort_points(uv: np.ndarray, K: Intrinsics, coeffs) -> np.ndarray:
     return out.reshape(-1, 2)
 
 
+def undistort_points(points: np.ndarray, camera: np.ndarray, coeffs) -> np.ndarray:
+    """Pinhole pixels (N×1×2) of distorted pixels ``points`` (N×1×2) for the 3×3 ``camera`` and
+    OpenCV ``coeffs``, iterated to convergence (50 iterations, 1e-9): ``cv2.undistortPointsIter`` in
+    OpenCV 4, ``cv2.undistortPoints`` with a termination criterion in OpenCV 5 (which dropped Iter)."""
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-9)
+    coeffs = np.asarray(coeffs, np.float64)
+    if hasattr(cv2, "undistortPointsIter"):
+        return cv2.undistortPointsIter(points, camera, coeffs, None, camera, criteria)
+    return cv2.undistortPoints(points, camera, coeffs, R=None, P=camera, criteria=criteria)
+
+
 @lru_cache(maxsize=8)
 def _maps(fx, fy, cx, cy, w, h, coeffs: tuple) -> tuple[np.ndarray, np.ndarray]:
     K = Intrinsics(fx, fy, cx, cy, w, h)
     v, u = np.mgrid[0:h, 0:w].astype(np.float64)
     grid = np.stack([u.ravel(), v.ravel()], axis=1).reshape(-1, 1, 2)
-    src = cv2.undistortPointsIter(grid, _matrix(K), np.asarray(coeffs, np.float64), None, _matrix(K),
-                                  (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-9))
+    src = undistort_points(grid, _matrix(K), coeffs)
     src = src.reshape(h, w, 2).astype(np.float32)
     return np.ascontiguousarray(src[..., 0]), np.ascontiguousarray(src[..., 1])
 
 
 def distortion_maps(K: Intrinsics, coeffs) -> tuple[np.ndarray, np.ndarray]:
     """For every pixel of the distorted image, the pinhole pixel it sees (map_x, map_y for
-    ``cv2.remap``), from ``cv2.undistortPointsIter`` (50 iterations to 1e-9)."""
+    ``cv2.remap``), from :func:`undistort_points`."""
     return _maps(K.fx, K.fy, K.cx, K.cy, K.width, K.height, tuple(float(c) for c in coeffs))
 
 
