@@ -15,8 +15,9 @@ import pytest
 from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.errors import InputError
 from fogsim.fileio import read_depth_file, read_rgb_exr, read_uint16_map
+from fogsim.fog.model import transmission
 from fogsim.fog.physics import interior_mask
-from fogsim.render.fog_rebuild import fit_fog_terms, low_size, rebuild, transmittance
+from fogsim.render.fog_rebuild import fit_fog_terms, low_size, rebuild
 from fogsim.render.preset import load_render_preset, volumetric_settings
 from test_blender import SCRIPTS, run, runner
 from test_volumetric import EA_PRESET, bin_bias, koschmieder_linear
@@ -30,14 +31,14 @@ def scene(H=96, W=144, beta=0.06, alpha=1.0, seed=0):
     ray = np.full((H, W), np.inf, np.float32)
     ray[H // 3:] = np.linspace(4, 90, H - H // 3)[:, None]
     ray[H // 2:H - 10, W // 3:W // 2] = 11.0  # a box 11 m away, sharp edges
-    t = transmittance(ray, beta)[..., None]
+    t = transmission(ray, beta)[..., None]
     airlight = (0.7 + 0.25 * np.linspace(1, 0, H)[:, None, None]) * np.ones((1, W, 3), np.float32)
     return clear, ray, (alpha * clear * t + airlight * (1 - t)).astype(np.float32)
 
 
 def test_transmittance_and_sizes():
     ray = np.array([[0.0, 10.0, np.inf]], np.float32)
-    assert np.allclose(transmittance(ray, 0.1), [[1.0, np.exp(-1.0), 0.0]])
+    assert np.allclose(transmission(ray, 0.1), [[1.0, np.exp(-1.0), 0.0]])
     assert low_size(640, 426, 0.5) == (320, 213) and low_size(96, 64, 0.25) == (24, 16)
 
 

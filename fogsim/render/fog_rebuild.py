@@ -24,18 +24,14 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from fogsim.fog.model import transmission
+
 #: half-width r of the fitting window, in low-resolution pixels
 WINDOW_RADIUS = 2
 #: ridge weight pulling α towards 1, relative to the window's mean (C·t)² (keeps α finite where
 #: the window holds one colour, so C·t and 1 − t cannot be told apart)
 ALPHA_RIDGE = 0.01
 RULE = "F = α·C·t + A·(1 − t), t = e^(−βℓ); α, A fitted per 5×5 low-res window (ridge α → 1), bilinear up"
-
-
-def transmittance(ray: np.ndarray, beta: float) -> np.ndarray:
-    """e^(−β·ℓ) of a ray-distance map (metres, +inf = sky → 0), float32."""
-    t = np.exp(-float(beta) * np.where(np.isfinite(ray), ray, np.inf))
-    return np.nan_to_num(t, nan=0.0).astype(np.float32)
 
 
 def low_size(width: int, height: int, scale: float) -> tuple[int, int]:
@@ -77,7 +73,7 @@ def rebuild(clear: np.ndarray, fog_low: np.ndarray, ray: np.ndarray, beta: float
     h, w = fog_low.shape[:2]
     if (h, w) == (H, W):
         return fog_low.astype(np.float32)
-    t = transmittance(ray, beta)
+    t = transmission(ray, beta)
     clear_low = cv2.resize(clear.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
     t_low = cv2.resize(t, (w, h), interpolation=cv2.INTER_AREA)
     alpha, airlight = fit_fog_terms(clear_low, t_low, fog_low)
