@@ -73,6 +73,8 @@ class FogSpec:
     model: str = "koschmieder"
     scatter_params: str | None = None
     is_list: bool = False  # set by __post_init__: beta is a list of values (not a range)
+    #: the scatter model's parameters, read once by __post_init__ (not per sample)
+    params: object = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         beta = self.beta
@@ -106,6 +108,10 @@ class FogSpec:
             raise ValueError("the scatter model has no extended kernel or heterogeneity")
         object.__setattr__(self, "beta", beta)
         object.__setattr__(self, "is_list", is_list)
+        if self.model == "scatter":
+            from fogsim.fog.scatter import load_params
+
+            object.__setattr__(self, "params", load_params(self.scatter_params))
 
     def draw_beta(self, rng: np.random.Generator) -> float:
         """One β (1/m) from the range or list."""
@@ -153,10 +159,10 @@ def apply_fog(image: np.ndarray, depth: np.ndarray, draw: Draw, spec: FogSpec = 
     if spec.model == "scatter":
         if draw.beta == 0:
             return image.copy()
-        from fogsim.fog.scatter import load_params, scatter
+        from fogsim.fog.scatter import scatter
 
         camera = spec.camera(*distance.shape) if spec.intrinsics is not None or spec.hfov is not None else None
-        return scatter(image, distance, draw.beta, draw.airlight, spec.space, load_params(spec.scatter_params),
+        return scatter(image, distance, draw.beta, draw.airlight, spec.space, spec.params,
                        camera)
     if spec.kernel is None:
         return koschmieder(image, distance, draw.beta, draw.airlight, spec.space, draw.density)
