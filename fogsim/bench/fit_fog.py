@@ -28,9 +28,10 @@ import numpy as np
 from fogsim.bench.fog_physics import committed_frames, load_frame
 from fogsim.colour import luminance
 from fogsim.errors import InputError
-from fogsim.fileio import read_json
 from fogsim.fog.physics import horizon_radiance, interior_mask, koschmieder_linear, lamps, radial_profile, scatter_model
 from fogsim.fog.scatter import ScatterParams
+from fogsim.schema.base import load_json
+from fogsim.schema.documents import RenderRunFile, RenderRunParameters
 
 #: the day parameters: name → (low, high, first step); ``spread`` and ``glow`` are searched in log10
 #: bounded to the physical side: objects are not lit more in fog than in clear (μ ≥ 0), the airlight
@@ -65,11 +66,10 @@ def prepare(folders: list[Path]) -> tuple[list[FitFrame], list[dict], dict]:
             "resolution": "", "samples": 0}
     for folder in folders:
         run_file = folder / "clear" / "render_run.json"
-        run_params = read_json(run_file).get("parameters", {}) if run_file.is_file() else {}
-        style = run_params.get("style")
-        style = style.get("name") if isinstance(style, dict) else style  # render_run.json keeps the whole style
-        record = {"folder": folder.name, "preset": str(run_params.get("name") or ""), "style": str(style or ""),
-                  "seed": run_params.get("seed"), "time_of_day": "", "frames": 0, "resolution": "", "samples": 0}
+        given = load_json(run_file, RenderRunFile).parameters if run_file.is_file() else RenderRunParameters()
+        style = given.style.get("name") if isinstance(given.style, dict) else given.style  # or the whole style
+        record = {"folder": folder.name, "preset": str(given.name or ""), "style": str(style or ""),
+                  "seed": given.seed, "time_of_day": "", "frames": 0, "resolution": "", "samples": 0}
         for frame in committed_frames(folder):
             data = load_frame(folder, frame)
             meta = data.pop("meta")

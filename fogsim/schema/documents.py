@@ -129,10 +129,13 @@ class FogRunFile(Open):
 
 class RenderRunParameters(Open):
     exposure: Number = 1.0
+    name: Text | None = None         # the preset's name
+    seed: Int | None = None          # the dataset seed
+    style: Text | dict | None = None  # the style's name, or the whole style (as render writes it)
 
 
 class RenderRunFile(Open):
-    """``render_run.json`` as the fog-physics bench reads it (the preset's exposure)."""
+    """``render_run.json`` as the fog-physics bench and fit-fog read it (exposure; preset, seed, style)."""
 
     document: ClassVar[str] = "render run file"
 
