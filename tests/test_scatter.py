@@ -4,6 +4,7 @@ energy and width, glow only around emitters, the parameter file, and the front d
 import json
 import math
 
+import cv2
 import numpy as np
 import pytest
 
@@ -18,8 +19,10 @@ from fogsim.fog.scatter import (
     elevation_sine,
     load_params,
     load_params_file,
+    reduce_points,
     scatter,
     shipped_params_path,
+    smooth_elevation_sine,
     splat,
     up_from_world_to_camera,
 )
@@ -112,10 +115,33 @@ def test_glow_appears_around_an_emitter_and_nowhere_else():
     assert np.abs(same).max() < 1e-6
 
 
+def test_the_smooth_elevation_map_is_the_exact_one_to_1e5():
+    big = Intrinsics.from_hfov(60.0, 1920, 1280)
+    for up in (None, (0.0, -math.cos(0.2), math.sin(0.2)), (0.1, -0.99, 0.05)):
+        exact = elevation_sine((1280, 1920), big, up)
+        smooth = smooth_elevation_sine((1280, 1920), big, up)
+        assert np.abs(smooth - exact).max() < 1e-5          # borders included: the grid reaches past them
+    small = elevation_sine((H, W), K)                      # small images: the exact map
+    assert np.array_equal(smooth_elevation_sine((H, W), K), small)
+
+
+def test_sparse_points_are_reduced_as_cv2_inter_area_would():
+    rng = np.random.default_rng(3)
+    for (h, w), small in (((160, 240), (30, 20)), ((61, 97), (32, 20))):   # sizes that divide, and not
+        ys, xs = rng.integers(0, h, 300), rng.integers(0, w, 300)
+        v = rng.random((300, 3)).astype(np.float32)
+        full = np.zeros((h, w, 3), np.float32)
+        np.add.at(full, (ys, xs), v)
+        want = cv2.resize(full, small, interpolation=cv2.INTER_AREA)
+        assert np.allclose(reduce_points(v, ys, xs, (h, w), small), want, atol=1e-6)
+
+
 def test_elevation_map_and_world_up():
     s = elevation_sine((H, W), K)
     assert abs(s[30, 40]) < 0.01 and s[0, 40] > 0.35 and s[-1, 40] < -0.35
-    assert s[0, 40] == pytest.approx(math.sin(math.atan(29.5 / 70)), abs=1e-4)
+    # integer pixel coordinates are pixel centres (DESIGN.md): row 0 looks up by atan((0 − cy)/fy)
+    assert s[0, 40] == pytest.approx(math.sin(math.atan(30 / 70)), abs=1e-6)
+    assert s[30, 40] == pytest.approx(0.0, abs=1e-7)
     pitch = math.radians(10)  # camera pitched up: the centre looks 10° above the horizon
     up = (0.0, -math.cos(pitch), math.sin(pitch))
     assert elevation_sine((H, W), K, up)[30, 40] == pytest.approx(math.sin(pitch), abs=0.01)

@@ -67,6 +67,8 @@ SIGMA_MAX_RAD = 0.6
 #: REDUCE_MIN_SIDE px a side (speed; the PSF term moves by ≤ 0.005 of A, ``docs/speed.md``)
 REDUCE_ABOVE = 3.0
 REDUCE_MIN_SIDE = 8
+#: the airlight's elevation gain is computed on a grid this many times coarser (it is smooth)
+GAIN_STEP = 8
 
 
 @dataclass(frozen=True)
@@ -144,19 +146,47 @@ def up_from_world_to_camera(world_to_camera) -> tuple[float, float, float]:
     return tuple(float(v) for v in r[:, 2])
 
 
+def _camera(shape: tuple[int, int], intrinsics: Intrinsics | None) -> Intrinsics:
+    """``intrinsics`` at the image's size (None: :data:`DEFAULT_HFOV_DEG`, centred)."""
+    h, w = shape
+    if intrinsics is None:
+        return Intrinsics.from_hfov(DEFAULT_HFOV_DEG, w, h)
+    return intrinsics if (intrinsics.width, intrinsics.height) == (w, h) else intrinsics.scaled(w, h)
+
+
+def _sine_at(u: np.ndarray, v: np.ndarray, K: Intrinsics, up) -> np.ndarray:
+    """sin of the viewing elevation at pixel columns ``u`` × rows ``v`` (pixel coordinates, centres
+    at integers as in DESIGN.md), len(v)×len(u) float32."""
+    y = ((np.asarray(v, np.float64) - K.cy) / K.fy).astype(np.float32)   # image y down
+    x = ((np.asarray(u, np.float64) - K.cx) / K.fx).astype(np.float32)
+    ux, uy, uz = (np.float32(c) for c in (LEVEL_UP if up is None else up))
+    dot = (ux * x)[None, :] + (uy * y + uz)[:, None]              # camera ray (x, y, 1) · up
+    norm = np.sqrt((x * x)[None, :] + (y * y + np.float32(1.0))[:, None])
+    return np.divide(dot, norm, out=dot)
+
+
 def elevation_sine(shape: tuple[int, int], intrinsics: Intrinsics | None, up=None) -> np.ndarray:
     """sin of each pixel's viewing elevation above the horizon (H×W float32) for a camera with
     ``intrinsics`` (None: :data:`DEFAULT_HFOV_DEG`, centred) and world ``up`` in its coordinates
     (None: :data:`LEVEL_UP`, a level camera)."""
     h, w = shape
-    K = intrinsics.scaled(w, h) if intrinsics is not None and (intrinsics.width, intrinsics.height) != (w, h) \
-        else intrinsics or Intrinsics.from_hfov(DEFAULT_HFOV_DEG, w, h)
-    y = ((np.arange(h, dtype=np.float64) + 0.5 - K.cy) / K.fy).astype(np.float32)   # image y down
-    x = ((np.arange(w, dtype=np.float64) + 0.5 - K.cx) / K.fx).astype(np.float32)
-    ux, uy, uz = (np.float32(v) for v in (LEVEL_UP if up is None else up))
-    dot = (ux * x)[None, :] + (uy * y + uz)[:, None]              # camera ray (x, y, 1) · up
-    norm = np.sqrt((x * x)[None, :] + (y * y + np.float32(1.0))[:, None])
-    return np.divide(dot, norm, out=dot)
+    return _sine_at(np.arange(w), np.arange(h), _camera(shape, intrinsics), up)
+
+
+def smooth_elevation_sine(shape: tuple[int, int], intrinsics: Intrinsics | None, up=None) -> np.ndarray:
+    """:func:`elevation_sine`, exact on a grid :data:`GAIN_STEP` px apart that reaches one step beyond
+    every border and bilinear in between (the map is smooth: ≤ 1e-5 off the exact one at 1920×1280,
+    ``tests/test_scatter.py``); exact on images under 256 px a side, where 8 px is a wide angle."""
+    h, w = shape
+    if min(h, w) < 32 * GAIN_STEP:
+        return elevation_sine(shape, intrinsics, up)
+    s = GAIN_STEP
+    nu, nv = -(-w // s) + 2, -(-h // s) + 2                     # coarse samples, one beyond each side
+    centre = (s - 1) / 2.0                                      # coarse sample k sits at s·(k − 1) + centre
+    coarse = _sine_at(s * (np.arange(nu) - 1) + centre, s * (np.arange(nv) - 1) + centre,
+                      _camera(shape, intrinsics), up)
+    full = cv2.resize(coarse, (s * nu, s * nv), interpolation=cv2.INTER_LINEAR)  # integer ratio: same centres
+    return np.ascontiguousarray(full[s:s + h, s:s + w])
 
 
 def focal_px(shape: tuple[int, int], intrinsics: Intrinsics | None) -> float:
@@ -225,6 +255,30 @@ def psf_sigma_rad(optical_depth: np.ndarray, spread: float) -> np.ndarray:
     return np.minimum(np.sqrt(np.float32(spread) * optical_depth), np.float32(SIGMA_MAX_RAD))
 
 
+def reduce_points(values: np.ndarray, ys: np.ndarray, xs: np.ndarray, shape: tuple[int, int],
+                  small: tuple[int, int]) -> np.ndarray:
+    """A sparse image (``values`` n×3 at rows ``ys``, columns ``xs`` of an H×W image, zero elsewhere)
+    area-averaged to ``small`` (w, h), as ``cv2.resize(…, INTER_AREA)`` of the full image would:
+    accumulated per block when the sizes divide, else through the full image."""
+    h, w = shape
+    sw, sh = small
+    if w % sw or h % sh:
+        full = np.zeros((h, w, 3), np.float32)
+        np.add.at(full, (ys, xs), values)
+        return cv2.resize(full, small, interpolation=cv2.INTER_AREA)
+    fx, fy = w // sw, h // sh
+    out = np.zeros((sh * sw, 3), np.float64)
+    np.add.at(out, (ys // fy) * sw + xs // fx, values)
+    return (out / (fx * fy)).astype(np.float32).reshape(sh, sw, 3)
+
+
+def _split(image: np.ndarray) -> list[np.ndarray]:
+    """The colour planes of an H×W×3 image, contiguous (cv2.split for the dtypes OpenCV has)."""
+    if image.dtype in (np.uint8, np.uint16, np.float32):
+        return list(cv2.split(np.ascontiguousarray(image)))
+    return [np.ascontiguousarray(image[:, :, c]) for c in range(3)]
+
+
 # ----------------------------------------------------------------------------- the model
 class ScatterFogger:
     """Fog one image at many densities with the scatter model, sharing the work that does not
@@ -252,9 +306,9 @@ class ScatterFogger:
         self.distance = distance.astype(np.float32, copy=False)
         a = airlight_rgb(airlight, image.dtype) / scale
         if space == "linear" and image.dtype in (np.uint8, np.uint16):
-            planes = [decode_codes(np.ascontiguousarray(image[:, :, c])) for c in range(3)]
+            planes = [decode_codes(q) for q in cv2.split(image)]
         else:
-            planes = [np.ascontiguousarray(image[:, :, c], dtype=np.float32) / scale for c in range(3)]
+            planes = [cv2.multiply(q, 1.0 / float(scale), dtype=cv2.CV_32F) for q in _split(image)]
             if space == "linear":
                 planes = [srgb_to_linear(q) for q in planes]
         if space == "linear":
@@ -264,45 +318,50 @@ class ScatterFogger:
         self._buffers: dict[str, np.ndarray] = {}
         # β-independent parts of the blend: the airlight's gain e^(c·sin θ) (None: 1) and ℓ + μ,
         # so that the direct term's factor m·t = e^(−β(ℓ + μ)) is one exponential
-        self._air_gain = None
+        self._air_gain = self._log_gain = None
         if p.elevation:
-            self._air_gain = np.exp(np.float32(p.elevation) * elevation_sine((h, w), intrinsics, up))
+            self._log_gain = np.multiply(smooth_elevation_sine((h, w), intrinsics, up), np.float32(p.elevation))
+            self._air_gain = cv2.exp(self._log_gain)
         self._dist_mu = self.distance + np.float32(p.illumination) if p.illumination else self.distance
         self._scatter = p.forward > 0 or p.glow > 0
         if self._scatter:
             f = max(1, int(math.ceil(w / WORK_WIDTH)))
             self._small = (max(1, w // f), max(1, h // f))
             self._f_small = focal_px((h, w), intrinsics) * self._small[0] / w
-            rgb = cv2.merge(planes)
-            self._rgb_small = cv2.resize(rgb, self._small, interpolation=cv2.INTER_AREA)
+            self._rgb_small = cv2.merge([cv2.resize(q, self._small, interpolation=cv2.INTER_AREA) for q in planes])
             self._dist_small = cv2.resize(self.distance, self._small, interpolation=cv2.INTER_NEAREST)
             self._glow_small = None
             if p.glow > 0:
-                self._glow_small = self._glow_source(image, rgb, p.glow_threshold)
+                self._glow_small = self._glow_source(image, p.glow_threshold)
 
-    def _glow_source(self, image: np.ndarray, rgb: np.ndarray, threshold: float) -> np.ndarray:
+    def _glow_source(self, image: np.ndarray, threshold: float) -> np.ndarray | None:
         """The saturated pixels' light, rgb × s with s = clip((Y − thr)/(1 − thr), 0, 1) from the linear
-        luminance Y (sky excluded), reduced to the PSF's copy. Only pixels whose green alone could reach
-        the threshold (Y ≤ G·w_G + w_R + w_B) are decoded: lamps are few."""
+        luminance Y (sky excluded), reduced to the PSF's copy (None: no such pixel). Only pixels whose
+        green alone could reach the threshold (Y ≤ G·w_G + w_R + w_B) are decoded: lamps are few."""
         w_r, w_g, w_b = LUMINANCE_WEIGHTS
         g_min = max(0.0, (threshold - w_r - w_b) / w_g)
-        green = image[:, :, 1]
+        green = np.ascontiguousarray(image[:, :, 1])
         if image.dtype in (np.uint8, np.uint16):
-            candidates = green >= np.searchsorted(_code_table(np.dtype(image.dtype)), g_min)  # first code ≥ g_min
+            first = int(np.searchsorted(_code_table(np.dtype(image.dtype)), g_min))  # first code ≥ g_min
+            candidates = cv2.compare(green, first - 1, cv2.CMP_GT) if first <= full_scale(image.dtype) \
+                else np.zeros(green.shape, np.uint8)
         else:
             g = green.astype(np.float32) / np.float32(full_scale(image.dtype))
-            candidates = srgb_to_linear(g) >= g_min
-        candidates &= np.isfinite(self.distance)                          # the sky is not a lamp
+            candidates = (srgb_to_linear(g) >= g_min).view(np.uint8)
+        if not cv2.countNonZero(candidates):
+            return None
         ys, xs = np.nonzero(candidates)
-        src = np.zeros_like(rgb)
-        if ys.size:
-            px = image[ys, xs]
-            lin = _code_table(np.dtype(image.dtype))[px] if image.dtype in (np.uint8, np.uint16) \
-                else srgb_to_linear(px.astype(np.float32) / np.float32(full_scale(image.dtype)))
-            lum = lin @ np.array(LUMINANCE_WEIGHTS, np.float32)
-            sat = np.clip((lum - np.float32(threshold)) / np.float32(max(1e-3, 1.0 - threshold)), 0.0, 1.0)
-            src[ys, xs] = rgb[ys, xs] * sat[:, None]
-        return cv2.resize(src, self._small, interpolation=cv2.INTER_AREA)
+        keep = np.isfinite(self.distance[ys, xs])                          # the sky is not a lamp
+        ys, xs = ys[keep], xs[keep]
+        if not ys.size:
+            return None
+        px = image[ys, xs]
+        lin = _code_table(np.dtype(image.dtype))[px] if image.dtype in (np.uint8, np.uint16) \
+            else srgb_to_linear(px.astype(np.float32) / np.float32(full_scale(image.dtype)))
+        lum = lin @ np.array(LUMINANCE_WEIGHTS, np.float32)
+        sat = np.clip((lum - np.float32(threshold)) / np.float32(max(1e-3, 1.0 - threshold)), 0.0, 1.0)
+        light = np.stack([q[ys, xs] for q in self._planes], axis=-1) * sat[:, None]
+        return reduce_points(light, ys, xs, image.shape[:2], self._small)
 
     def _scattered_small(self, beta: float) -> np.ndarray | None:
         p = self.params
@@ -351,31 +410,40 @@ class ScatterFogger:
 
     def _blend_planes(self, beta: float) -> list[np.ndarray]:
         """The fogged colour planes for β (work buffers: valid until the next call):
-        m·t·I + air·A + PSF term, per plane in two passes (scale-add, multiply-accumulate)."""
+        m·t·I + air·A + PSF term, per plane in two passes (add, multiply-accumulate)."""
         p = self.params
         if beta == 0:
             return [q.copy() for q in self._planes]
         mt = self._exp(self._dist_mu, beta, "t")               # m·t
-        if p.forward == 0 and not p.illumination:
-            tf = mt
+        air = self._buffer("air")          # first e^(c·sin θ)·t_f, then A·e^(c·sin θ)·(1 − t_f)
+        gain = self._air_gain
+        if p.forward == 0 and not p.illumination:               # t_f = m·t
+            gt = mt if gain is None else np.multiply(mt, gain, out=air)
+        elif gain is None:
+            gt = self._exp(self.distance, beta * (1.0 - p.forward), "air")
+        else:                                                   # one exponential: e^(c·sin θ − β(1−k)ℓ)
+            gt = cv2.exp(cv2.scaleAdd(self.distance, -beta * (1.0 - p.forward), self._log_gain, dst=air), dst=air)
+        level = p.level * math.exp(-p.fade * beta)              # a·e^(−λβ)
+        a = [v * level for v in self._a]
+        uniform = a[0] == a[1] == a[2]                          # a grey airlight is folded into the air plane
+        unit = a[0] if uniform else 1.0
+        if gain is None:
+            cv2.addWeighted(gt, -unit, gt, 0.0, unit, dst=air)
         else:
-            tf = self._exp(self.distance, beta * (1.0 - p.forward), "air")
-        air = self._buffer("air")
-        if self._air_gain is not None:                          # e^(c·sin θ)·(1 − t_f)
-            np.multiply(tf, self._air_gain, out=air)
-            np.subtract(self._air_gain, air, out=air)
-        else:
-            np.subtract(np.float32(1.0), tf, out=air)
-        level = p.level * math.exp(-p.fade * beta)              # a·e^(−λβ), with A in the scale-add below
+            cv2.addWeighted(gain, unit, gt, -unit, 0.0, dst=air)
         s = self._scattered_planes(beta)
         out = []
-        for c, (q, a) in enumerate(zip(self._planes, self._a)):
+        for c, q in enumerate(self._planes):
             o = self._buffer(f"o{c}")
-            a = a * level
-            if s is not None:
-                cv2.scaleAdd(air, a, s[c], dst=o)
+            if uniform:
+                if s is not None:
+                    cv2.add(air, s[c], dst=o)
+                else:
+                    o[...] = air
+            elif s is not None:
+                cv2.scaleAdd(air, a[c], s[c], dst=o)
             else:
-                np.multiply(air, np.float32(a), out=o)
+                np.multiply(air, np.float32(a[c]), out=o)
             cv2.accumulateProduct(q, mt, o)
             out.append(o)
         return out
@@ -407,5 +475,5 @@ def scatter(image: np.ndarray, distance: np.ndarray, beta: float, airlight=255.0
 
 
 __all__ = ["KOSCHMIEDER", "PARAMS_FILE", "TERMS", "ScatterFogger", "ScatterParams", "elevation_sine",
-           "gaussian_by_boxes", "load_params", "load_params_file", "psf_sigma_rad", "scatter", "shipped_params_path",
-           "splat", "up_from_world_to_camera"]
+           "gaussian_by_boxes", "load_params", "load_params_file", "psf_sigma_rad", "reduce_points", "scatter",
+           "shipped_params_path", "smooth_elevation_sine", "splat", "up_from_world_to_camera"]
