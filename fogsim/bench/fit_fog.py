@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.bench.fog_physics import committed_frames, load_frame
-from fogsim.colour import luminance
+from fogsim.colour import linear_to_srgb, luminance
 from fogsim.errors import InputError
-from fogsim.fog.physics import horizon_radiance, interior_mask, koschmieder_linear, lamps, radial_profile, scatter_model
-from fogsim.fog.scatter import ScatterParams
+from fogsim.fog.physics import horizon_radiance, interior_mask, lamps, radial_profile
+from fogsim.fog.scatter import ScatterFogger, ScatterParams
 from fogsim.schema.base import load_json
 from fogsim.schema.documents import RenderRunFile, RenderRunParameters
 
@@ -37,8 +37,9 @@ from fogsim.schema.documents import RenderRunFile, RenderRunParameters
 #: bounded to the physical side: objects are not lit more in fog than in clear (μ ≥ 0), the airlight
 #: does not grow with β (λ ≥ 0) and stays near the horizon's (a ∈ [0.5, 1.5]) — unbounded, a fit on
 #: one street style (μ = −14 m: objects 5× brighter at β = 0.12) failed on the others (docs/fog-physics.md)
-DAY_BOUNDS = {"forward": (0.0, 0.95, 0.2), "spread": (-3.0, 1.0, 0.5), "illumination": (0.0, 40.0, 8.0),
-              "level": (0.5, 1.5, 0.1), "fade": (0.0, 20.0, 4.0), "elevation": (-3.0, 6.0, 1.0)}
+DAY_BOUNDS = {"exposure_key": (0.0, 1.5, 0.2), "forward": (0.0, 0.95, 0.2), "spread": (-3.0, 1.0, 0.5),
+              "illumination": (0.0, 40.0, 8.0), "level": (0.5, 1.5, 0.1), "fade": (0.0, 20.0, 4.0),
+              "elevation": (-3.0, 6.0, 1.0)}
 GLOW_BOUNDS = (-1.0, 4.0, 1.0)  # log10 G
 LOG_PARAMS = ("spread", "glow")
 #: the reference RMS a ratio is taken to at least (A = 1: far below any real model's error)
@@ -110,13 +111,32 @@ def day_objective(params: ScatterParams, frames: list[FitFrame], reference: dict
     return float(np.mean([v / (max(reference[b], RMS_FLOOR) if reference else 1.0) for b, v in rms.items()]))
 
 
+def fogger(params: ScatterParams, data: dict) -> ScatterFogger:
+    """The scatter model on one frame's clear render, as :func:`fogsim.fog.physics.koschmieder_linear`
+    blends it (linear light, A = 1, not clipped), from a 16-bit sRGB copy made once per frame: the fit
+    fogs every frame hundreds of times, and decoding 16-bit codes is a table lookup."""
+    if "srgb16" not in data:
+        srgb = linear_to_srgb(np.clip(data["clear_linear"], 0.0, 1.0))
+        data["srgb16"] = np.round(srgb * 65535.0).astype(np.uint16)
+    return ScatterFogger(data["srgb16"], data["distance"], 255.0, "linear", params, data["camera"], up=data["up"])
+
+
+def model_images(params: ScatterParams, frames: list[FitFrame]):
+    """(frame-level, the model's linear image at its counted pixels) for every frame-level, one
+    :class:`ScatterFogger` per frame (its set-up is shared by the frame's β)."""
+    groups: dict[int, list[FitFrame]] = {}
+    for fr in frames:
+        groups.setdefault(id(fr.data), []).append(fr)
+    for group in groups.values():
+        f = fogger(params, group[0].data)
+        for fr in group:
+            yield fr, f.blend(fr.beta)[fr.where]
+
+
 def day_rms(params: ScatterParams, frames: list[FitFrame]) -> dict[float, float]:
     """β → the pooled noise-free normalised RMS (√mean(E₁·E₂)) of the scatter model."""
-    model = scatter_model(params)
     sums: dict[float, list[float]] = {}
-    for fr in frames:
-        d = fr.data
-        k = koschmieder_linear(d["clear_linear"], d["distance"], fr.beta, model, d["camera"], d["up"])[fr.where]
+    for fr, k in model_images(params, frames):
         acc = sums.setdefault(fr.beta, [0.0, 0])
         acc[0] += float(((fr.f1 - k) * (fr.f2 - k)).sum())
         acc[1] += k.size
@@ -125,14 +145,15 @@ def day_rms(params: ScatterParams, frames: list[FitFrame]) -> dict[float, float]
 
 def glow_objective(params: ScatterParams, frames: list[dict]) -> float | None:
     """Mean squared log10-ratio of model and path-traced ring luminance around every lamp (None: no lamp)."""
-    model, errs = scatter_model(params), []
+    errs = []
     for d in frames:
         found = lamps(d["clear_linear"], d["distance"])
+        model = fogger(params, d)
         for beta, (f1, f2) in d["renders"].items():
             hz = horizon_radiance(0.5 * (f1 + f2), d["distance"], d["mask"])
             s = 1.0 / hz["luminance"] if hz and hz["luminance"] > 0 else 1.0
             y_pt = luminance(s * 0.5 * (f1 + f2))
-            y_m = luminance(koschmieder_linear(d["clear_linear"], d["distance"], beta, model, d["camera"], d["up"]))
+            y_m = luminance(model.blend(beta))
             for lamp in found:
                 for a, b in zip(radial_profile(y_m, lamp["centre"]), radial_profile(y_pt, lamp["centre"])):
                     if a is not None and b is not None:

@@ -15,7 +15,10 @@ Per pixel x with ray distance ℓ (m), extinction β (1/m), optical depth T = β
   small-angle diffusion limit of forward-peaked multiple scattering, the regime Narasimhan &
   Nayar's APSF covers for T ≲ 1–2), splatted from each source pixel with *its own* width
   (energy conserving: every source pixel's light is spread, not gathered);
-* m = e^(−μβ): objects in fog are lit by the fog's diffuse light, not by the clear sky;
+* m = g·e^(−μβ): objects in fog are lit by the fog's diffuse light, not by the clear sky: g
+  (:func:`exposure_gain`, off when κ = 0) maps the clear image's median luminance to κ·A, so the
+  direct term no longer depends on how the clear image was lit or exposed, and e^(−μβ) lets that
+  light fade as the fog thickens;
 * a·e^(−λβ)·A·e^(c·sin θ): the airlight in units of the horizon radiance A (the ``airlight``
   argument: what the camera's exposure puts at the lowest sky) — a level a (the fog between
   camera and scene is not the sky seen through all of it) that fades with β as the fog layer's
@@ -25,7 +28,7 @@ Per pixel x with ray distance ℓ (m), extinction β (1/m), optical depth T = β
   s ∈ [0, 1]) stand for sources far brighter than white; their light is scattered by the same
   PSF with a gain G, so lamps and headlights glow.
 
-With k = 0, μ = 0, a = 1, λ = 0, c = 0 and G = 0 the model is Koschmieder's law exactly (the same blend as
+With k = 0, μ = 0, a = 1, λ = 0, c = 0, G = 0 and κ = 0 the model is Koschmieder's law exactly (the same blend as
 :class:`fogsim.fog.model.Fogger`). ``space="linear"`` (the default here, physically right)
 blends linear light; ``"srgb"`` blends the stored values as the paper does. Distances as in
 :mod:`fogsim.fog.model` (ray distance, +inf = sky), airlight in 8-bit units, images uint8 /
@@ -69,6 +72,12 @@ REDUCE_ABOVE = 3.0
 REDUCE_MIN_SIDE = 8
 #: the airlight's elevation gain is computed on a grid this many times coarser (it is smooth)
 GAIN_STEP = 8
+#: the exposure gain's bounds (a black or a blown-out clear image is not scaled without limit)
+EXPOSURE_GAIN_RANGE = (0.125, 8.0)
+#: a gain g in linear light is g^(1/SRGB_GAMMA) on sRGB-encoded values (the power-law part of sRGB)
+SRGB_GAMMA = 2.2
+#: the median luminance is taken on a copy about this many pixels wide
+EXPOSURE_WIDTH = 160
 
 
 @dataclass(frozen=True)
@@ -78,7 +87,9 @@ class ScatterParams:
     ``forward`` k ∈ [0, 1): share of β scattered into the forward peak; ``spread`` ρ (rad²):
     σ_θ² = ρ·βℓ; ``illumination`` μ (m): m = e^(−μβ); ``level`` a, ``fade`` λ (m) and
     ``elevation`` c: airlight a·e^(−λβ)·A·e^(c·sin θ);
-    ``glow`` G ≥ 0 and ``glow_threshold`` (linear luminance in (0, 1]) for saturated sources.
+    ``glow`` G ≥ 0 and ``glow_threshold`` (linear luminance in (0, 1]) for saturated sources;
+    ``exposure_key`` κ ≥ 0 (0: off): the direct term scaled so the clear image's median luminance
+    becomes κ·A (:func:`exposure_gain`).
     """
 
     forward: float = 0.0
@@ -89,6 +100,7 @@ class ScatterParams:
     elevation: float = 0.0
     glow: float = 0.0
     glow_threshold: float = 0.9
+    exposure_key: float = 0.0
 
     def __post_init__(self):
         check(asdict(self), ScatterParameters)  # the one place for the ranges (ValueError naming the key)
@@ -103,7 +115,7 @@ class ScatterParams:
 
 
 KOSCHMIEDER = ScatterParams()
-TERMS = ("forward", "illumination", "level", "fade", "elevation", "glow")
+TERMS = ("forward", "illumination", "level", "fade", "elevation", "glow", "exposure_key")
 
 
 @lru_cache(maxsize=4)
@@ -255,6 +267,27 @@ def psf_sigma_rad(optical_depth: np.ndarray, spread: float) -> np.ndarray:
     return np.minimum(np.sqrt(np.float32(spread) * optical_depth), np.float32(SIGMA_MAX_RAD))
 
 
+def exposure_gain(image: np.ndarray, distance: np.ndarray, key: float, airlight_linear) -> float:
+    """The fog-lit direct term's gain κ·Y_A / median(Y): objects in fog are lit by the fog's diffuse
+    light, so their radiance relative to the airlight follows their albedo, not how the clear image
+    was lit or exposed. Y = linear luminance of the clear ``image``'s non-sky pixels (finite
+    ``distance``; on a copy :data:`EXPOSURE_WIDTH` px wide), Y_A the airlight's; clipped to
+    :data:`EXPOSURE_GAIN_RANGE`; 1 when the image has no non-sky pixel."""
+    h, w = image.shape[:2]
+    f = max(1, w // EXPOSURE_WIDTH)
+    size = (max(1, w // f), max(1, h // f))
+    small = cv2.resize(np.ascontiguousarray(image), size, interpolation=cv2.INTER_AREA)
+    far = cv2.resize(distance, size, interpolation=cv2.INTER_NEAREST)
+    lin = srgb_to_linear(small.astype(np.float32) / np.float32(full_scale(image.dtype)))
+    y = lin @ np.asarray(LUMINANCE_WEIGHTS, np.float32)
+    y = y[np.isfinite(far)]
+    if not y.size:
+        return 1.0
+    y_a = float(np.asarray(airlight_linear, np.float64) @ np.asarray(LUMINANCE_WEIGHTS, np.float64))
+    lo, hi = EXPOSURE_GAIN_RANGE
+    return float(np.clip(key * y_a / max(float(np.median(y)), 1e-6), lo, hi))
+
+
 def reduce_points(values: np.ndarray, ys: np.ndarray, xs: np.ndarray, shape: tuple[int, int],
                   small: tuple[int, int]) -> np.ndarray:
     """A sparse image (``values`` n×3 at rows ``ys``, columns ``xs`` of an H×W image, zero elsewhere)
@@ -305,16 +338,26 @@ class ScatterFogger:
         scale = np.float32(full_scale(image.dtype))
         self.distance = distance.astype(np.float32, copy=False)
         a = airlight_rgb(airlight, image.dtype) / scale
-        if space == "linear" and image.dtype in (np.uint8, np.uint16):
-            planes = [decode_codes(q) for q in cv2.split(image)]
-        else:
-            planes = [cv2.multiply(q, 1.0 / float(scale), dtype=cv2.CV_32F) for q in _split(image)]
-            if space == "linear":
-                planes = [srgb_to_linear(q) for q in planes]
+        a_linear = a if space == "linear" else srgb_to_linear(a)
         if space == "linear":
             a = srgb_to_linear(a)
         self._a = [float(v) for v in a]
-        self._planes = planes  # colour planes in the blend space, 0–1 (contiguous: fast elementwise work)
+        # the direct term's per-image gain (1: off), folded into the colour planes
+        self.exposure_gain = 1.0
+        if p.exposure_key:
+            self.exposure_gain = exposure_gain(image, self.distance, p.exposure_key, a_linear)
+        gain = self.exposure_gain if space == "linear" else self.exposure_gain ** (1.0 / SRGB_GAMMA)
+        self._gain = gain
+        if space == "linear" and image.dtype in (np.uint8, np.uint16):
+            planes = [decode_codes(q) for q in cv2.split(image)]
+            if gain != 1.0:
+                planes = [cv2.multiply(q, gain) for q in planes]
+        else:
+            unit = 1.0 if space == "linear" else gain                    # sRGB: the gain in the same pass
+            planes = [cv2.multiply(q, unit / float(scale), dtype=cv2.CV_32F) for q in _split(image)]
+            if space == "linear":
+                planes = [srgb_to_linear(q) * np.float32(gain) for q in planes]
+        self._planes = planes  # colour planes in the blend space, 0–1 × the gain (contiguous: fast elementwise work)
         self._buffers: dict[str, np.ndarray] = {}
         # β-independent parts of the blend: the airlight's gain e^(c·sin θ) (None: 1) and ℓ + μ,
         # so that the direct term's factor m·t = e^(−β(ℓ + μ)) is one exponential
@@ -360,7 +403,7 @@ class ScatterFogger:
             else srgb_to_linear(px.astype(np.float32) / np.float32(full_scale(image.dtype)))
         lum = lin @ np.array(LUMINANCE_WEIGHTS, np.float32)
         sat = np.clip((lum - np.float32(threshold)) / np.float32(max(1e-3, 1.0 - threshold)), 0.0, 1.0)
-        light = np.stack([q[ys, xs] for q in self._planes], axis=-1) * sat[:, None]
+        light = np.stack([q[ys, xs] for q in self._planes], axis=-1) * (sat / np.float32(self._gain))[:, None]
         return reduce_points(light, ys, xs, image.shape[:2], self._small)
 
     def _scattered_small(self, beta: float) -> np.ndarray | None:
@@ -413,7 +456,7 @@ class ScatterFogger:
         m·t·I + air·A + PSF term, per plane in two passes (add, multiply-accumulate)."""
         p = self.params
         if beta == 0:
-            return [q.copy() for q in self._planes]
+            return [q / np.float32(self._gain) for q in self._planes]
         mt = self._exp(self._dist_mu, beta, "t")               # m·t
         air = self._buffer("air")          # first e^(c·sin θ)·t_f, then A·e^(c·sin θ)·(1 − t_f)
         gain = self._air_gain
