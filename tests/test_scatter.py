@@ -9,14 +9,17 @@ import numpy as np
 import pytest
 
 from fogsim.camera import Intrinsics
+from fogsim.colour import linear_to_srgb, luminance, srgb_to_linear
 from fogsim.errors import InputError
 from fogsim.fog.model import Fogger
 from fogsim.fog.scatter import (
+    EXPOSURE_GAIN_RANGE,
     KOSCHMIEDER,
     TERMS,
     ScatterFogger,
     ScatterParams,
     elevation_sine,
+    exposure_gain,
     load_params,
     load_params_file,
     reduce_points,
@@ -57,7 +60,8 @@ def test_reduces_to_koschmieder_with_the_extra_terms_off(space, params):
     got, ref = ScatterFogger(img8, ray, 255, space, params, K)(0.06), Fogger(img8, ray, 255, space)(0.06)
     assert np.abs(got.astype(int) - ref).max() <= 1 and (got == ref).mean() > 0.999  # float rounding only
     # and each term on its own changes the image
-    for term, value in (("forward", 0.5), ("illumination", 10.0), ("level", 0.8), ("elevation", 1.0)):
+    for term, value in (("forward", 0.5), ("illumination", 10.0), ("level", 0.8), ("elevation", 1.0),
+                        ("exposure_key", 0.3)):
         on = ScatterFogger(img, ray, 255, "linear", ScatterParams(**{term: value}), K)(0.06)
         assert np.abs(on - Fogger(img, ray, 255, "linear")(0.06)).max() > 0.01, term
 
@@ -87,6 +91,25 @@ def test_psf_conserves_energy_and_has_the_asked_width():
     assert np.abs(s - lost).max() > 1e-3  # but moved
 
 
+def test_the_exposure_key_makes_the_direct_term_independent_of_the_clear_exposure():
+    img, ray = street()
+    p = ScatterParams(exposure_key=0.25)
+    lin = srgb_to_linear(img)
+    darker = linear_to_srgb(0.4 * lin)                     # the same scene, exposed 0.4× in the clear image
+    for space in ("linear", "srgb"):
+        a, b = (ScatterFogger(x, ray, 255, space, p, K) for x in (img, darker))
+        assert a.exposure_gain == pytest.approx(0.25 / float(np.median(luminance(lin)[np.isfinite(ray)])), rel=0.03)
+        assert b.exposure_gain == pytest.approx(a.exposure_gain / 0.4, rel=0.03)
+    a, b = (ScatterFogger(x, ray, 255, "linear", p, K).blend(0.06) for x in (img, darker))
+    assert np.abs(a - b).max() < 0.01 * a.max()             # the fogged images agree (linear blend)
+    off = ScatterFogger(darker, ray, 255, "linear", KOSCHMIEDER, K).blend(0.06)
+    assert np.abs(off - a).max() > 0.05                     # Koschmieder keeps the darker exposure
+    # bounds: a black clear image is not scaled without limit; no non-sky pixel → no gain
+    black = np.zeros_like(img)
+    assert exposure_gain(black, ray, 0.25, (1.0, 1.0, 1.0)) == EXPOSURE_GAIN_RANGE[1]
+    assert exposure_gain(img, np.full(ray.shape, np.inf, np.float32), 0.25, (1.0, 1.0, 1.0)) == 1.0
+
+
 def test_glow_appears_around_an_emitter_and_nowhere_else():
     img = np.full((90, 120, 3), 0.02, np.float32)
     ray = np.full((90, 120), 30.0, np.float32)
@@ -105,6 +128,14 @@ def test_glow_appears_around_an_emitter_and_nowhere_else():
     assert y[(r > 2) & (r < 6)].mean() > 0.05  # a halo around the lamp
     assert np.abs(y[r > 40]).max() < 1e-3      # and nothing far from it (running-sum rounding only)
     assert (y >= -1e-3).all()
+    # its own, narrower PSF keeps the same energy closer to the lamp
+    def light(params):  # linear light, not clipped at white
+        return ScatterFogger(lamp, ray, 255, "linear", params, K).blend(0.06)
+    wide = light(glow) - light(base)
+    narrow = light(ScatterParams(forward=0.5, spread=0.002, glow=50.0, glow_spread=0.0002)) - light(base)
+    ring = (r > 2) & (r < 4)
+    assert narrow.mean(axis=2)[ring].mean() > 1.5 * wide.mean(axis=2)[ring].mean()
+    assert narrow.sum() == pytest.approx(wide.sum(), rel=0.02)
     # no emitter, no glow: the glow term changes nothing
     same = fog(img, glow) - fog(img, base)
     assert np.abs(same).max() < 1e-6

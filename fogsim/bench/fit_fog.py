@@ -40,8 +40,9 @@ from fogsim.schema.documents import RenderRunFile, RenderRunParameters
 DAY_BOUNDS = {"exposure_key": (0.0, 1.5, 0.2), "forward": (0.0, 0.95, 0.2), "spread": (-3.0, 1.0, 0.5),
               "illumination": (0.0, 40.0, 8.0), "level": (0.5, 1.5, 0.1), "fade": (0.0, 20.0, 4.0),
               "elevation": (-3.0, 6.0, 1.0)}
-GLOW_BOUNDS = (-1.0, 4.0, 1.0)  # log10 G
-LOG_PARAMS = ("spread", "glow")
+#: the night parameters (log10 G and log10 ρ_g): the lamps' gain and their PSF's own width
+GLOW_BOUNDS = {"glow": (-1.0, 4.0, 1.0), "glow_spread": (-3.0, 1.0, 1.0)}
+LOG_PARAMS = ("spread", "glow", "glow_spread")
 #: the reference RMS a ratio is taken to at least (A = 1: far below any real model's error)
 RMS_FLOOR = 1e-3
 MIN_STEP = 1 / 64  # stop when every step has halved this far (relative to the first step)
@@ -212,7 +213,8 @@ def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> d
         params = replace(params, glow=max(params.glow, 1.0))
         glow_before = glow_objective(replace(params, glow=0.0), night)
         if glow_before is not None:
-            params, g = pattern_search(params, {"glow": GLOW_BOUNDS}, lambda p: glow_objective(p, night), log)
+            params = replace(params, glow_spread=params.spread)
+            params, g = pattern_search(params, GLOW_BOUNDS, lambda p: glow_objective(p, night), log)
             glow = {"before": glow_before, "after": g}
         else:
             params = replace(params, glow=0.0)

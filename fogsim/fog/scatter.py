@@ -25,8 +25,8 @@ Per pixel x with ray distance ℓ (m), extinction β (1/m), optical depth T = β
   light from above is itself attenuated (λ, m; empirical), and brightens with the viewing
   elevation θ, as the path to the top of the fog layer, which is lit from above, gets shorter;
 * glow: pixels that are saturated in the clear image (linear luminance above the threshold,
-  s ∈ [0, 1]) stand for sources far brighter than white; their light is scattered by the same
-  PSF with a gain G, so lamps and headlights glow.
+  s ∈ [0, 1]) stand for sources far brighter than white; their light is scattered by a PSF of
+  the same form (its own width ρ_g, or ρ) with a gain G, so lamps and headlights glow.
 
 With k = 0, μ = 0, a = 1, λ = 0, c = 0, G = 0 and κ = 0 the model is Koschmieder's law exactly (the same blend as
 :class:`fogsim.fog.model.Fogger`). ``space="linear"`` (the default here, physically right)
@@ -89,7 +89,8 @@ class ScatterParams:
     ``elevation`` c: airlight a·e^(−λβ)·A·e^(c·sin θ);
     ``glow`` G ≥ 0 and ``glow_threshold`` (linear luminance in (0, 1]) for saturated sources;
     ``exposure_key`` κ ≥ 0 (0: off): the direct term scaled so the clear image's median luminance
-    becomes κ·A (:func:`exposure_gain`).
+    becomes κ·A (:func:`exposure_gain`); ``glow_spread`` ρ_g (rad², 0: ``spread``): the glow's own
+    PSF, σ_θ² = ρ_g·βℓ (a lamp's halo is the narrow core of the APSF, the scene's haze its wide wings).
     """
 
     forward: float = 0.0
@@ -101,6 +102,7 @@ class ScatterParams:
     glow: float = 0.0
     glow_threshold: float = 0.9
     exposure_key: float = 0.0
+    glow_spread: float = 0.0
 
     def __post_init__(self):
         check(asdict(self), ScatterParameters)  # the one place for the ranges (ValueError naming the key)
@@ -416,11 +418,19 @@ class ScatterFogger:
         tf = np.exp(d * np.float32(-beta * (1.0 - p.forward)))
         wt = (tf - t) * m
         src = cv2.multiply(self._rgb_small, cv2.merge([wt, wt, wt]))  # OpenCV: numpy's broadcast is slower here
+        depth = np.where(np.isinf(d), np.float32(0.0), d * np.float32(beta))   # optical depth T = βℓ
+        sigma = psf_sigma_rad(depth, p.spread) * self._f_small
+        glow = None
         if self._glow_small is not None:
             wg = (1.0 - t) * (m * np.float32(p.glow))
-            src += cv2.multiply(self._glow_small, cv2.merge([wg, wg, wg]))
-        sigma = psf_sigma_rad(np.where(np.isinf(d), np.float32(0.0), d * np.float32(beta)), p.spread) * self._f_small
-        return splat(src, sigma)
+            glow = cv2.multiply(self._glow_small, cv2.merge([wg, wg, wg]))
+            if not p.glow_spread or p.glow_spread == p.spread:
+                src += glow
+                glow = None
+        out = splat(src, sigma)
+        if glow is not None:                                  # the lamps' own, narrower PSF
+            out += splat(glow, psf_sigma_rad(depth, p.glow_spread) * self._f_small)
+        return out
 
     def _buffer(self, name: str) -> np.ndarray:
         """A full-size float32 work plane kept between calls (fresh 10 MB arrays cost page faults)."""

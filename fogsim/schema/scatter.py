@@ -26,6 +26,7 @@ class ScatterParameters(Closed):
     elevation: number_in(-10, 10) = 0.0     # c: airlight × exp(c·sin θ), θ the viewing elevation
     glow: number_in(0, 1e4) = 0.0           # G: saturated pixels' scattered light × (1 + G)
     glow_threshold: number_in(0, 1, lo_open=True) = 0.9  # linear luminance where saturation begins
+    glow_spread: number_in(0, 10) = 0.0     # ρ_g (rad²): the glow's PSF variance per unit βℓ; 0 = spread
     exposure_key: number_in(0, 10) = 0.0    # κ: direct term × κ·Y_A/median(Y_clear) (fog-lit objects); 0 = off
 
 
