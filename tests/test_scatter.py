@@ -320,6 +320,16 @@ def test_fit_fog_and_the_bench_column_on_fog_physics_runs(bench_dir, tmp_path, c
     assert load_params(out) == ScatterParams(**doc.parameters.model_dump())
     result = analyse(bench_dir)
     assert "scatter" in result["models"] and "| scatter |" in (bench_dir / "report" / "fog_physics.md").read_text()
+    # the bench compares a new fit before it ships: --scatter-params
+    def scatter_rms(doc):
+        return [b["models"]["scatter"]["normalised"]["all"]["rms"] for b in doc["per_beta"].values()]
+    shipped = scatter_rms(result)
+    assert main(["bench", "fog-physics", "--out", str(bench_dir), "--analyse-only", "--scatter-params", str(out),
+                 "--quiet"]) == 0
+    fitted = scatter_rms(json.loads((bench_dir / "report" / "fog_physics.json").read_text()))
+    assert fitted != shipped
+    assert main(["bench", "fog-physics", "--out", str(bench_dir), "--analyse-only", "--scatter-params",
+                 str(tmp_path / "missing.json")]) == 2
 
 
 def test_shipped_parameters_are_fitted_and_say_on_what():

@@ -19,6 +19,7 @@ whether they are.
     fogsim bench fog-physics [--frames 1] [--resolution 160x107] [--samples 16] [--out bench/fog-physics]
                              [--medium full|hybrid|ea] [--denoise]
     fogsim bench fog-physics --analyse-only --out DIR --pool DIR2 [--pool DIR3 …]   # frames pooled
+                             [--scatter-params FILE]   # a fit-fog result instead of the shipped one
 
 ``--medium ea`` (the camera-only emission–absorption medium) is the zero-error control: linear
 Koschmieder must match it to noise level in every bin.
@@ -225,7 +226,12 @@ def run(args) -> int:
     for folder in pool:
         if not folder.is_dir():
             raise InputError(folder, "not a fogsim bench fog-physics folder (--pool)")
-    result = analyse(out, pool=pool)
+    comparison = None
+    if getattr(args, "scatter_params", None):
+        from fogsim.fog.scatter import load_params
+
+        comparison = Comparison(models=default_models(scatter=load_params(args.scatter_params)))
+    result = analyse(out, comparison=comparison, pool=pool)
     print(markdown(result) + footer(result), end="")
     print(f"report: {out / 'report' / 'fog_physics.md'} (JSON, panels_<frame>.png beside it)")
     return 0

@@ -101,6 +101,8 @@ def add_parsers(sub) -> None:
     fp.add_argument("--analyse-only", action="store_true", help="only analyse the datasets already under OUT")
     fp.add_argument("--pool", action="append", metavar="DIR", help="another fog-physics folder whose frames are "
                     "analysed with OUT's, pooled into OUT/report (repeatable; e.g. held-out styles and seeds)")
+    fp.add_argument("--scatter-params", metavar="FILE", help="the scatter model's parameter file to compare "
+                    "(written by fogsim fit-fog; default: the shipped one) — a new fit, before it ships")
     _quiet_option(fp)
     fp.set_defaults(run=lambda args: _fog_physics(args))
 
