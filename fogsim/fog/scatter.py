@@ -19,16 +19,18 @@ Per pixel x with ray distance ℓ (m), extinction β (1/m), optical depth T = β
   (:func:`exposure_gain`, off when κ = 0) maps the clear image's median luminance to κ·A, so the
   direct term no longer depends on how the clear image was lit or exposed, and e^(−μβ) lets that
   light fade as the fog thickens;
-* a·e^(−λβ)·A·e^(c·sin θ): the airlight in units of the horizon radiance A (the ``airlight``
+* a·e^(−λβ)·(Ω/Ω₀)^(−ν)·A·e^(c·sin θ): the airlight in units of the horizon radiance A (the ``airlight``
   argument: what the camera's exposure puts at the lowest sky) — a level a (the fog between
   camera and scene is not the sky seen through all of it) that fades with β as the fog layer's
   light from above is itself attenuated (λ, m; empirical), and brightens with the viewing
   elevation θ, as the path to the top of the fog layer, which is lit from above, gets shorter;
+  Ω is the share of sky in view (Ω₀ = :data:`SKY_REFERENCE`): in Cycles' fog the street's airlight
+  relative to the lowest visible sky falls as the view opens up (empirical, ν fitted);
 * glow: pixels that are saturated in the clear image (linear luminance above the threshold,
   s ∈ [0, 1]) stand for sources far brighter than white; their light is scattered by a PSF of
   the same form (its own width ρ_g, or ρ) with a gain G, so lamps and headlights glow.
 
-With k = 0, μ = 0, a = 1, λ = 0, c = 0, G = 0 and κ = 0 the model is Koschmieder's law exactly (the same blend as
+With k = 0, μ = 0, a = 1, λ = 0, c = 0, G = 0, κ = 0 and ν = 0 the model is Koschmieder's law exactly (the same blend as
 :class:`fogsim.fog.model.Fogger`). ``space="linear"`` (the default here, physically right)
 blends linear light; ``"srgb"`` blends the stored values as the paper does. Distances as in
 :mod:`fogsim.fog.model` (ray distance, +inf = sky), airlight in 8-bit units, images uint8 /
@@ -78,6 +80,9 @@ EXPOSURE_GAIN_RANGE = (0.125, 8.0)
 SRGB_GAMMA = 2.2
 #: the median luminance is taken on a copy about this many pixels wide
 EXPOSURE_WIDTH = 160
+#: the share of sky in view the airlight's level ``a`` refers to, and the least share counted
+SKY_REFERENCE = 0.15
+SKY_MIN = 0.02
 
 
 @dataclass(frozen=True)
@@ -90,7 +95,8 @@ class ScatterParams:
     ``glow`` G ≥ 0 and ``glow_threshold`` (linear luminance in (0, 1]) for saturated sources;
     ``exposure_key`` κ ≥ 0 (0: off): the direct term scaled so the clear image's median luminance
     becomes κ·A (:func:`exposure_gain`); ``glow_spread`` ρ_g (rad², 0: ``spread``): the glow's own
-    PSF, σ_θ² = ρ_g·βℓ (a lamp's halo is the narrow core of the APSF, the scene's haze its wide wings).
+    PSF, σ_θ² = ρ_g·βℓ (a lamp's halo is the narrow core of the APSF, the scene's haze its wide wings);
+    ``sky_exponent`` ν (0: off): the airlight × (Ω/Ω₀)^(−ν), Ω the share of sky in view (:func:`sky_gain`).
     """
 
     forward: float = 0.0
@@ -103,6 +109,7 @@ class ScatterParams:
     glow_threshold: float = 0.9
     exposure_key: float = 0.0
     glow_spread: float = 0.0
+    sky_exponent: float = 0.0
 
     def __post_init__(self):
         check(asdict(self), ScatterParameters)  # the one place for the ranges (ValueError naming the key)
@@ -117,7 +124,7 @@ class ScatterParams:
 
 
 KOSCHMIEDER = ScatterParams()
-TERMS = ("forward", "illumination", "level", "fade", "elevation", "glow", "exposure_key")
+TERMS = ("forward", "illumination", "level", "fade", "elevation", "glow", "exposure_key", "sky_exponent")
 
 
 @lru_cache(maxsize=4)
@@ -290,6 +297,15 @@ def exposure_gain(image: np.ndarray, distance: np.ndarray, key: float, airlight_
     return float(np.clip(key * y_a / max(float(np.median(y)), 1e-6), lo, hi))
 
 
+def sky_gain(distance: np.ndarray, exponent: float) -> float:
+    """The airlight's gain (Ω/Ω₀)^(−ν) from the share Ω of sky pixels (+inf distance; counted on every
+    4th row and column, at least :data:`SKY_MIN`) against :data:`SKY_REFERENCE`. Empirical: in
+    Cycles' fog the street's airlight relative to the lowest visible sky falls as the view opens up
+    (urban canyon, Ω ≈ 0.08: 1.05 A; arterial, 0.18: 0.88 A; suburban, 0.23: 0.75 A; ``docs/fog-physics.md``)."""
+    omega = max(float(np.isinf(distance[::4, ::4]).mean()), SKY_MIN)
+    return float((omega / SKY_REFERENCE) ** (-exponent))
+
+
 def reduce_points(values: np.ndarray, ys: np.ndarray, xs: np.ndarray, shape: tuple[int, int],
                   small: tuple[int, int]) -> np.ndarray:
     """A sparse image (``values`` n×3 at rows ``ys``, columns ``xs`` of an H×W image, zero elsewhere)
@@ -344,6 +360,8 @@ class ScatterFogger:
         if space == "linear":
             a = srgb_to_linear(a)
         self._a = [float(v) for v in a]
+        # the airlight's per-image gain from the share of sky in view (1: off)
+        self.sky_gain = sky_gain(self.distance, p.sky_exponent) if p.sky_exponent else 1.0
         # the direct term's per-image gain (1: off), folded into the colour planes
         self.exposure_gain = 1.0
         if p.exposure_key:
@@ -476,7 +494,7 @@ class ScatterFogger:
             gt = self._exp(self.distance, beta * (1.0 - p.forward), "air")
         else:                                                   # one exponential: e^(c·sin θ − β(1−k)ℓ)
             gt = cv2.exp(cv2.scaleAdd(self.distance, -beta * (1.0 - p.forward), self._log_gain, dst=air), dst=air)
-        level = p.level * math.exp(-p.fade * beta)              # a·e^(−λβ)
+        level = p.level * math.exp(-p.fade * beta) * self.sky_gain   # a·e^(−λβ)·(Ω/Ω₀)^(−ν)
         a = [v * level for v in self._a]
         uniform = a[0] == a[1] == a[2]                          # a grey airlight is folded into the air plane
         unit = a[0] if uniform else 1.0
