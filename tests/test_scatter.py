@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fogsim.camera import Intrinsics
-from fogsim.colour import linear_to_srgb, luminance, srgb_to_linear
+from fogsim.colour import from_float, full_scale, linear_to_srgb, luminance, srgb_to_linear
 from fogsim.errors import InputError
 from fogsim.fog.model import Fogger
 from fogsim.fog.scatter import (
@@ -18,10 +18,12 @@ from fogsim.fog.scatter import (
     TERMS,
     ScatterFogger,
     ScatterParams,
+    direct_planes,
     elevation_sine,
     exposure_gain,
     load_params,
     load_params_file,
+    median_luminance,
     reduce_points,
     scatter,
     shipped_params_path,
@@ -61,7 +63,7 @@ def test_reduces_to_koschmieder_with_the_extra_terms_off(space, params):
     assert np.abs(got.astype(int) - ref).max() <= 1 and (got == ref).mean() > 0.999  # float rounding only
     # and each term on its own changes the image
     for term, value in (("forward", 0.5), ("illumination", 10.0), ("level", 0.8), ("elevation", 1.0),
-                        ("exposure_key", 0.3)):
+                        ("exposure_key", 0.3), ("flatten", 0.4), ("sky_exponent", 0.5)):
         on = ScatterFogger(img, ray, 255, "linear", ScatterParams(**{term: value}), K)(0.06)
         assert np.abs(on - Fogger(img, ray, 255, "linear")(0.06)).max() > 0.01, term
 
@@ -106,8 +108,24 @@ def test_the_exposure_key_makes_the_direct_term_independent_of_the_clear_exposur
     assert np.abs(off - a).max() > 0.05                     # Koschmieder keeps the darker exposure
     # bounds: a black clear image is not scaled without limit; no non-sky pixel → no gain
     black = np.zeros_like(img)
-    assert exposure_gain(black, ray, 0.25, (1.0, 1.0, 1.0)) == EXPOSURE_GAIN_RANGE[1]
-    assert exposure_gain(img, np.full(ray.shape, np.inf, np.float32), 0.25, (1.0, 1.0, 1.0)) == 1.0
+    assert median_luminance(black, ray) == 0.0
+    assert exposure_gain(0.0, 0.25, (1.0, 1.0, 1.0)) == EXPOSURE_GAIN_RANGE[1]
+    sky = np.full(ray.shape, np.inf, np.float32)
+    assert median_luminance(img, sky) is None and ScatterFogger(img, sky, 255, "linear", p, K).exposure_gain == 1.0
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32])
+@pytest.mark.parametrize("space", ["linear", "srgb"])
+def test_flatten_compresses_the_direct_term_around_its_median(dtype, space):
+    img, _ = street()
+    img = from_float(img * np.float32(full_scale(dtype)), dtype) if dtype != np.float32 else img
+    plain = direct_planes(img, space)
+    ref = float(np.median(plain[1]))
+    flat = direct_planes(img, space, gain=2.0, flatten=0.5, reference=ref)
+    for q, f in zip(plain, flat):
+        want = 2.0 * ref * (q / ref) ** 0.5
+        assert np.allclose(f, want, rtol=1e-4, atol=1e-6)
+    assert np.std(np.log(flat[1])) == pytest.approx(0.5 * np.std(np.log(plain[1])), rel=1e-3)
 
 
 def test_glow_appears_around_an_emitter_and_nowhere_else():

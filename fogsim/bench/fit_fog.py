@@ -39,7 +39,8 @@ from fogsim.schema.documents import RenderRunFile, RenderRunParameters
 #: one street style (μ = −14 m: objects 5× brighter at β = 0.12) failed on the others (docs/fog-physics.md)
 DAY_BOUNDS = {"exposure_key": (0.0, 1.5, 0.2), "forward": (0.0, 0.95, 0.2), "spread": (-3.0, 1.0, 0.5),
               "illumination": (0.0, 40.0, 8.0), "level": (0.5, 1.5, 0.1), "fade": (0.0, 20.0, 4.0),
-              "elevation": (-3.0, 6.0, 1.0), "sky_exponent": (-1.0, 1.5, 0.25)}
+              "elevation": (-3.0, 6.0, 1.0), "sky_exponent": (-1.0, 1.5, 0.25),
+              "flatten": (0.0, 0.9, 0.2)}
 #: the night parameters (log10 G and log10 ρ_g): the lamps' gain and their PSF's own width
 GLOW_BOUNDS = {"glow": (-1.0, 4.0, 1.0), "glow_spread": (-3.0, 1.0, 1.0)}
 LOG_PARAMS = ("spread", "glow", "glow_spread")

@@ -18,7 +18,8 @@ Per pixel x with ray distance ℓ (m), extinction β (1/m), optical depth T = β
 * m = g·e^(−μβ): objects in fog are lit by the fog's diffuse light, not by the clear sky: g
   (:func:`exposure_gain`, off when κ = 0) maps the clear image's median luminance to κ·A, so the
   direct term no longer depends on how the clear image was lit or exposed, and e^(−μβ) lets that
-  light fade as the fog thickens;
+  light fade as the fog thickens; I itself has its sun and shadow flattened by a share f,
+  I → r·(I/r)^(1−f) around the median r;
 * a·e^(−λβ)·(Ω/Ω₀)^(−ν)·A·e^(c·sin θ): the airlight in units of the horizon radiance A (the ``airlight``
   argument: what the camera's exposure puts at the lowest sky) — a level a (the fog between
   camera and scene is not the sky seen through all of it) that fades with β as the fog layer's
@@ -30,7 +31,7 @@ Per pixel x with ray distance ℓ (m), extinction β (1/m), optical depth T = β
   s ∈ [0, 1]) stand for sources far brighter than white; their light is scattered by a PSF of
   the same form (its own width ρ_g, or ρ) with a gain G, so lamps and headlights glow.
 
-With k = 0, μ = 0, a = 1, λ = 0, c = 0, G = 0, κ = 0 and ν = 0 the model is Koschmieder's law exactly (the same blend as
+With k = μ = λ = c = G = κ = ν = f = 0 and a = 1 the model is Koschmieder's law exactly (the same blend as
 :class:`fogsim.fog.model.Fogger`). ``space="linear"`` (the default here, physically right)
 blends linear light; ``"srgb"`` blends the stored values as the paper does. Distances as in
 :mod:`fogsim.fog.model` (ray distance, +inf = sky), airlight in 8-bit units, images uint8 /
@@ -52,7 +53,15 @@ import cv2
 import numpy as np
 
 from fogsim.camera import Intrinsics
-from fogsim.colour import LUMINANCE_WEIGHTS, decode_codes, from_float, full_scale, linear_to_srgb, srgb_to_linear
+from fogsim.colour import (
+    LUMINANCE_WEIGHTS,
+    decode_codes,
+    from_float,
+    full_scale,
+    linear_to_srgb,
+    srgb_luminance,
+    srgb_to_linear,
+)
 from fogsim.fog.model import SPACES, airlight_rgb, check_beta, check_distance
 from fogsim.schema.base import check, load_json
 from fogsim.schema.scatter import ScatterParameters, ScatterParamsFile
@@ -96,7 +105,9 @@ class ScatterParams:
     ``exposure_key`` κ ≥ 0 (0: off): the direct term scaled so the clear image's median luminance
     becomes κ·A (:func:`exposure_gain`); ``glow_spread`` ρ_g (rad², 0: ``spread``): the glow's own
     PSF, σ_θ² = ρ_g·βℓ (a lamp's halo is the narrow core of the APSF, the scene's haze its wide wings);
-    ``sky_exponent`` ν (0: off): the airlight × (Ω/Ω₀)^(−ν), Ω the share of sky in view (:func:`sky_gain`).
+    ``sky_exponent`` ν (0: off): the airlight × (Ω/Ω₀)^(−ν), Ω the share of sky in view (:func:`sky_gain`);
+    ``flatten`` f ∈ [0, 1) (0: off): the direct term's contrast compressed, I → r·(I/r)^(1−f)
+    (:func:`direct_planes`: sun and shadow give way to the fog's even light).
     """
 
     forward: float = 0.0
@@ -110,6 +121,7 @@ class ScatterParams:
     exposure_key: float = 0.0
     glow_spread: float = 0.0
     sky_exponent: float = 0.0
+    flatten: float = 0.0
 
     def __post_init__(self):
         check(asdict(self), ScatterParameters)  # the one place for the ranges (ValueError naming the key)
@@ -124,7 +136,7 @@ class ScatterParams:
 
 
 KOSCHMIEDER = ScatterParams()
-TERMS = ("forward", "illumination", "level", "fade", "elevation", "glow", "exposure_key", "sky_exponent")
+TERMS = ("forward", "illumination", "level", "fade", "elevation", "glow", "exposure_key", "sky_exponent", "flatten")
 
 
 @lru_cache(maxsize=4)
@@ -276,25 +288,51 @@ def psf_sigma_rad(optical_depth: np.ndarray, spread: float) -> np.ndarray:
     return np.minimum(np.sqrt(np.float32(spread) * optical_depth), np.float32(SIGMA_MAX_RAD))
 
 
-def exposure_gain(image: np.ndarray, distance: np.ndarray, key: float, airlight_linear) -> float:
-    """The fog-lit direct term's gain κ·Y_A / median(Y): objects in fog are lit by the fog's diffuse
-    light, so their radiance relative to the airlight follows their albedo, not how the clear image
-    was lit or exposed. Y = linear luminance of the clear ``image``'s non-sky pixels (finite
-    ``distance``; on a copy :data:`EXPOSURE_WIDTH` px wide), Y_A the airlight's; clipped to
-    :data:`EXPOSURE_GAIN_RANGE`; 1 when the image has no non-sky pixel."""
+def median_luminance(image: np.ndarray, distance: np.ndarray) -> float | None:
+    """The median linear luminance of the clear ``image``'s non-sky pixels (finite ``distance``), on a
+    copy about :data:`EXPOSURE_WIDTH` px wide; None when every pixel is sky."""
     h, w = image.shape[:2]
     f = max(1, w // EXPOSURE_WIDTH)
     size = (max(1, w // f), max(1, h // f))
     small = cv2.resize(np.ascontiguousarray(image), size, interpolation=cv2.INTER_AREA)
     far = cv2.resize(distance, size, interpolation=cv2.INTER_NEAREST)
-    lin = srgb_to_linear(small.astype(np.float32) / np.float32(full_scale(image.dtype)))
-    y = lin @ np.asarray(LUMINANCE_WEIGHTS, np.float32)
-    y = y[np.isfinite(far)]
-    if not y.size:
-        return 1.0
+    y = srgb_luminance(small)[np.isfinite(far)]
+    return float(np.median(y)) if y.size else None
+
+
+def exposure_gain(median: float, key: float, airlight_linear) -> float:
+    """The fog-lit direct term's gain κ·Y_A / median(Y) (:func:`median_luminance`; Y_A the airlight's
+    linear luminance), clipped to :data:`EXPOSURE_GAIN_RANGE`: objects in fog are lit by the fog's
+    diffuse light, so their radiance relative to the airlight follows their albedo, not how the
+    clear image was lit or exposed."""
     y_a = float(np.asarray(airlight_linear, np.float64) @ np.asarray(LUMINANCE_WEIGHTS, np.float64))
     lo, hi = EXPOSURE_GAIN_RANGE
-    return float(np.clip(key * y_a / max(float(np.median(y)), 1e-6), lo, hi))
+    return float(np.clip(key * y_a / max(median, 1e-6), lo, hi))
+
+
+def direct_planes(image: np.ndarray, space: str, gain: float = 1.0, flatten: float = 0.0,
+                  reference: float = 1.0) -> list[np.ndarray]:
+    """The clear image's colour planes as the direct term uses them, in the blend space (0–1,
+    float32, contiguous): gain·r·(I/r)^(1−f) with r the ``reference`` (the median luminance in the
+    blend space) and f the ``flatten`` share: sun and shadow of the clear image compressed towards
+    the even light of fog. 8/16-bit images through one lookup table per image."""
+    gamma = 1.0 - flatten
+    top = float(full_scale(image.dtype))
+
+    def shape(x):
+        if gamma != 1.0:
+            x = np.float32(reference) * cv2.pow(np.maximum(x, 0.0) / np.float32(reference), gamma)
+        return x * np.float32(gain) if gain != 1.0 else x
+
+    if image.dtype in (np.uint8, np.uint16):
+        table = _code_table(np.dtype(image.dtype)) if space == "linear" \
+            else np.arange(int(top) + 1, dtype=np.float32) / np.float32(top)
+        table = np.ascontiguousarray(shape(table.reshape(1, -1)), np.float32)
+        if image.dtype == np.uint8:
+            return [cv2.LUT(q, table) for q in cv2.split(image)]
+        return [table[0][q] for q in cv2.split(image)]
+    planes = [cv2.multiply(q, 1.0 / top, dtype=cv2.CV_32F) for q in _split(image)]
+    return [shape(srgb_to_linear(q) if space == "linear" else q) for q in planes]
 
 
 def sky_gain(distance: np.ndarray, exponent: float) -> float:
@@ -362,22 +400,16 @@ class ScatterFogger:
         self._a = [float(v) for v in a]
         # the airlight's per-image gain from the share of sky in view (1: off)
         self.sky_gain = sky_gain(self.distance, p.sky_exponent) if p.sky_exponent else 1.0
-        # the direct term's per-image gain (1: off), folded into the colour planes
-        self.exposure_gain = 1.0
-        if p.exposure_key:
-            self.exposure_gain = exposure_gain(image, self.distance, p.exposure_key, a_linear)
+        # the direct term's per-image gain and flattening (off: 1 and 0), folded into the colour planes
+        self.exposure_gain, y_med = 1.0, None
+        if p.exposure_key or p.flatten:
+            y_med = median_luminance(image, self.distance)
+        if p.exposure_key and y_med is not None:
+            self.exposure_gain = exposure_gain(y_med, p.exposure_key, a_linear)
+        flatten = p.flatten if y_med is not None else 0.0
+        reference = 1.0 if y_med is None else (y_med if space == "linear" else float(linear_to_srgb(y_med)))
         gain = self.exposure_gain if space == "linear" else self.exposure_gain ** (1.0 / SRGB_GAMMA)
-        self._gain = gain
-        if space == "linear" and image.dtype in (np.uint8, np.uint16):
-            planes = [decode_codes(q) for q in cv2.split(image)]
-            if gain != 1.0:
-                planes = [cv2.multiply(q, gain) for q in planes]
-        else:
-            unit = 1.0 if space == "linear" else gain                    # sRGB: the gain in the same pass
-            planes = [cv2.multiply(q, unit / float(scale), dtype=cv2.CV_32F) for q in _split(image)]
-            if space == "linear":
-                planes = [srgb_to_linear(q) * np.float32(gain) for q in planes]
-        self._planes = planes  # colour planes in the blend space, 0–1 × the gain (contiguous: fast elementwise work)
+        self._planes = direct_planes(image, space, gain, flatten, reference)  # blend space (contiguous planes)
         self._buffers: dict[str, np.ndarray] = {}
         # β-independent parts of the blend: the airlight's gain e^(c·sin θ) (None: 1) and ℓ + μ,
         # so that the direct term's factor m·t = e^(−β(ℓ + μ)) is one exponential
@@ -391,7 +423,8 @@ class ScatterFogger:
             f = max(1, int(math.ceil(w / WORK_WIDTH)))
             self._small = (max(1, w // f), max(1, h // f))
             self._f_small = focal_px((h, w), intrinsics) * self._small[0] / w
-            self._rgb_small = cv2.merge([cv2.resize(q, self._small, interpolation=cv2.INTER_AREA) for q in planes])
+            self._rgb_small = cv2.merge([cv2.resize(q, self._small, interpolation=cv2.INTER_AREA)
+                                         for q in self._planes])
             self._dist_small = cv2.resize(self.distance, self._small, interpolation=cv2.INTER_NEAREST)
             self._glow_small = None
             if p.glow > 0:
@@ -423,7 +456,8 @@ class ScatterFogger:
             else srgb_to_linear(px.astype(np.float32) / np.float32(full_scale(image.dtype)))
         lum = lin @ np.array(LUMINANCE_WEIGHTS, np.float32)
         sat = np.clip((lum - np.float32(threshold)) / np.float32(max(1e-3, 1.0 - threshold)), 0.0, 1.0)
-        light = np.stack([q[ys, xs] for q in self._planes], axis=-1) * (sat / np.float32(self._gain))[:, None]
+        light = (lin if self.space == "linear" else px.astype(np.float32) / np.float32(full_scale(image.dtype)))
+        light = light * sat[:, None]
         return reduce_points(light, ys, xs, image.shape[:2], self._small)
 
     def _scattered_small(self, beta: float) -> np.ndarray | None:
@@ -484,7 +518,7 @@ class ScatterFogger:
         m·t·I + air·A + PSF term, per plane in two passes (add, multiply-accumulate)."""
         p = self.params
         if beta == 0:
-            return [q / np.float32(self._gain) for q in self._planes]
+            return direct_planes(self.image, self.space)
         mt = self._exp(self._dist_mu, beta, "t")               # m·t
         air = self._buffer("air")          # first e^(c·sin θ)·t_f, then A·e^(c·sin θ)·(1 − t_f)
         gain = self._air_gain
