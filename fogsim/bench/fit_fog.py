@@ -4,18 +4,18 @@ Reads one or more ``fogsim bench fog-physics`` folders (each: a clear run and tw
 runs of the same frames, see :mod:`fogsim.bench.fog_physics`) and fits, by a bounded pattern
 search (Hooke–Jeeves: coordinate steps that halve when nothing improves; deterministic):
 
-1. on the day frames, ``forward``, ``spread``, ``illumination`` and the airlight's ``level``,
-   ``fade``, ``elevation``, minimising the mean over β of the noise-free normalised RMS
+1. on the day frames, ``exposure_key``, ``flatten``, ``forward``, ``spread``, ``illumination`` and
+   the airlight's ``level``, ``fade``, ``elevation``, ``sky_exponent``, minimising the mean over β of the noise-free normalised RMS
    (path-traced image scaled so its horizon is A, interior non-sky pixels,
    :mod:`fogsim.fog.physics`; pooled over frames) relative to linear Koschmieder's at that β
    (the target is a ratio per β: every β counts alike);
-2. on the night frames (if any), ``glow``, minimising the squared log-ratio of the model's and
+2. on the night frames (if any), ``glow`` and ``glow_spread``, minimising the squared log-ratio of the model's and
    the path-traced radial luminance profile around each lamp (:func:`fogsim.fog.physics.lamps`).
 
 Writes a small versioned JSON (:class:`fogsim.schema.scatter.ScatterParamsFile`) with the
 presets, seeds, frames, β and the objective before (Koschmieder: every term off) and after.
 
-    fogsim fit-fog RUN_DIR [RUN_DIR …] [--out fogsim/fog/scatter_params.json]
+    fogsim fit-fog RUN_DIR [RUN_DIR …] [--out fogsim/fog/scatter_params.json] [--start PARAMS.json]
 """
 from __future__ import annotations
 
@@ -233,15 +233,18 @@ def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> d
 def run(args) -> int:
     """``fogsim fit-fog``: fit, check the document against the schema, write it atomically."""
     from fogsim.fileio import write_json
+    from fogsim.fog.scatter import load_params
     from fogsim.schema.base import check
     from fogsim.schema.scatter import ScatterParamsFile
 
     log = (lambda *a: None) if args.quiet else print
-    doc = fit([Path(f) for f in args.runs], log=log)
+    start = load_params(args.start) if getattr(args, "start", None) else None
+    doc = fit([Path(f) for f in args.runs], start=start, log=log)
     check(doc, ScatterParamsFile, args.out)
     write_json(args.out, doc)
     p = doc["parameters"]
     print(f"fit-fog: RMS normalised {doc['fitted_on']['before']:.3f} (Koschmieder) → {doc['fitted_on']['after']:.3f} "
           f"(scatter); k={p['forward']:.3g} ρ={p['spread']:.3g} μ={p['illumination']:.3g} m "
-          f"c={p['elevation']:.3g} G={p['glow']:.3g} → {args.out}")
+          f"c={p['elevation']:.3g} κ={p['exposure_key']:.3g} ν={p['sky_exponent']:.3g} f={p['flatten']:.3g} "
+          f"G={p['glow']:.3g} → {args.out}")
     return 0

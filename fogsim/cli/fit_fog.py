@@ -12,6 +12,8 @@ def add_parsers(sub) -> None:
                    help="fogsim bench fog-physics --out folders (clear + two volumetric runs each)")
     p.add_argument("--out", default="scatter_params.json",
                    help="the parameter file to write (fogsim ships fogsim/fog/scatter_params.json)")
+    p.add_argument("--start", metavar="FILE", help="start the search from this parameter file (e.g. the shipped "
+                   "one, for a refit on more frames; default: forward scatter on, the rest off)")
     p.add_argument("--quiet", action="store_true", help="print only errors and the summary line")
     p.set_defaults(run=_run)
 
