@@ -154,6 +154,15 @@ def test_glow_appears_around_an_emitter_and_nowhere_else():
     ring = (r > 2) & (r < 4)
     assert narrow.mean(axis=2)[ring].mean() > 1.5 * wide.mean(axis=2)[ring].mean()
     assert narrow.sum() == pytest.approx(wide.sum(), rel=0.02)
+    # glow_dark: the same lamp glows in a dark image, not in a bright one (by day white saturates too)
+    dark_glow = ScatterParams(forward=0.5, spread=0.002, glow=50.0, glow_dark=0.045)
+    assert np.allclose(light(dark_glow), light(glow), atol=1e-4)    # median ≈ 0.0015 ≪ 0.045: weight ≈ 1
+    day = np.full_like(lamp, 0.8)
+    day[44:47, 29:32] = 1.0
+    def day_light(params):
+        return ScatterFogger(day, ray, 255, "linear", params, K).blend(0.06)
+    assert np.abs(day_light(dark_glow) - day_light(base)).max() < 1e-5
+    assert np.abs(day_light(glow) - day_light(base)).max() > 0.05
     # no emitter, no glow: the glow term changes nothing
     same = fog(img, glow) - fog(img, base)
     assert np.abs(same).max() < 1e-6

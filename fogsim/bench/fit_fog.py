@@ -5,12 +5,13 @@ runs of the same frames, see :mod:`fogsim.bench.fog_physics`) and fits, by a bou
 search (Hooke–Jeeves: coordinate steps that halve when nothing improves; deterministic):
 
 1. on the day frames, ``exposure_key``, ``flatten``, ``forward``, ``spread``, ``illumination`` and
-   the airlight's ``level``, ``fade``, ``elevation``, ``sky_exponent``, minimising the mean over β of the noise-free normalised RMS
+   the airlight's ``level``, ``fade``, ``elevation``, ``sky_exponent``, minimising the mean over β
+   of the noise-free normalised RMS
    (path-traced image scaled so its horizon is A, interior non-sky pixels,
    :mod:`fogsim.fog.physics`; pooled over frames) relative to linear Koschmieder's at that β
    (the target is a ratio per β: every β counts alike);
-2. on the night frames (if any), ``glow`` and ``glow_spread``, minimising the squared log-ratio of the model's and
-   the path-traced radial luminance profile around each lamp (:func:`fogsim.fog.physics.lamps`).
+2. on the night frames (if any), ``glow`` and ``glow_spread``, minimising the squared log-ratio of
+   the model's and the path-traced radial luminance profile around each lamp (:func:`fogsim.fog.physics.lamps`).
 
 Writes a small versioned JSON (:class:`fogsim.schema.scatter.ScatterParamsFile`) with the
 presets, seeds, frames, β and the objective before (Koschmieder: every term off) and after.
@@ -44,6 +45,9 @@ DAY_BOUNDS = {"exposure_key": (0.0, 1.5, 0.2), "forward": (0.0, 0.95, 0.2), "spr
 #: the night parameters (log10 G and log10 ρ_g): the lamps' gain and their PSF's own width
 GLOW_BOUNDS = {"glow": (-1.0, 4.0, 1.0), "glow_spread": (-3.0, 1.0, 1.0)}
 LOG_PARAMS = ("spread", "glow", "glow_spread")
+#: the glow's day/night boundary (median linear luminance of the clear image, not fitted: between the
+#: measured night streets, 0.020–0.032, and day streets, 0.071–0.20; :func:`fogsim.fog.scatter.night_weight`)
+GLOW_DARK = 0.045
 #: the reference RMS a ratio is taken to at least (A = 1: far below any real model's error)
 RMS_FLOOR = 1e-3
 MIN_STEP = 1 / 64  # stop when every step has halved this far (relative to the first step)
@@ -211,7 +215,7 @@ def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> d
     after = float(np.mean(list(fitted.values())))
     glow = None
     if night:
-        params = replace(params, glow=max(params.glow, 1.0))
+        params = replace(params, glow=max(params.glow, 1.0), glow_dark=params.glow_dark or GLOW_DARK)
         glow_before = glow_objective(replace(params, glow=0.0), night)
         if glow_before is not None:
             params = replace(params, glow_spread=params.spread)

@@ -28,6 +28,7 @@ class ScatterParameters(Closed):
     glow_threshold: number_in(0, 1, lo_open=True) = 0.9  # linear luminance where saturation begins
     glow_spread: number_in(0, 10) = 0.0     # ρ_g (rad²): the glow's PSF variance per unit βℓ; 0 = spread
     sky_exponent: number_in(-3, 3) = 0.0    # ν: airlight × (Ω/0.15)^(−ν), Ω the share of sky in view; 0 = off
+    glow_dark: number_in(0, 1) = 0.0        # Y_g: glow × 1/(1 + (median Y/Y_g)^8) — lamps only in dark images
     flatten: number_in(0, 0.95) = 0.0        # f: direct term I → r·(I/r)^(1−f), r the median (fog's even light)
     exposure_key: number_in(0, 10) = 0.0    # κ: direct term × κ·Y_A/median(Y_clear) (fog-lit objects); 0 = off
 
