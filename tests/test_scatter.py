@@ -106,6 +106,14 @@ def test_the_exposure_key_makes_the_direct_term_independent_of_the_clear_exposur
     assert np.abs(a - b).max() < 0.01 * a.max()             # the fogged images agree (linear blend)
     off = ScatterFogger(darker, ray, 255, "linear", KOSCHMIEDER, K).blend(0.06)
     assert np.abs(off - a).max() > 0.05                     # Koschmieder keeps the darker exposure
+    # with the day/night boundary set, a night image keeps its own exposure (lamps light it, not the fog)
+    night = linear_to_srgb(0.01 * lin)
+    assert ScatterFogger(night, ray, 255, "linear", ScatterParams(exposure_key=0.25), K).exposure_gain > 4
+    with_dark = ScatterFogger(night, ray, 255, "linear", ScatterParams(exposure_key=0.25, glow_dark=0.045), K)
+    assert with_dark.exposure_gain == pytest.approx(1.0, abs=1e-3)
+    assert ScatterFogger(img, ray, 255, "linear", ScatterParams(exposure_key=0.25, glow_dark=0.045),
+                         K).exposure_gain == pytest.approx(ScatterFogger(img, ray, 255, "linear", p, K).exposure_gain,
+                                                          rel=1e-3)   # a day image: unchanged
     # bounds: a black clear image is not scaled without limit; no non-sky pixel → no gain
     black = np.zeros_like(img)
     assert median_luminance(black, ray) == 0.0

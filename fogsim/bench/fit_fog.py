@@ -43,7 +43,8 @@ DAY_BOUNDS = {"exposure_key": (0.0, 1.5, 0.2), "forward": (0.0, 0.95, 0.2), "spr
               "elevation": (-3.0, 6.0, 1.0), "sky_exponent": (-1.0, 1.5, 0.25),
               "flatten": (0.0, 0.9, 0.2)}
 #: the night parameters (log10 G and log10 ρ_g): the lamps' gain and their PSF's own width
-GLOW_BOUNDS = {"glow": (-1.0, 4.0, 1.0), "glow_spread": (-3.0, 1.0, 1.0)}
+GLOW_BOUNDS = {"glow": (-1.0, 4.0, 1.0)}
+GLOW_SPREAD_GRID = (-4.0, -3.5, -3.0, -2.5, -2.0, -1.5, -1.0, -0.5, 0.0)  # log10 ρ_g
 LOG_PARAMS = ("spread", "glow", "glow_spread")
 #: the glow's day/night boundary (median linear luminance of the clear image, not fitted: between the
 #: measured night streets, 0.020–0.032, and day streets, 0.071–0.20; :func:`fogsim.fog.scatter.night_weight`)
@@ -218,8 +219,16 @@ def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> d
         params = replace(params, glow=max(params.glow, 1.0), glow_dark=params.glow_dark or GLOW_DARK)
         glow_before = glow_objective(replace(params, glow=0.0), night)
         if glow_before is not None:
-            params = replace(params, glow_spread=params.spread)
-            params, g = pattern_search(params, GLOW_BOUNDS, lambda p: glow_objective(p, night), log)
+            # G and the PSF's width trade against each other (a narrower halo needs less gain): the
+            # width on a grid, the gain searched at each, the best pair kept
+            best = None
+            for log_rho in GLOW_SPREAD_GRID:
+                trial = replace(params, glow_spread=10.0 ** log_rho)
+                trial, g = pattern_search(trial, {"glow": GLOW_BOUNDS["glow"]}, lambda p: glow_objective(p, night),
+                                          log)
+                if best is None or g < best[1]:
+                    best = (trial, g)
+            params, g = best
             glow = {"before": glow_before, "after": g}
         else:
             params = replace(params, glow=0.0)

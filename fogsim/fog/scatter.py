@@ -111,7 +111,8 @@ class ScatterParams:
     ``flatten`` f ∈ [0, 1) (0: off): the direct term's contrast compressed, I → r·(I/r)^(1−f)
     (:func:`direct_planes`: sun and shadow give way to the fog's even light); ``glow_dark`` Y_g (linear
     luminance, 0: glow in every image): the glow is weighted by :func:`night_weight` of the clear image's
-    median luminance — by day white surfaces saturate too, and are not lamps.
+    median luminance — by day white surfaces saturate too, and are not lamps; the exposure gain g
+    becomes g^(1 − weight): at night lamps, not the fog's light from above, light the scene.
     """
 
     forward: float = 0.0
@@ -415,10 +416,11 @@ class ScatterFogger:
         self.exposure_gain, y_med = 1.0, None
         if p.exposure_key or p.flatten or (p.glow and p.glow_dark):
             y_med = median_luminance(image, self.distance)
-        if p.exposure_key and y_med is not None:
-            self.exposure_gain = exposure_gain(y_med, p.exposure_key, a_linear)
-        flatten = p.flatten if y_med is not None else 0.0
         self.glow_weight = 1.0 if not p.glow_dark or y_med is None else night_weight(y_med, p.glow_dark)
+        if p.exposure_key and y_med is not None:  # a day rule: at night lamps, not the fog, light the scene
+            day = 1.0 - self.glow_weight if p.glow_dark else 1.0
+            self.exposure_gain = exposure_gain(y_med, p.exposure_key, a_linear) ** day
+        flatten = p.flatten if y_med is not None else 0.0
         reference = 1.0 if y_med is None else (y_med if space == "linear" else float(linear_to_srgb(y_med)))
         gain = self.exposure_gain if space == "linear" else self.exposure_gain ** (1.0 / SRGB_GAMMA)
         self._planes = direct_planes(image, space, gain, flatten, reference)  # blend space (contiguous planes)
