@@ -11,7 +11,9 @@ search (Hooke–Jeeves: coordinate steps that halve when nothing improves; deter
    :mod:`fogsim.fog.physics`; pooled over frames) relative to linear Koschmieder's at that β
    (the target is a ratio per β: every β counts alike);
 2. on the night frames (if any), ``glow`` and ``glow_spread``, minimising the squared log-ratio of
-   the model's and the path-traced radial luminance profile around each lamp (:func:`fogsim.fog.physics.lamps`).
+   the model's and the path-traced radial luminance profile around each lamp (:func:`fogsim.fog.physics.lamps`)
+   plus the night images' normalised RMS relative to Koschmieder's (a halo must not brighten the whole
+   night).
 
 Writes a small versioned JSON (:class:`fogsim.schema.scatter.ScatterParamsFile`) with the
 presets, seeds, frames, β and the objective before (Koschmieder: every term off) and after.
@@ -69,7 +71,7 @@ class FitFrame:
 def prepare(folders: list[Path]) -> tuple[list[FitFrame], list[dict], dict]:
     """(day frames × β, night frames, what was read: presets, styles, dataset seeds, frames, β,
     resolution, samples)."""
-    day, night = [], []
+    day, night, night_levels = [], [], []
     info = {"runs": [], "presets": [], "styles": [], "seeds": [], "times_of_day": [], "frames": 0, "betas": set(),
             "resolution": "", "samples": 0}
     for folder in folders:
@@ -91,7 +93,6 @@ def prepare(folders: list[Path]) -> tuple[list[FitFrame], list[dict], dict]:
             info["betas"] |= set(data["renders"])
             if data["night"]:
                 night.append(data)
-                continue
             ray, mask = data["distance"], data["mask"]
             where = interior_mask(ray, mask) & ~(np.isinf(ray) & (mask == 0))
             for beta, (f1, f2) in sorted(data["renders"].items()):
@@ -99,13 +100,15 @@ def prepare(folders: list[Path]) -> tuple[list[FitFrame], list[dict], dict]:
                 if hz is None or not hz["luminance"] > 0 or not where.any():
                     continue
                 s = 1.0 / hz["luminance"]
-                day.append(FitFrame(data, beta, s, where, s * f1[where], s * f2[where]))
+                (night_levels if data["night"] else day).append(FitFrame(data, beta, s, where, s * f1[where],
+                                                                         s * f2[where]))
         info["runs"].append(record)
         for key, value in (("presets", record["preset"]), ("styles", record["style"]), ("seeds", record["seed"]),
                            ("times_of_day", record["time_of_day"])):
             if value not in (None, "") and value not in info[key]:
                 info[key].append(value)
     info["betas"] = sorted(info["betas"])
+    info["night_levels"] = night_levels  # taken out by fit(): not part of the parameter file
     if not day:
         raise InputError(folders[0], "no day frame with sky to fit on (fit-fog needs fog-physics runs)")
     return day, night, info
@@ -203,6 +206,7 @@ def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> d
     from fogsim._version import __version__
 
     day, night, info = prepare(folders)
+    night_levels = info.pop("night_levels")
     koschmieder = ScatterParams()
     reference = day_rms(koschmieder, day)
     before = float(np.mean(list(reference.values())))
@@ -217,15 +221,21 @@ def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> d
     glow = None
     if night:
         params = replace(params, glow=max(params.glow, 1.0), glow_dark=params.glow_dark or GLOW_DARK)
-        glow_before = glow_objective(replace(params, glow=0.0), night)
+        night_reference = day_rms(koschmieder, night_levels) if night_levels else None
+
+        def night_objective(p):  # the halo's profile, and the whole night image against Koschmieder's error
+            ring = glow_objective(p, night)
+            if ring is None or not night_levels:
+                return ring
+            return ring + day_objective(p, night_levels, night_reference)
+        glow_before = night_objective(replace(params, glow=0.0))
         if glow_before is not None:
             # G and the PSF's width trade against each other (a narrower halo needs less gain): the
             # width on a grid, the gain searched at each, the best pair kept
             best = None
             for log_rho in GLOW_SPREAD_GRID:
                 trial = replace(params, glow_spread=10.0 ** log_rho)
-                trial, g = pattern_search(trial, {"glow": GLOW_BOUNDS["glow"]}, lambda p: glow_objective(p, night),
-                                          log)
+                trial, g = pattern_search(trial, {"glow": GLOW_BOUNDS["glow"]}, night_objective, log)
                 if best is None or g < best[1]:
                     best = (trial, g)
             params, g = best
@@ -236,9 +246,10 @@ def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> d
             "ratio to Koschmieder's per β; before = Koschmieder in linear light; per β (K → scatter): "
             + ", ".join(f"{b:g}: {reference[b]:.3f} → {fitted[b]:.3f}" for b in reference))
     if glow:
-        note += f"; glow: mean squared log10 ring-profile ratio {glow['before']:.3f} → {glow['after']:.3f}"
+        note += (f"; night: ring-profile log error + RMS ratio to Koschmieder {glow['before']:.3f} → "
+                 f"{glow['after']:.3f}")
     return {"format": "fogsim-scatter-params", "version": 1, "parameters": params.to_dict(),
-            "fitted_on": {**info, "objective": "normalised RMS (day), ring-profile log error (night glow)",
+            "fitted_on": {**info, "objective": "normalised RMS (day); night: ring-profile log error + RMS ratio (glow)",
                           "before": round(before, 5), "after": round(after, 5)},
             "fogsim_version": __version__, "note": note}
 

@@ -111,8 +111,9 @@ class ScatterParams:
     ``flatten`` f ∈ [0, 1) (0: off): the direct term's contrast compressed, I → r·(I/r)^(1−f)
     (:func:`direct_planes`: sun and shadow give way to the fog's even light); ``glow_dark`` Y_g (linear
     luminance, 0: glow in every image): the glow is weighted by :func:`night_weight` of the clear image's
-    median luminance — by day white surfaces saturate too, and are not lamps; the exposure gain g
-    becomes g^(1 − weight): at night lamps, not the fog's light from above, light the scene.
+    median luminance — by day white surfaces saturate too, and are not lamps; the day rules (exposure
+    gain g, elevation c, sky exponent ν) are weighted by 1 − that: at night lamps, not the fog's light
+    from above, light the scene and the fog.
     """
 
     forward: float = 0.0
@@ -410,15 +411,16 @@ class ScatterFogger:
         if space == "linear":
             a = srgb_to_linear(a)
         self._a = [float(v) for v in a]
-        # the airlight's per-image gain from the share of sky in view (1: off)
-        self.sky_gain = sky_gain(self.distance, p.sky_exponent) if p.sky_exponent else 1.0
-        # the direct term's per-image gain and flattening (off: 1 and 0), folded into the colour planes
-        self.exposure_gain, y_med = 1.0, None
-        if p.exposure_key or p.flatten or (p.glow and p.glow_dark):
-            y_med = median_luminance(image, self.distance)
+        # how much of a night image this is (glow_dark: the median luminance against Y_g; 0 = day): the
+        # glow is a night rule, the fog-lit objects and the sky-lit airlight are day rules
+        y_med = median_luminance(image, self.distance) if p.exposure_key or p.flatten or p.glow_dark else None
         self.glow_weight = 1.0 if not p.glow_dark or y_med is None else night_weight(y_med, p.glow_dark)
-        if p.exposure_key and y_med is not None:  # a day rule: at night lamps, not the fog, light the scene
-            day = 1.0 - self.glow_weight if p.glow_dark else 1.0
+        day = 1.0 - self.glow_weight if p.glow_dark else 1.0
+        # the airlight's per-image gain from the share of sky in view (1: off)
+        self.sky_gain = sky_gain(self.distance, p.sky_exponent * day) if p.sky_exponent else 1.0
+        # the direct term's per-image gain and flattening (off: 1 and 0), folded into the colour planes
+        self.exposure_gain = 1.0
+        if p.exposure_key and y_med is not None:  # at night lamps, not the fog's light from above, light it
             self.exposure_gain = exposure_gain(y_med, p.exposure_key, a_linear) ** day
         flatten = p.flatten if y_med is not None else 0.0
         reference = 1.0 if y_med is None else (y_med if space == "linear" else float(linear_to_srgb(y_med)))
@@ -429,7 +431,7 @@ class ScatterFogger:
         # so that the direct term's factor m·t = e^(−β(ℓ + μ)) is one exponential
         self._air_gain = self._log_gain = None
         if p.elevation:
-            self._log_gain = np.multiply(smooth_elevation_sine((h, w), intrinsics, up), np.float32(p.elevation))
+            self._log_gain = np.multiply(smooth_elevation_sine((h, w), intrinsics, up), np.float32(p.elevation * day))
             self._air_gain = cv2.exp(self._log_gain)
         self._dist_mu = self.distance + np.float32(p.illumination) if p.illumination else self.distance
         self._scatter = p.forward > 0 or p.glow > 0
