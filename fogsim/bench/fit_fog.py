@@ -44,7 +44,7 @@ DAY_BOUNDS = {"exposure_key": (0.0, 1.5, 0.2), "forward": (0.0, 0.95, 0.2), "spr
               "illumination": (0.0, 40.0, 8.0), "level": (0.5, 1.5, 0.1), "fade": (0.0, 20.0, 4.0),
               "elevation": (-3.0, 6.0, 1.0), "sky_exponent": (-1.0, 1.5, 0.25),
               "flatten": (0.0, 0.9, 0.2)}
-#: the night parameters (log10 G and log10 ρ_g): the lamps' gain and their PSF's own width
+#: the night parameters: the lamps' gain (log10 G, searched) and their PSF's own width (log10 ρ_g, a grid)
 GLOW_BOUNDS = {"glow": (-1.0, 4.0, 1.0)}
 GLOW_SPREAD_GRID = (-4.0, -3.5, -3.0, -2.5, -2.0, -1.5, -1.0, -0.5, 0.0)  # log10 ρ_g
 LOG_PARAMS = ("spread", "glow", "glow_spread")
@@ -68,9 +68,9 @@ class FitFrame:
     f2: np.ndarray
 
 
-def prepare(folders: list[Path]) -> tuple[list[FitFrame], list[dict], dict]:
-    """(day frames × β, night frames, what was read: presets, styles, dataset seeds, frames, β,
-    resolution, samples)."""
+def prepare(folders: list[Path]) -> tuple[list[FitFrame], list[dict], list[FitFrame], dict]:
+    """(day frames × β, night frames, night frames × β, what was read: presets, styles, dataset seeds,
+    frames, β, resolution, samples)."""
     day, night, night_levels = [], [], []
     info = {"runs": [], "presets": [], "styles": [], "seeds": [], "times_of_day": [], "frames": 0, "betas": set(),
             "resolution": "", "samples": 0}
@@ -108,10 +108,9 @@ def prepare(folders: list[Path]) -> tuple[list[FitFrame], list[dict], dict]:
             if value not in (None, "") and value not in info[key]:
                 info[key].append(value)
     info["betas"] = sorted(info["betas"])
-    info["night_levels"] = night_levels  # taken out by fit(): not part of the parameter file
     if not day:
         raise InputError(folders[0], "no day frame with sky to fit on (fit-fog needs fog-physics runs)")
-    return day, night, info
+    return day, night, night_levels, info
 
 
 def day_objective(params: ScatterParams, frames: list[FitFrame], reference: dict | None = None) -> float:
@@ -205,8 +204,7 @@ def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> d
     """Fit on the runs under ``folders``; returns the parameter document (not yet written)."""
     from fogsim._version import __version__
 
-    day, night, info = prepare(folders)
-    night_levels = info.pop("night_levels")
+    day, night, night_levels, info = prepare(folders)
     koschmieder = ScatterParams()
     reference = day_rms(koschmieder, day)
     before = float(np.mean(list(reference.values())))
