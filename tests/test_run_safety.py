@@ -163,9 +163,11 @@ def test_stale_temporary_files_are_removed_on_resume(folder_dataset, tmp_path):
 # ----------------------------------------------------------------------------- #9, #26: workers, signals
 @pytest.fixture
 def medium_dataset(tmp_path):
-    """24 images of 640×480 with depth: a few seconds of fog with the extended form."""
+    """64 images of 640×480 with depth: ten seconds or more of fog with the extended form, so a signal
+    sent once the first frames are written always lands mid-run (24 images raced a fast machine: the
+    run had finished, exit 0, before the Ctrl-C arrived)."""
     rng = np.random.default_rng(2)
-    for i in range(24):
+    for i in range(64):
         write_image(tmp_path / "images" / f"f{i:03d}.png", rng.integers(0, 256, (480, 640, 3), dtype=np.uint8))
         write_depth(tmp_path / "depth" / f"f{i:03d}.exr", rng.uniform(2, 150, (480, 640)).astype(np.float32))
     return tmp_path
@@ -225,6 +227,7 @@ def test_workers_never_outlive_their_parent(medium_dataset, tmp_path, sig):
 @pytest.mark.parametrize("workers", [1, 2])
 def test_ctrl_c_prints_one_line_and_exits_130(medium_dataset, tmp_path, workers):
     proc = _start(medium_dataset, tmp_path / "o", workers)
+    assert proc.poll() is None, "the run ended before the test could interrupt it"
     os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C reaches the whole foreground process group
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
