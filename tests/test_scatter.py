@@ -397,7 +397,7 @@ def test_fade_scales_the_airlight_by_exp_minus_lambda_beta():
 def test_splat_on_reduced_copies_matches_full_size_layers():
     """Wide PSF layers are blurred on reduced copies: the light's sum is kept exactly and the
     result stays within 2 % of the source's peak of the full-size layers (the tolerance docs/speed.md states)."""
-    import fogsim.fog.scatter as S
+    import fogsim.fog.scatter_optics as S
 
     rng = np.random.default_rng(3)
     src = rng.uniform(0, 1, (80, 120, 3)).astype(np.float32)
