@@ -3,6 +3,7 @@ energy and width, glow only around emitters, the parameter file, and the front d
 (``fogsim fog --model scatter``, presets, ``fogsim fit-fog``, ``bench fog-physics`` columns)."""
 import json
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -179,6 +180,36 @@ def test_glow_appears_around_an_emitter_and_nowhere_else():
     sky[:20] = 1.0
     same = fog(sky, glow) - fog(sky, base)
     assert np.abs(same).max() < 1e-6
+
+
+def test_glow_comes_from_small_sources_and_its_tail_keeps_the_energy():
+    img = np.full((90, 120, 3), 0.02, np.float32)
+    ray = np.full((90, 120), 30.0, np.float32)
+    both = img.copy()
+    both[44:47, 29:32] = 1.0          # a lamp: 9 px, 0.08 % of the image
+    both[60:90, 60:120] = 1.0         # a lit patch of road: 1800 px, 17 %
+    lamp = img.copy()
+    lamp[44:47, 29:32] = 1.0
+    base = ScatterParams(forward=0.5, spread=0.002)
+
+    def light(image, params):
+        return ScatterFogger(image, ray, 255, "linear", params, K).blend(0.06)
+    capped = ScatterParams(forward=0.5, spread=0.002, glow=50.0, glow_max_area=0.01)
+    # the patch does not glow, the lamp does, as it does alone
+    assert np.allclose(light(both, capped) - light(both, base), light(lamp, capped) - light(lamp, base), atol=1e-5)
+    uncapped = ScatterParams(forward=0.5, spread=0.002, glow=50.0)
+    assert (light(both, uncapped) - light(both, base)).sum() > 10 * (light(both, capped) - light(both, base)).sum()
+    # a cap above the patch's size lets it glow again
+    assert np.allclose(light(both, replace(capped, glow_max_area=0.5)), light(both, uncapped), atol=1e-6)
+    # the tail: a share of the glow by the scene's wide PSF, the same energy, less of it near the lamp
+    core = ScatterParams(forward=0.5, spread=0.02, glow=50.0, glow_spread=0.0002)
+    tailed = replace(core, glow_tail=0.5)
+    g_core, g_tail = light(lamp, core) - light(lamp, base), light(lamp, tailed) - light(lamp, base)
+    yy, xx = np.mgrid[:90, :120]
+    r = np.hypot(xx - 30, yy - 45)
+    assert g_tail.sum() == pytest.approx(g_core.sum(), rel=0.02)
+    assert g_tail.mean(axis=2)[r < 3].mean() < 0.7 * g_core.mean(axis=2)[r < 3].mean()
+    assert g_tail.mean(axis=2)[(r > 12) & (r < 30)].mean() > 2 * g_core.mean(axis=2)[(r > 12) & (r < 30)].mean()
 
 
 def test_the_smooth_elevation_map_is_the_exact_one_to_1e5():
@@ -439,3 +470,38 @@ def test_fog_physics_pools_folders_and_reports_the_targets(bench_dir, tmp_path):
     assert [r["beta"] for r in rows] == [0.06, 0.12] and result["targets"] == rows
     assert all({"normalised", "far", "contrast", "rms_met", "contrast_met"} <= set(r) for r in rows)
     assert "Scatter against Koschmieder" in (bench_dir / "report" / "fog_physics.md").read_text()
+
+
+@pytest.mark.slow  # the glow's grid search: about 20 s
+def test_glow_only_refit_finds_the_lamps_glow_and_keeps_the_rest():
+    """Stand-in night renders made by the scatter model with a known glow (small lamps glow, a lit patch
+    of road does not): the glow fit lowers the night objective, turns the glow on, caps the lamps'
+    size, and keeps every day parameter."""
+    from fogsim.bench.fit_fog import fit_glow, frame_levels
+    from fogsim.fog.physics import koschmieder_linear, noisy_render, scatter_model
+
+    img, ray = street()
+    img *= 0.05
+    img[40:43, 10:13] = 1.0          # a lamp
+    img[50:60, 40:80] = 1.0          # a lit patch of road (8 % of the image)
+    clear = img ** 2.2
+    day = ScatterParams(forward=0.4, spread=1.0, level=0.9)
+    truth = scatter_model(replace(day, glow=30.0, glow_spread=0.003, glow_max_area=0.02, glow_dark=0.045))
+    rng = np.random.default_rng(2)
+    renders = {b: tuple(noisy_render(0.3 * koschmieder_linear(clear, ray, b, truth, K), 0.02, rng) for _ in range(2))
+               for b in (0.06, 0.12)}
+    data = {"clear_linear": clear, "distance": ray, "mask": np.zeros((H, W), np.uint16), "renders": renders,
+            "camera": K, "up": None, "night": True}
+    params, glow = fit_glow(day, [data], frame_levels(data), log=lambda *a: None)
+    assert glow["after"] < glow["before"]
+    assert params.glow > 1 and 0 < params.glow_max_area < 0.08
+    assert replace(params, glow=0.0, glow_spread=0.0, glow_max_area=0.0, glow_tail=0.0, glow_dark=0.0) == day
+
+
+def test_glow_only_refit_needs_night_runs(bench_dir, tmp_path, capsys):  # noqa: F811
+    from fogsim.cli import main
+
+    out = tmp_path / "glow.json"
+    capsys.readouterr()
+    assert main(["fit-fog", str(bench_dir), "--glow-only", "--out", str(out)]) == 2
+    assert "no night frame" in capsys.readouterr().err and not out.exists()

@@ -10,7 +10,8 @@ search (Hooke–Jeeves: coordinate steps that halve when nothing improves; deter
    (path-traced image scaled so its horizon is A, interior non-sky pixels,
    :mod:`fogsim.fog.physics`; pooled over frames) relative to linear Koschmieder's at that β
    (the target is a ratio per β: every β counts alike);
-2. on the night frames (if any), ``glow`` and ``glow_spread``, minimising the squared log-ratio of
+2. on the night frames (if any), ``glow``, ``glow_tail``, ``glow_spread`` and ``glow_max_area``
+   (the last two on a grid), minimising the squared log-ratio of
    the model's and the path-traced radial luminance profile around each lamp (:func:`fogsim.fog.physics.lamps`)
    plus the night images' normalised RMS relative to Koschmieder's (a halo must not brighten the whole
    night).
@@ -19,6 +20,7 @@ Writes a small versioned JSON (:class:`fogsim.schema.scatter.ScatterParamsFile`)
 presets, seeds, frames, β and the objective before (Koschmieder: every term off) and after.
 
     fogsim fit-fog RUN_DIR [RUN_DIR …] [--out fogsim/fog/scatter_params.json] [--start PARAMS.json]
+    fogsim fit-fog NIGHT_RUN_DIR … --glow-only [--start PARAMS.json]   # the glow alone, the rest kept
 """
 from __future__ import annotations
 
@@ -44,9 +46,11 @@ DAY_BOUNDS = {"exposure_key": (0.0, 1.5, 0.2), "forward": (0.0, 0.95, 0.2), "spr
               "illumination": (0.0, 40.0, 8.0), "level": (0.5, 1.5, 0.1), "fade": (0.0, 20.0, 4.0),
               "elevation": (-3.0, 6.0, 1.0), "sky_exponent": (-1.0, 1.5, 0.25),
               "flatten": (0.0, 0.9, 0.2)}
-#: the night parameters: the lamps' gain (log10 G, searched) and their PSF's own width (log10 ρ_g, a grid)
-GLOW_BOUNDS = {"glow": (-1.0, 4.0, 1.0)}
-GLOW_SPREAD_GRID = (-4.0, -3.5, -3.0, -2.5, -2.0, -1.5, -1.0, -0.5, 0.0)  # log10 ρ_g
+#: the night parameters: the lamps' gain (log10 G) and the share of it in the wide wings (searched), the
+#: core's width (log10 ρ_g) and the largest saturated region that is a lamp (share of the image) on a grid
+GLOW_BOUNDS = {"glow": (-1.0, 4.0, 1.0), "glow_tail": (0.0, 0.95, 0.25)}
+GLOW_SPREAD_GRID = (-4.0, -3.5, -3.0, -2.5, -2.0, -1.5, -1.0)  # log10 ρ_g
+GLOW_AREA_GRID = (0.0, 0.02, 0.005, 0.001)                   # 0: every saturated region
 LOG_PARAMS = ("spread", "glow", "glow_spread")
 #: the glow's day/night boundary (median linear luminance of the clear image, not fitted: between the
 #: measured night streets, 0.020–0.032, and day streets, 0.071–0.20; :func:`fogsim.fog.scatter.night_weight`)
@@ -66,6 +70,21 @@ class FitFrame:
     where: np.ndarray
     f1: np.ndarray
     f2: np.ndarray
+
+
+def frame_levels(data: dict) -> list[FitFrame]:
+    """One frame's β, ready for the objective (its renders scaled so the horizon is 1; levels without
+    a horizon to scale by, or a frame without interior pixels, are left out)."""
+    ray, mask = data["distance"], data["mask"]
+    where = interior_mask(ray, mask) & ~(np.isinf(ray) & (mask == 0))
+    levels = []
+    for beta, (f1, f2) in sorted(data["renders"].items()):
+        hz = horizon_radiance(0.5 * (f1 + f2), ray, mask)
+        if hz is None or not hz["luminance"] > 0 or not where.any():
+            continue
+        s = 1.0 / hz["luminance"]
+        levels.append(FitFrame(data, beta, s, where, s * f1[where], s * f2[where]))
+    return levels
 
 
 def prepare(folders: list[Path]) -> tuple[list[FitFrame], list[dict], list[FitFrame], dict]:
@@ -93,23 +112,13 @@ def prepare(folders: list[Path]) -> tuple[list[FitFrame], list[dict], list[FitFr
             info["betas"] |= set(data["renders"])
             if data["night"]:
                 night.append(data)
-            ray, mask = data["distance"], data["mask"]
-            where = interior_mask(ray, mask) & ~(np.isinf(ray) & (mask == 0))
-            for beta, (f1, f2) in sorted(data["renders"].items()):
-                hz = horizon_radiance(0.5 * (f1 + f2), ray, mask)
-                if hz is None or not hz["luminance"] > 0 or not where.any():
-                    continue
-                s = 1.0 / hz["luminance"]
-                (night_levels if data["night"] else day).append(FitFrame(data, beta, s, where, s * f1[where],
-                                                                         s * f2[where]))
+            (night_levels if data["night"] else day).extend(frame_levels(data))
         info["runs"].append(record)
         for key, value in (("presets", record["preset"]), ("styles", record["style"]), ("seeds", record["seed"]),
                            ("times_of_day", record["time_of_day"])):
             if value not in (None, "") and value not in info[key]:
                 info[key].append(value)
     info["betas"] = sorted(info["betas"])
-    if not day:
-        raise InputError(folders[0], "no day frame with sky to fit on (fit-fog needs fog-physics runs)")
     return day, night, night_levels, info
 
 
@@ -200,11 +209,45 @@ def pattern_search(params: ScatterParams, bounds: dict, objective, log=print) ->
     return params, best
 
 
+def fit_glow(params: ScatterParams, night: list[dict], night_levels: list[FitFrame], log=print):
+    """The glow's parameters fitted on the night frames, the day ones kept: (parameters, {"before",
+    "after"} of the night objective, or None when there is no lamp to fit on: glow off)."""
+    params = replace(params, glow=max(params.glow, 1.0), glow_dark=params.glow_dark or GLOW_DARK)
+    night_reference = day_rms(ScatterParams(), night_levels) if night_levels else None
+
+    def night_objective(p):  # the halo's profile, and the whole night image against Koschmieder's error
+        ring = glow_objective(p, night)
+        if ring is None or not night_levels:
+            return ring
+        return ring + day_objective(p, night_levels, night_reference)
+    glow_before = night_objective(replace(params, glow=0.0))
+    if glow_before is None:
+        return replace(params, glow=0.0), None
+    # G and the PSF's width trade against each other (a narrower halo needs less gain): the width and
+    # the lamps' largest size on a grid, the gain and its tail searched at each, the best kept
+    best = None
+    for area in GLOW_AREA_GRID:
+        for log_rho in GLOW_SPREAD_GRID:
+            trial = replace(params, glow_spread=10.0 ** log_rho, glow_max_area=area, glow_tail=0.0)
+            trial, g = pattern_search(trial, GLOW_BOUNDS, night_objective, log)
+            if best is None or g < best[1]:
+                best = (trial, g)
+    return best[0], {"before": glow_before, "after": best[1]}
+
+
+def _night_note(glow: dict | None) -> str:
+    return "" if not glow else (f"; night: ring-profile log error + RMS ratio to Koschmieder {glow['before']:.3f} → "
+                                f"{glow['after']:.3f}")
+
+
 def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> dict:
     """Fit on the runs under ``folders``; returns the parameter document (not yet written)."""
     from fogsim._version import __version__
 
     day, night, night_levels, info = prepare(folders)
+    if not day:
+        raise InputError(folders[0], "no day frame with sky to fit on (fit-fog needs fog-physics runs; "
+                         "--glow-only refits the glow on night runs alone)")
     koschmieder = ScatterParams()
     reference = day_rms(koschmieder, day)
     before = float(np.mean(list(reference.values())))
@@ -218,50 +261,52 @@ def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> d
     after = float(np.mean(list(fitted.values())))
     glow = None
     if night:
-        params = replace(params, glow=max(params.glow, 1.0), glow_dark=params.glow_dark or GLOW_DARK)
-        night_reference = day_rms(koschmieder, night_levels) if night_levels else None
-
-        def night_objective(p):  # the halo's profile, and the whole night image against Koschmieder's error
-            ring = glow_objective(p, night)
-            if ring is None or not night_levels:
-                return ring
-            return ring + day_objective(p, night_levels, night_reference)
-        glow_before = night_objective(replace(params, glow=0.0))
-        if glow_before is not None:
-            # G and the PSF's width trade against each other (a narrower halo needs less gain): the
-            # width on a grid, the gain searched at each, the best pair kept
-            best = None
-            for log_rho in GLOW_SPREAD_GRID:
-                trial = replace(params, glow_spread=10.0 ** log_rho)
-                trial, g = pattern_search(trial, {"glow": GLOW_BOUNDS["glow"]}, night_objective, log)
-                if best is None or g < best[1]:
-                    best = (trial, g)
-            params, g = best
-            glow = {"before": glow_before, "after": g}
-        else:
-            params = replace(params, glow=0.0)
+        params, glow = fit_glow(params, night, night_levels, log)
     note = ("day: mean over β of the noise-free normalised RMS (interior non-sky pixels, A = 1), fitted as its "
             "ratio to Koschmieder's per β; before = Koschmieder in linear light; per β (K → scatter): "
-            + ", ".join(f"{b:g}: {reference[b]:.3f} → {fitted[b]:.3f}" for b in reference))
-    if glow:
-        note += (f"; night: ring-profile log error + RMS ratio to Koschmieder {glow['before']:.3f} → "
-                 f"{glow['after']:.3f}")
+            + ", ".join(f"{b:g}: {reference[b]:.3f} → {fitted[b]:.3f}" for b in reference)) + _night_note(glow)
     return {"format": "fogsim-scatter-params", "version": 1, "parameters": params.to_dict(),
             "fitted_on": {**info, "objective": "normalised RMS (day); night: ring-profile log error + RMS ratio (glow)",
                           "before": round(before, 5), "after": round(after, 5)},
             "fogsim_version": __version__, "note": note}
 
 
+def fit_glow_only(folders: list[Path], start: dict, log=print) -> dict:
+    """Refit the glow on the night runs under ``folders``, every other parameter kept from the ``start``
+    document (a parameter file); its record of what it was fitted on gains these runs."""
+    from fogsim._version import __version__
+
+    _, night, night_levels, info = prepare(folders)
+    if not night:
+        raise InputError(folders[0], "no night frame to fit the glow on")
+    params, glow = fit_glow(ScatterParams(**start["parameters"]), night, night_levels, log)
+    was = start.get("fitted_on", {})
+    names = {r["folder"] for r in info["runs"]}
+    merged = {**was, "runs": [r for r in was.get("runs", []) if r["folder"] not in names] + info["runs"]}
+    for key in ("presets", "styles", "seeds", "times_of_day"):
+        merged[key] = list(was.get(key, [])) + [v for v in info[key] if v not in was.get(key, [])]
+    merged["betas"] = sorted(set(was.get("betas", [])) | set(info["betas"]))
+    merged["frames"] = sum(r["frames"] for r in merged["runs"])
+    note = start.get("note", "").split("; night:")[0] + _night_note(glow)
+    return {**start, "parameters": params.to_dict(), "fitted_on": merged, "fogsim_version": __version__,
+            "note": note}
+
+
 def run(args) -> int:
     """``fogsim fit-fog``: fit, check the document against the schema, write it atomically."""
     from fogsim.fileio import write_json
-    from fogsim.fog.scatter import load_params
+    from fogsim.fog.scatter import load_params, load_params_file
     from fogsim.schema.base import check
     from fogsim.schema.scatter import ScatterParamsFile
 
     log = (lambda *a: None) if args.quiet else print
-    start = load_params(args.start) if getattr(args, "start", None) else None
-    doc = fit([Path(f) for f in args.runs], start=start, log=log)
+    folders = [Path(f) for f in args.runs]
+    if getattr(args, "glow_only", False):
+        start = load_params_file(args.start).model_dump(mode="json")   # default: the shipped file
+        doc = fit_glow_only(folders, start, log=log)
+    else:
+        start = load_params(args.start) if getattr(args, "start", None) else None
+        doc = fit(folders, start=start, log=log)
     check(doc, ScatterParamsFile, args.out)
     write_json(args.out, doc)
     p = doc["parameters"]

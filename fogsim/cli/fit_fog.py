@@ -14,6 +14,8 @@ def add_parsers(sub) -> None:
                    help="the parameter file to write (fogsim ships fogsim/fog/scatter_params.json)")
     p.add_argument("--start", metavar="FILE", help="start the search from this parameter file (e.g. the shipped "
                    "one, for a refit on more frames; default: forward scatter on, the rest off)")
+    p.add_argument("--glow-only", action="store_true", help="refit only the glow on night runs, every other "
+                   "parameter kept from --start (default: the shipped file), whose record gains these runs")
     p.add_argument("--quiet", action="store_true", help="print only errors and the summary line")
     p.set_defaults(run=_run)
 

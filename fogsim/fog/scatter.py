@@ -110,7 +110,10 @@ class ScatterParams:
     luminance, 0: glow in every image): the glow is weighted by :func:`night_weight` of the clear image's
     median luminance — by day white surfaces saturate too, and are not lamps; the day rules (exposure
     gain g, elevation c, sky exponent ν) are weighted by 1 − that: at night lamps, not the fog's light
-    from above, light the scene and the fog.
+    from above, light the scene and the fog; ``glow_max_area`` (share of the image, 0: no limit): a
+    saturated region larger than this is a lit surface (a road under headlights, a sunlit wall), not a
+    source far brighter than white, and does not glow; ``glow_tail`` w ∈ [0, 1): the share of the glow
+    spread by the scene's wide PSF (ρ, the APSF's wings), the rest by ρ_g (its narrow core).
     """
 
     forward: float = 0.0
@@ -126,6 +129,8 @@ class ScatterParams:
     sky_exponent: float = 0.0
     flatten: float = 0.0
     glow_dark: float = 0.0
+    glow_max_area: float = 0.0
+    glow_tail: float = 0.0
 
     def __post_init__(self):
         check(asdict(self), ScatterParameters)  # the one place for the ranges (ValueError naming the key)
@@ -334,9 +339,25 @@ class ScatterFogger:
             else srgb_to_linear(px.astype(np.float32) / np.float32(full_scale(image.dtype)))
         lum = lin @ np.array(LUMINANCE_WEIGHTS, np.float32)
         sat = np.clip((lum - np.float32(threshold)) / np.float32(max(1e-3, 1.0 - threshold)), 0.0, 1.0)
+        if self.params.glow_max_area:
+            sat = sat * self._compact(ys, xs, sat > 0, image.shape[:2], self.params.glow_max_area)
+            if not sat.any():
+                return None
         light = (lin if self.space == "linear" else px.astype(np.float32) / np.float32(full_scale(image.dtype)))
         light = light * sat[:, None]
         return reduce_points(light, ys, xs, image.shape[:2], self._small)
+
+    @staticmethod
+    def _compact(ys: np.ndarray, xs: np.ndarray, lit: np.ndarray, shape: tuple[int, int],
+                 max_area: float) -> np.ndarray:
+        """1 for the ``lit`` pixels (at rows ``ys``, columns ``xs``) whose 8-connected region covers at
+        most ``max_area`` of the image (lamps), 0 for the rest (lit surfaces)."""
+        mask = np.zeros(shape, np.uint8)
+        mask[ys[lit], xs[lit]] = 1
+        _, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        small = stats[:, cv2.CC_STAT_AREA] <= max_area * shape[0] * shape[1]
+        small[0] = False                                        # the background
+        return (small[labels[ys, xs]] & lit).astype(np.float32)
 
     def _scattered_small(self, beta: float) -> np.ndarray | None:
         p = self.params
@@ -357,8 +378,11 @@ class ScatterFogger:
             if not p.glow_spread or p.glow_spread == p.spread:
                 src += glow
                 glow = None
+            elif p.glow_tail:                                 # the wings: the scene's wide PSF
+                src += glow * np.float32(p.glow_tail)
+                glow *= np.float32(1.0 - p.glow_tail)
         out = splat(src, sigma)
-        if glow is not None:                                  # the lamps' own, narrower PSF
+        if glow is not None:                                  # the core: the lamps' own, narrower PSF
             out += splat(glow, psf_sigma_rad(depth, p.glow_spread) * self._f_small)
         return out
 

@@ -29,6 +29,8 @@ class ScatterParameters(Closed):
     glow_spread: number_in(0, 10) = 0.0     # ρ_g (rad²): the glow's PSF variance per unit βℓ; 0 = spread
     sky_exponent: number_in(-3, 3) = 0.0    # ν: airlight × (Ω/0.15)^(−ν), Ω the share of sky in view; 0 = off
     glow_dark: number_in(0, 1) = 0.0        # Y_g: glow × 1/(1 + (median Y/Y_g)^8) — lamps only in dark images
+    glow_max_area: number_in(0, 1) = 0.0    # saturated regions over this share of the image do not glow; 0 = any
+    glow_tail: number_in(0, 0.99) = 0.0     # w: share of the glow spread by the wide PSF (ρ), the rest by ρ_g
     flatten: number_in(0, 0.95) = 0.0        # f: direct term I → r·(I/r)^(1−f), r the median (fog's even light)
     exposure_key: number_in(0, 10) = 0.0    # κ: direct term × κ·Y_A/median(Y_clear) (fog-lit objects); 0 = off
 
