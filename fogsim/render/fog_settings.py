@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from fogsim.schema.base import check
 from fogsim.schema.presets import (
+    DAY_SKY_STRENGTH,
     FOG_EXPOSURES,
     FOG_KINDS,
     FOG_MEDIA,
@@ -90,4 +91,5 @@ def frame_volumetric(settings: dict, desc: dict) -> dict:
     emitting part of a hybrid medium follows the scene's light instead of glowing white at night."""
     if settings.get("emission") != "sky":
         return settings
-    return {**settings, "emission": float(desc.get("lighting", {}).get("sky_strength", 0.3))}
+    light = desc.get("lighting")  # a user's scene (scene mode) has no lighting record: the default day's
+    return {**settings, "emission": float(light["sky_strength"] if light else DAY_SKY_STRENGTH)}

@@ -25,7 +25,7 @@ from fogsim.fileio import write_depth, write_image, write_json
 from fogsim.fog.model import Fogger
 from fogsim.fog.scatter import ScatterFogger, load_params, up_from_world_to_camera
 from fogsim.fog.visibility import attach_visibility
-from fogsim.render.labels import MIN_PIXELS, MIN_VISIBLE_FRACTION, object_records
+from fogsim.render.labels import object_records
 from fogsim.render.preset import RenderConfig, fog_settings
 from fogsim.render.silhouette import silhouette_areas
 from fogsim.runs import frame_seed
@@ -135,12 +135,11 @@ def camera_model(config: RenderConfig, desc: dict, K: Intrinsics, foggy: dict, m
     foggy = {lv.key: apply_sensor(foggy[lv.key], K, sensor, np.random.default_rng([seed, i, SENSOR_STREAM]))
              for i, lv in enumerate(config.levels)}
     if sensor.distorts:
-        lab = config.labels
+        lab = config.label_settings
         mask = distort_nearest(mask, K, sensor.distortion, 0)
         depth = distort_nearest(depth, K, sensor.distortion, np.inf)
         records = relabel_distorted(records, mask, distort_nearest(ray, K, sensor.distortion, np.inf),
-                                    min_pixels=int(lab.get("min_pixels", MIN_PIXELS)),
-                                    min_visible_fraction=float(lab.get("min_visible_fraction", MIN_VISIBLE_FRACTION)))
+                                    min_pixels=lab.min_pixels, min_visible_fraction=lab.min_visible_fraction)
     meta = {"settings": config.sensor, "order": "distortion, vignetting, exposure, noise (linear light), "
             "8-bit sRGB, JPEG; after the fog", "vignetting_law": "cos(theta)^a",
             "distortion": {"model": "opencv", "coefficients": list(sensor.distortion), "K": K.to_dict(),
@@ -173,10 +172,9 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
     cls = {o["id"]: o["class"] for o in desc["objects"]}
     labelled = {oid: [(v, f) for v, f, _ in parts] for oid, parts in meshes.items() if is_labelled(cls[oid])}
     sil = silhouette_areas(labelled, K, np.asarray(desc["camera"]["world_to_camera"]))
-    lab = config.labels
-    records = object_records(mask, ray, desc["objects"], sil,
-                             min_pixels=int(lab.get("min_pixels", MIN_PIXELS)),
-                             min_visible_fraction=float(lab.get("min_visible_fraction", MIN_VISIBLE_FRACTION)))
+    lab = config.label_settings
+    records = object_records(mask, ray, desc["objects"], sil, min_pixels=lab.min_pixels,
+                             min_visible_fraction=lab.min_visible_fraction)
     t1 = time.perf_counter()
     fs = fog_settings(config)
     if fog is None and fs["model"] == "scatter":

@@ -16,6 +16,7 @@ is touched. The render size is bounded by :data:`MAX_PIXELS` (``--max-pixels``).
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Literal
 
@@ -48,6 +49,8 @@ from fogsim.schema.presets import (
     Assets,
     Camera,
     DatasetPreset,
+    Labels,
+    Lighting,
     Quality,
     Style,
     check_lighting,
@@ -66,7 +69,9 @@ COMPONENTS = {"style": ("styles", Style), "camera": ("cameras", Camera), "qualit
 class RenderConfig:
     """A checked preset with its overrides applied. The component dicts hold the keys as the
     preset gave them (checked; defaults live in :mod:`fogsim.schema.presets`), so a dataset's
-    ``render_run.json`` reads as its preset did."""
+    ``render_run.json`` reads as its preset did; readers take the checked blocks with every
+    default filled in (:attr:`quality_settings`, :attr:`label_settings`, :attr:`lighting_settings`,
+    :func:`fogsim.render.fog_settings.fog_model`), never a default of their own."""
 
     name: str
     source: str
@@ -85,6 +90,22 @@ class RenderConfig:
     lighting: dict = field(default_factory=dict)  # checked "lighting" object; {} = day (see check_lighting)
     sensor: dict = field(default_factory=dict)  # checked "sensor" object; {} = a perfect pinhole (fogsim.sensor)
     assets: dict = field(default_factory=dict)  # the asset library (resolve_assets); {} = procedural only
+
+    # the blocks checked, every default filled in (from the schema): what readers use
+    @cached_property
+    def quality_settings(self) -> Quality:
+        """``quality`` checked, defaults filled in (:func:`fogsim.render.quality.cycles_settings` reads it)."""
+        return check(self.quality, Quality, self.source, prefix="quality")
+
+    @cached_property
+    def label_settings(self) -> Labels:
+        """``labels`` checked, defaults filled in."""
+        return check(self.labels, Labels, self.source, prefix="labels")
+
+    @cached_property
+    def lighting_settings(self) -> Lighting:
+        """``lighting`` checked, defaults filled in (day when the preset gives none)."""
+        return check(self.lighting, Lighting, self.source, prefix="lighting")
 
     def to_dict(self) -> dict:
         d = {"name": self.name, "source": self.source, "style": self.style, "camera": self.camera,

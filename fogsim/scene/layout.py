@@ -17,6 +17,7 @@ from fogsim.scene.assets import asset_extent, sample_asset
 from fogsim.scene.lights import apply_night, night_settings
 from fogsim.scene.pose import camera_to_world, transform, world_to_camera
 from fogsim.scene.sky import apply_sky
+from fogsim.schema.presets import DAY_SKY_STRENGTH
 
 SIDEWALK_HEIGHT = 0.15
 VERSION = 1
@@ -255,7 +256,8 @@ def sample_scene(rng: np.random.Generator, style: dict, camera: dict,
                    "world_to_camera": world_to_camera(c2w).tolist(),
                    "convention": "OpenCV: x right, y down, z forward; world z up, metres"},
         "lighting": {"sun_elevation_deg": elevation, "sun_azimuth_deg": float(rng.uniform(0, 360)),
-                     "sun_strength": 3.0 + 2.0 * math.sin(math.radians(elevation)), "sky_strength": 0.3},
+                     "sun_strength": 3.0 + 2.0 * math.sin(math.radians(elevation)),
+                     "sky_strength": DAY_SKY_STRENGTH},
         "objects": b.objects,
     }
     if night_settings(lighting):

@@ -33,7 +33,8 @@ import math
 
 import numpy as np
 
-from fogsim.schema.presets import TIMES_OF_DAY, Lighting
+from fogsim.schema.base import check
+from fogsim.schema.presets import NIGHT_KEYS, TIMES_OF_DAY, Lighting
 
 __all__ = ["NIGHT", "TIMES_OF_DAY", "apply_night", "night_settings", "street_lamps", "vehicle_lights"]
 VEHICLE_CLASSES = ("car", "van", "truck", "bus")
@@ -61,11 +62,14 @@ LAMP_RADIUS, CAR_LIGHT_RADIUS = 0.08, 0.03
 
 
 def night_settings(lighting: dict | None) -> dict | None:
-    """The night settings (``NIGHT`` updated by the preset's keys), or None for a day preset."""
-    lighting = lighting or {}
-    if lighting.get("time_of_day", "day") != "night":
+    """The night settings of a preset's checked ``lighting`` (every default from the schema), or
+    None for a day preset."""
+    if not lighting:
         return None
-    return {**NIGHT, **{k: v for k, v in lighting.items() if k != "time_of_day"}}
+    spec = check(lighting, Lighting, prefix="lighting")
+    if spec.time_of_day != "night":
+        return None
+    return {k: getattr(spec, k) for k in NIGHT_KEYS}
 
 
 def _slot_boxes(asset: dict, slot: str) -> list[tuple[np.ndarray, np.ndarray]]:

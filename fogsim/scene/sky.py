@@ -25,14 +25,15 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsim.schema.presets import SKY_KEYS, WORLD_HDRIS
+from fogsim.schema.base import check
+from fogsim.schema.presets import DAY_SKY_STRENGTH, SKY_KEYS, WORLD_HDRIS, Lighting
 
-__all__ = ["OVERCAST_COLOR", "WORLD_HDRIS", "apply_sky", "hdri_file", "has_sky_keys"]
+__all__ = ["OVERCAST_COLOR", "WORLD_HDRIS", "apply_sky", "hdri_file", "has_sky_keys", "sky_of"]
 
 #: linear RGB of the overcast sky (a slightly cool grey-white) and of the ground under it
 OVERCAST_COLOR = [0.92, 0.95, 1.0]
 #: the default world strength ranges by sky (procedural: the layout's 0.3)
-DEFAULT_STRENGTH = {"procedural": [0.3, 0.3], "hdri": [1.0, 1.0], "overcast": [1.0, 1.6]}
+DEFAULT_STRENGTH = {"procedural": [DAY_SKY_STRENGTH] * 2, "hdri": [1.0, 1.0], "overcast": [1.0, 1.6]}
 #: where a Blender keeps its world HDRIs, under its DATAFILES folder
 WORLD_DIR = Path("studiolights") / "world"
 
@@ -51,6 +52,12 @@ def hdri_file(spec: str, datafiles: str | Path) -> Path:
     return Path(spec)
 
 
+def sky_of(light: dict) -> str:
+    """The sky of a frame's lighting record: its ``sky``; a record without one is the layout's
+    procedural day (the default day frame is written without sky keys, so old datasets resume)."""
+    return light["sky"] if "sky" in light else "procedural"
+
+
 def _uniform(rng: np.random.Generator, lo_hi) -> float:
     lo, hi = (float(v) for v in lo_hi)
     return lo if lo == hi else float(rng.uniform(lo, hi))
@@ -64,22 +71,21 @@ def apply_sky(desc: dict, lighting: dict | None, rng: np.random.Generator) -> di
     """
     if not has_sky_keys(lighting):
         return desc
+    spec = check(lighting, Lighting, prefix="lighting")  # every default from the schema
     light = desc["lighting"]
-    if lighting.get("sun_elevation_deg") is not None:
-        light["sun_elevation_deg"] = _uniform(rng, lighting["sun_elevation_deg"])
-    if lighting.get("sun_azimuth_deg") is not None:
-        light["sun_azimuth_deg"] = _uniform(rng, lighting["sun_azimuth_deg"]) % 360.0
-    p = lighting.get("overcast", False)
-    p = float(p) if not isinstance(p, bool) else (1.0 if p else 0.0)
+    if spec.sun_elevation_deg is not None:
+        light["sun_elevation_deg"] = _uniform(rng, spec.sun_elevation_deg)
+    if "sun_azimuth_deg" in spec.model_fields_set:
+        light["sun_azimuth_deg"] = _uniform(rng, spec.sun_azimuth_deg) % 360.0
+    p = float(spec.overcast) if not isinstance(spec.overcast, bool) else (1.0 if spec.overcast else 0.0)
     overcast = bool(rng.random() < p)
-    kind = "overcast" if overcast else lighting.get("sky", "procedural")
-    strength = _uniform(rng, lighting.get("strength") or DEFAULT_STRENGTH[kind])
+    kind = "overcast" if overcast else spec.sky
+    strength = _uniform(rng, spec.strength or DEFAULT_STRENGTH[kind])
     elevation = math.radians(light["sun_elevation_deg"])
     light.update(sky=kind, overcast=overcast, sky_strength=strength,
                  sun_strength=3.0 + 2.0 * math.sin(elevation) if kind == "procedural" else 0.0)
     if kind == "hdri":
-        choices = lighting.get("hdri", "city")
-        choices = [choices] if isinstance(choices, str) else list(choices)
+        choices = [spec.hdri] if isinstance(spec.hdri, str) else list(spec.hdri)
         light["hdri"] = choices[int(rng.integers(0, len(choices)))] if len(choices) > 1 else choices[0]
-        light["hdri_rotation_deg"] = _uniform(rng, lighting.get("rotation_deg", [0.0, 360.0])) % 360.0
+        light["hdri_rotation_deg"] = _uniform(rng, spec.rotation_deg) % 360.0
     return desc

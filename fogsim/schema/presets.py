@@ -61,6 +61,8 @@ KERNELS = ("box", "gaussian", "guided")
 #: A fog render's box domain must lie inside the camera's clip_end (2000 m): half-width ≤ this.
 MAX_FOG_EXTENT_M = 1400.0
 TIMES_OF_DAY = ("day", "night")
+#: The world background strength of the default day sky (the layout's; ``lighting.strength`` None).
+DAY_SKY_STRENGTH = 0.3
 WORLD_VOLUME = ("a world volume cannot be used for fog: Cycles then ignores the world background and the "
                 "sun entirely (the image is black); fogsim renders fog in a closed box domain around camera "
                 "and scene (fog_model.volumetric.domain = \"box\", the default)")
@@ -290,7 +292,7 @@ class Lighting(Closed):
     overcast frame has no sun and a CIE overcast sky (soft shadows — what a foggy day looks like)."""
 
     time_of_day: Literal[TIMES_OF_DAY] = "day"
-    sky_strength: number_in(0, 10) = 0.01  # world background strength (day: 0.3)
+    sky_strength: number_in(0, 10) = 0.01  # world background strength at night (day: DAY_SKY_STRENGTH)
     moon_strength: number_in(0, 10) = 0.0  # the sun lamp at night (W/m²; day: 3–5); 0 = no moon
     street_lamp_power_w: number_in(0, 1e7) = 1500.0  # per lamp head
     headlight_power_w: number_in(0, 1e7) = 1000.0  # per headlight (low beam)

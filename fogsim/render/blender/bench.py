@@ -57,7 +57,8 @@ def _timed_render(config, index: int, quality: dict, factory: bool = False) -> f
 
 def factory_render_seconds(job, index: int) -> float:
     """Render frame ``index``'s scene with factory light paths and world sampling (baseline)."""
-    quality = {"samples": job.config.quality["samples"], "denoise": job.config.quality.get("denoise", True),
+    q = job.config.quality_settings
+    quality = {"samples": q.samples, "denoise": q.denoise,
                "bounces": {"total": 12, "diffuse": 4, "glossy": 4, "transmission": 12, "transparent": 8}}
     return _timed_render(job.config, index, quality, factory=True)
 
@@ -107,7 +108,7 @@ def run(args) -> int:
     total = statistics.median(sum(t[s] for s in STAGES) for t in times)
     ours = statistics.median(t["render"] for t in times[:len(base)])
     print(f"\nrender benchmark: preset {config.name}, {args.resolution}, quality {config.quality.get('name')}, "
-          f"{config.quality['samples']} samples, {args.frames} frames (medians)")
+          f"{config.quality_settings.samples} samples, {args.frames} frames (medians)")
     for s in STAGES:
         print(f"  {s:<14}{med[s]:8.3f} s  {100 * med[s] / total:5.1f} %")
     outside = total - med["render"]
@@ -167,7 +168,7 @@ def run_fog(args) -> int:
     root = Path(args.out or tempfile.mkdtemp(prefix="fogsim_bench_fog_"))
     base = load_render_preset(args.preset, frames=args.frames, resolution=args.resolution, samples=args.samples,
                               levels=args.levels)
-    fog_samples = args.fog_samples or base.quality.get("samples")
+    fog_samples = args.fog_samples or base.quality_settings.samples
     variants = {"koschmieder": base,
                 "full+oidn": _fog_variant(base, medium="full", denoise=True, samples=fog_samples),
                 "hybrid": _fog_variant(base, medium="hybrid", denoise=True, samples=fog_samples),
@@ -198,7 +199,7 @@ def run_fog(args) -> int:
             job.close()
     k = statistics.median(times["koschmieder"])
     w, h = base.resolution
-    print(f"\nfog render benchmark: preset {base.name}, {w}x{h}, clear {base.quality['samples']} spp "
+    print(f"\nfog render benchmark: preset {base.name}, {w}x{h}, clear {base.quality_settings.samples} spp "
           f"(quality {base.quality.get('name', 'inline')}), fog {fog_samples} spp, {n_fog} fog levels, "
           f"{args.frames} frames × {args.repeat} repeats (medians), OIDN {'yes' if has_denoiser() else 'no'}, "
           f"Blender {bpy.app.version_string}, device CPU")

@@ -78,6 +78,10 @@ def _camera(built: Built, cam: dict, scene) -> None:
     scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
 
 
+#: the sun lamp: its angular diameter (soft shadows) and its colour by day (linear RGB)
+SUN_ANGLE_DEG, SUN_COLOR = 0.6, (1.0, 0.97, 0.92)
+
+
 def set_camera_pose(scene, world_to_camera) -> None:
     """Place the scene camera from an OpenCV world→camera matrix (4×4)."""
     M = blender_camera_matrix(np.asarray(world_to_camera, dtype=np.float64))
@@ -89,9 +93,9 @@ def _lighting(built: Built, light: dict, scene) -> None:
     elev, azim = math.radians(light["sun_elevation_deg"]), math.radians(light["sun_azimuth_deg"])
     scene.world = make_world(built, light)
     sun = bpy.data.lights.new("fogsim_sun", "SUN")
-    sun.energy = light.get("sun_strength", 4.0)
-    sun.angle = math.radians(light.get("sun_angle_deg", 0.6))
-    sun.color = light.get("sun_color", (1.0, 0.97, 0.92))
+    sun.energy = light["sun_strength"]
+    sun.angle = math.radians(SUN_ANGLE_DEG)
+    sun.color = light.get("sun_color", SUN_COLOR)  # the night's moon has its own colour
     sun_obj = bpy.data.objects.new("fogsim_sun", sun)
     # a sun lamp shines along its −z: point −z from the sun toward the scene
     sun_obj.rotation_euler = (math.pi / 2 - elev, 0.0, azim + math.pi)

@@ -16,31 +16,26 @@ from fogsim.render.blender.device import use_device
 from fogsim.render.blender.output import blender_output
 from fogsim.render.exr_reader import read_exr
 from fogsim.render.frame import FramePasses
+from fogsim.render.quality import cycles_settings
 
 
 def configure(scene, quality: dict, seed: int, gpu: bool = False) -> dict:
-    """Cycles settings from a quality preset; returns what was actually used (the device too:
+    """Cycles settings from a quality preset (:func:`fogsim.render.quality.cycles_settings`: every
+    default from the schema); returns what was actually used (the device too:
     :func:`fogsim.render.blender.device.use_device`)."""
     scene.render.engine = "CYCLES"
     device = use_device(scene, gpu)
     cy = scene.cycles
-    cy.samples = int(quality.get("samples", 16))
-    cy.use_adaptive_sampling = bool(quality.get("adaptive_threshold", 0.0))
-    if cy.use_adaptive_sampling:
-        cy.adaptive_threshold = float(quality["adaptive_threshold"])
-    denoise = bool(quality.get("denoise", True)) and has_denoiser()
-    cy.use_denoising = denoise
+    settings = cycles_settings(quality)
+    speed = settings.pop("denoising_quality"), settings.pop("denoising_prefilter")
+    settings["use_denoising"] = settings["use_denoising"] and has_denoiser()
+    if not settings["use_adaptive_sampling"]:
+        settings.pop("adaptive_threshold")
+    for name, value in settings.items():
+        setattr(cy, name, value)
+    denoise = cy.use_denoising
     if denoise:
-        set_denoiser_speed(cy, quality.get("denoise_quality", "HIGH"), quality.get("denoise_prefilter", "ACCURATE"))
-    bounces = quality.get("bounces", {})
-    cy.max_bounces = bounces.get("total", 4)
-    cy.diffuse_bounces = bounces.get("diffuse", 2)
-    cy.glossy_bounces = bounces.get("glossy", 2)
-    cy.transmission_bounces = bounces.get("transmission", 2)
-    cy.transparent_max_bounces = bounces.get("transparent", 4)
-    cy.volume_bounces = 0
-    cy.caustics_reflective = cy.caustics_refractive = False
-    cy.sample_clamp_indirect = 10.0
+        set_denoiser_speed(cy, *speed)
     cy.seed = int(seed) % 2**31
     cy.use_animated_seed = False
     scene.render.use_compositing = False

@@ -44,6 +44,7 @@ from fogsim.render.blender.compat import (
     set_volume_phase,
     set_volume_unbiased,
 )
+from fogsim.render.quality import cycles_settings
 
 DOMAIN_NAME = "fogsim_fog_domain"
 GROUND_MARGIN_M = 1.0  # the box starts this far below the ground (z = 0)
@@ -204,18 +205,19 @@ def fog_render_settings(scene, settings: dict, quality: dict, seed: int):
         scene.camera.data.clip_start = FOG_CLIP_START_M
         # only β changes between the fog renders: keep Cycles' scene (BVH, images) between them
         scene.render.use_persistent_data = True
-        cy.samples = int(settings["samples"] or quality.get("samples", 16))
+        base = cycles_settings(quality)  # the clear render's settings, defaults from the schema
+        cy.samples = int(settings["samples"] or base["samples"])
         cy.use_adaptive_sampling = False
         denoise = bool(settings["denoise"]) and has_denoiser()
         cy.use_denoising = denoise
         if denoise:
-            set_denoiser_speed(cy, quality.get("denoise_quality", "HIGH"), quality.get("denoise_prefilter", "ACCURATE"))
+            set_denoiser_speed(cy, base["denoising_quality"], base["denoising_prefilter"])
         cy.volume_bounces = int(settings["volume_bounces"])
-        cy.max_bounces = int(settings["volume_bounces"]) + int(quality.get("bounces", {}).get("total", 4))
+        cy.max_bounces = int(settings["volume_bounces"]) + base["max_bounces"]
         cy.sample_clamp_indirect = 0.0
         # Blender 3.4 counts the domain's boundary as a transparent bounce of shadow rays: with the
         # quality's 0 (draft) every shadow ray leaving the fog layer (sun, sky) would be blocked
-        cy.transparent_max_bounces = int(quality.get("bounces", {}).get("transparent", 4)) + TRANSPARENT_EXTRA
+        cy.transparent_max_bounces = base["transparent_max_bounces"] + TRANSPARENT_EXTRA
         cy.seed = (int(seed) + int(settings["noise_seed"])) % 2**31
         biased = set_volume_unbiased(cy)
         layer.use_pass_z = layer.use_pass_object_index = False

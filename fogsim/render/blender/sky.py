@@ -22,7 +22,7 @@ import bpy
 
 from fogsim.errors import InputError
 from fogsim.render.blender.compat import sky_type_physical
-from fogsim.scene.sky import OVERCAST_COLOR, hdri_file
+from fogsim.scene.sky import OVERCAST_COLOR, hdri_file, sky_of
 
 #: the world importance map's side: small for smooth skies (Cycles' default 1024² costs ~0.7 s a
 #: frame), larger for an HDRI, whose sun is a few pixels of a 1024 × 512 image
@@ -87,18 +87,18 @@ def _overcast(nt, bg, strength: float) -> None:
 
 
 def make_world(built, light: dict):
-    """The world of a frame's lighting record (recorded in ``built`` for removal)."""
-    kind = light.get("sky", "procedural")
+    """The world of a frame's lighting record (:mod:`fogsim.scene.sky`; recorded in ``built`` for removal)."""
+    kind = sky_of(light)
     world = bpy.data.worlds.new("fogsim_world")
     built.others.append(("worlds", world))
     world.use_nodes = True
     nt = world.node_tree
     bg = nt.nodes["Background"]
-    bg.inputs["Strength"].default_value = light.get("sky_strength", 0.25)
+    bg.inputs["Strength"].default_value = light["sky_strength"]
     if kind == "hdri":
         _hdri(nt, bg, light, built)
     elif kind == "overcast":
-        _overcast(nt, bg, light.get("sky_strength", 1.0))
+        _overcast(nt, bg, light["sky_strength"])
     else:
         _procedural(nt, bg, light)
     world.cycles.sampling_method = "MANUAL"
