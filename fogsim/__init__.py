@@ -17,6 +17,7 @@ from fogsim.camera import Intrinsics, StereoCamera, planar_to_ray
 from fogsim.fog import (
                         Fogger,
                         FogLevel,
+                        FogSettings,
                         Kernel,
                         beta_from_visibility,
                         estimate_airlight,
@@ -28,6 +29,6 @@ from fogsim.fog import (
                         visibility_from_beta,
 )
 
-__all__ = ["__version__", "FogLevel", "Fogger", "Intrinsics", "Kernel", "StereoCamera", "beta_from_visibility",
-           "estimate_airlight", "koschmieder", "koschmieder_extended", "load_preset", "parse_levels",
-           "planar_to_ray", "transmission", "visibility_from_beta"]
+__all__ = ["__version__", "FogLevel", "FogSettings", "Fogger", "Intrinsics", "Kernel", "StereoCamera",
+           "beta_from_visibility", "estimate_airlight", "koschmieder", "koschmieder_extended", "load_preset",
+           "parse_levels", "planar_to_ray", "transmission", "visibility_from_beta"]

@@ -56,12 +56,15 @@ def check_output(out: str | os.PathLike, inputs: dict[str, str | os.PathLike | N
 
 
 def claim_output(path: str | os.PathLike, parameters: dict, record: dict | None = None, *, what: str = "run",
-                 legacy: Callable[[dict], dict | None] | None = None) -> bool:
+                 legacy: Callable[[dict], dict | None] | None = None,
+                 upgrade: Callable[[dict], dict] | None = None) -> bool:
     """Claim the run file ``path`` for ``parameters``; True when this call created it.
 
     The file holds ``{"fogsim_version", **record, "parameters"}``. An existing file with
     equal parameters means "resume"; other parameters raise :class:`InputError` naming it.
-    ``legacy(old)`` may derive the parameters of a file written by an older fogsim.
+    ``legacy(old)`` may derive the parameters of a file written by an older fogsim that had no
+    ``parameters``; ``upgrade(stored)`` turns stored parameters written in an older fogsim's words
+    into today's (the file itself is left as it is).
     """
     path = Path(path)
     payload = json.dumps({"fogsim_version": __version__, **(record or {}), "parameters": parameters},
@@ -78,6 +81,8 @@ def claim_output(path: str | os.PathLike, parameters: dict, record: dict | None 
     stored = old.get("parameters")
     if stored is None and legacy is not None:
         stored = legacy(old)
+    if isinstance(stored, dict) and upgrade is not None:
+        stored = upgrade(stored)
     if json.loads(json.dumps(parameters, default=str)) != stored:
         raise InputError(path, f"this output folder holds a {what} with other parameters; use another "
                                f"--out (or delete it) rather than mixing two {what}s")

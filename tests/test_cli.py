@@ -33,7 +33,7 @@ def test_folder_dataset_numbers_and_sidecars(folder_dataset, tmp_path):
     meta = json.loads((out / "beta0.05" / "sub" / "b.json").read_text())
     assert meta["level"]["beta"] == 0.05 and meta["level"]["visibility_m"] == pytest.approx(59.915, abs=1e-3)
     assert meta["airlight_rgb"] == [255, 255, 255] and meta["blend_space"] == "srgb"
-    assert meta["distance"] == "planar→ray" and meta["model"] == "standard" and meta["kernel"] is None
+    assert meta["distance"] == "planar→ray" and meta["model"] == "koschmieder" and meta["kernel"] is None
     assert meta["fill"] == "none" and meta["fogsim_version"]
     run = json.loads((out / "fogsim_run.json").read_text())
     assert run["parameters"]["seed"] == 0 and run["numpy"]

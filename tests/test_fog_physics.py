@@ -9,10 +9,10 @@ from fogsim.bench.fog_physics_report import markdown, write_report
 from fogsim.fog.physics import (
     BIN_NAMES,
     Comparison,
-    Model,
     horizon_radiance,
     interior_mask,
     koschmieder_linear,
+    koschmieder_model,
     noisy_render,
 )
 
@@ -64,7 +64,7 @@ def test_interior_mask_by_hand():
 
 def test_koschmieder_exact_plus_independent_noise_has_no_bias_and_no_noise_free_error():
     rgb, ray, mask = scene()
-    model = Model("linear")
+    model = koschmieder_model("linear")
     k = koschmieder_linear(rgb, ray, BETA, model)
     f1, f2 = (noisy_render(k, 0.1, np.random.default_rng(s)) for s in (1, 2))
     comp = Comparison(models=(model,))
@@ -82,7 +82,7 @@ def test_koschmieder_exact_plus_independent_noise_has_no_bias_and_no_noise_free_
 
 def test_a_known_exposure_factor_is_recovered_by_normalisation():
     rgb, ray, mask = scene()
-    model = Model("linear")
+    model = koschmieder_model("linear")
     k = koschmieder_linear(rgb, ray, BETA, model)
     comp = Comparison(models=(model,))
     comp.add_frame("f", rgb, ray, mask, {BETA: (0.3 * k, 0.3 * k)})
@@ -111,7 +111,7 @@ def test_constant_offset_and_the_srgb_model_by_hand():
     k_lin = 0.2 * t + (1 - t)
     pt = np.full((40, 40, 3), k_lin + 0.02, np.float32)
     pt[:10] = 1.0
-    comp = Comparison(models=(Model("linear"), Model("srgb")))
+    comp = Comparison(models=(koschmieder_model("linear"), koschmieder_model("srgb")))
     comp.add_frame("wall", rgb, ray, mask, {BETA: (pt, pt)})
     m = comp.result()["per_beta"]["0.06"]["models"]
     assert m["linear"]["raw"]["10-20 m"]["bias"] == pytest.approx(0.02, abs=1e-5)
@@ -126,8 +126,8 @@ def test_per_object_contrast_against_transmission():
     """PT = linear Koschmieder: every object's C_PT / C_K = 1 and, for the black box against the white
     sky, C_PT / C0 = t; the sRGB model keeps more contrast, so PT/K(srgb) < 1."""
     rgb, ray, mask = scene()
-    k = koschmieder_linear(rgb, ray, 0.12, Model("linear"))
-    comp = Comparison(models=(Model("linear"), Model("srgb")))
+    k = koschmieder_linear(rgb, ray, 0.12, koschmieder_model("linear"))
+    comp = Comparison(models=(koschmieder_model("linear"), koschmieder_model("srgb")))
     comp.add_frame("f", rgb, ray, mask, {0.12: (k, k)}, classes={1: "car", 2: "van", 3: "bus"})
     objs = {o["id"]: o for o in comp.result()["per_beta"]["0.12"]["objects"]}
     assert set(objs) == {1, 2, 3} and objs[1]["class"] == "car"
@@ -142,7 +142,7 @@ def test_per_object_contrast_against_transmission():
     assert black["ratio_pt_k"]["srgb"] < 1.0
     summary = comp.result()["per_beta"]["0.12"]["objects_summary"]
     assert summary["linear"]["objects"] == 1 and summary["linear"]["median_ratio_pt_k"] == pytest.approx(1.0, abs=1e-4)
-    only = Comparison(models=(Model("linear"),))  # classes name the objects of the table
+    only = Comparison(models=(koschmieder_model("linear"),))  # classes name the objects of the table
     only.add_frame("f", rgb, ray, mask, {0.12: (k, k)}, classes={2: "van"})
     assert [o["id"] for o in only.result()["per_beta"]["0.12"]["objects"]] == [2]
 
@@ -163,7 +163,7 @@ def test_report_files(tmp_path):
     rgb, ray, mask = scene()
     comp = Comparison()
     for beta in (0.03, 0.12):
-        k = koschmieder_linear(rgb, ray, beta, Model("linear"))
+        k = koschmieder_linear(rgb, ray, beta, koschmieder_model("linear"))
         comp.add_frame(f"b{beta}", rgb, ray, mask, {beta: (noisy_render(0.4 * k, 0.05, np.random.default_rng(1)),
                                                            noisy_render(0.4 * k, 0.05, np.random.default_rng(2)))})
     result = write_report(comp, tmp_path)

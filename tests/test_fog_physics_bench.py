@@ -16,7 +16,7 @@ from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.colour import srgb_to_linear
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.fileio import read_image
-from fogsim.fog.physics import Model, koschmieder_linear, noisy_render
+from fogsim.fog.physics import koschmieder_linear, koschmieder_model, noisy_render
 
 W, H, EXPOSURE = 96, 64, 0.35
 
@@ -80,7 +80,7 @@ def bench_dir(tmp_path_factory):
         fog.meta("000000").write_text(json.dumps(m))
         for lv in config.levels:
             if lv.beta > 0:
-                k = koschmieder_linear(lin, ray, lv.beta, Model("linear"))
+                k = koschmieder_linear(lin, ray, lv.beta, koschmieder_model("linear"))
                 write_rgb_exr(linear_path(fog, lv.key, "000000"),
                               noisy_render(EXPOSURE * k, 0.1, np.random.default_rng(10 * seed + int(100 * lv.beta))))
     return out

@@ -19,6 +19,7 @@ from fogsim.cli import main
 from fogsim.errors import InputError
 from fogsim.fileio import PART_SUFFIX, write_depth, write_image
 from fogsim.fog.batch import FogJob, check_run_file
+from fogsim.fog.engine import FogSettings
 from fogsim.fog.levels import parse_levels
 
 
@@ -80,8 +81,8 @@ def test_claim_has_no_check_then_write_race(folder_dataset, tmp_path, monkeypatc
     """Run B claims the folder while run A is writing its claim (a slow file system): exactly one
     of them may be accepted, and the run file must hold the winner's parameters."""
     levels = tuple(parse_levels("0.06"))
-    a = FogJob(levels, str(tmp_path / "out"), airlight=(255.0,) * 3)
-    b = FogJob(levels, str(tmp_path / "out"), airlight=(200.0,) * 3)
+    a = FogJob(levels, str(tmp_path / "out"), FogSettings(airlight=(255.0,) * 3))
+    b = FogJob(levels, str(tmp_path / "out"), FogSettings(airlight=(200.0,) * 3))
     real_mkstemp = tempfile.mkstemp
     results = {}
 

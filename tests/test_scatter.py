@@ -3,7 +3,7 @@ energy and width, glow only around emitters, the parameter file, and the front d
 (``fogsim fog --model scatter``, presets, ``fogsim fit-fog``, ``bench fog-physics`` columns)."""
 import json
 import math
-from dataclasses import replace
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -16,9 +16,7 @@ from fogsim.fog.model import Fogger
 from fogsim.fog.scatter import (
     EXPOSURE_GAIN_RANGE,
     KOSCHMIEDER,
-    TERMS,
     ScatterFogger,
-    ScatterParams,
     direct_planes,
     elevation_sine,
     exposure_gain,
@@ -32,7 +30,12 @@ from fogsim.fog.scatter import (
     splat,
     up_from_world_to_camera,
 )
+from fogsim.schema.scatter import TERMS, ScatterParamsFile, fit_space, parameter_table
 from test_fog_physics_bench import bench_dir  # noqa: F401  (the fixture: stand-in fog-physics runs)
+
+P = KOSCHMIEDER.with_values  # the model with these parameters (by path), every other term off
+#: the parameter file fogsim ≤ 0.3 shipped (version 1: one flat object)
+V1_FILE = Path(__file__).parent / "data" / "scatter_params_v1.json"
 
 H, W = 60, 80
 K = Intrinsics(fx=70.0, fy=70.0, cx=40.0, cy=30.0, width=W, height=H)
@@ -63,9 +66,10 @@ def test_reduces_to_koschmieder_with_the_extra_terms_off(space, params):
     got, ref = ScatterFogger(img8, ray, 255, space, params, K)(0.06), Fogger(img8, ray, 255, space)(0.06)
     assert np.abs(got.astype(int) - ref).max() <= 1 and (got == ref).mean() > 0.999  # float rounding only
     # and each term on its own changes the image
-    for term, value in (("forward", 0.5), ("illumination", 10.0), ("level", 0.8), ("elevation", 1.0),
-                        ("exposure_key", 0.3), ("flatten", 0.4), ("sky_exponent", 0.5)):
-        on = ScatterFogger(img, ray, 255, "linear", ScatterParams(**{term: value}), K)(0.06)
+    for term, value in (("psf.forward", 0.5), ("direct.illumination", 10.0), ("airlight.level", 0.8),
+                        ("airlight.elevation", 1.0), ("direct.exposure_key", 0.3), ("direct.flatten", 0.4),
+                        ("airlight.sky_exponent", 0.5)):
+        on = ScatterFogger(img, ray, 255, "linear", P({term: value}), K)(0.06)
         assert np.abs(on - Fogger(img, ray, 255, "linear")(0.06)).max() > 0.01, term
 
 
@@ -85,7 +89,7 @@ def test_psf_conserves_energy_and_has_the_asked_width():
     # the model's scattered light: exactly the energy taken from the direct beam, m·I·(t_f − t)
     img, ray = street()
     ray[np.isinf(ray)] = 50.0
-    p = ScatterParams(forward=0.6, spread=0.2)
+    p = P({"psf.forward": 0.6, "psf.spread": 0.2})
     f = ScatterFogger(img, ray, 255, "linear", p, K)
     s = f.scattered(0.06)
     lin = f.blend(0.0)  # β = 0: the image itself, in the blend space
@@ -96,7 +100,7 @@ def test_psf_conserves_energy_and_has_the_asked_width():
 
 def test_the_exposure_key_makes_the_direct_term_independent_of_the_clear_exposure():
     img, ray = street()
-    p = ScatterParams(exposure_key=0.25)
+    p = P({"direct.exposure_key": 0.25})
     lin = srgb_to_linear(img)
     darker = linear_to_srgb(0.4 * lin)                     # the same scene, exposed 0.4× in the clear image
     for space in ("linear", "srgb"):
@@ -109,10 +113,10 @@ def test_the_exposure_key_makes_the_direct_term_independent_of_the_clear_exposur
     assert np.abs(off - a).max() > 0.05                     # Koschmieder keeps the darker exposure
     # with the day/night boundary set, a night image keeps its own exposure (lamps light it, not the fog)
     night = linear_to_srgb(0.01 * lin)
-    assert ScatterFogger(night, ray, 255, "linear", ScatterParams(exposure_key=0.25), K).exposure_gain > 4
-    with_dark = ScatterFogger(night, ray, 255, "linear", ScatterParams(exposure_key=0.25, glow_dark=0.045), K)
+    assert ScatterFogger(night, ray, 255, "linear", P({"direct.exposure_key": 0.25}), K).exposure_gain > 4
+    with_dark = ScatterFogger(night, ray, 255, "linear", P({"direct.exposure_key": 0.25, "night.luminance": 0.045}), K)
     assert with_dark.exposure_gain == pytest.approx(1.0, abs=1e-3)
-    assert ScatterFogger(img, ray, 255, "linear", ScatterParams(exposure_key=0.25, glow_dark=0.045),
+    assert ScatterFogger(img, ray, 255, "linear", P({"direct.exposure_key": 0.25, "night.luminance": 0.045}),
                          K).exposure_gain == pytest.approx(ScatterFogger(img, ray, 255, "linear", p, K).exposure_gain,
                                                           rel=1e-3)   # a day image: unchanged
     # bounds: a black clear image is not scaled without limit; no non-sky pixel → no gain
@@ -143,8 +147,8 @@ def test_glow_appears_around_an_emitter_and_nowhere_else():
     ray[:20] = np.inf
     lamp = img.copy()
     lamp[44:47, 29:32] = 1.0  # saturated: a lamp
-    base = ScatterParams(forward=0.5, spread=0.002)  # σ = √(ρβℓ)·f ≈ 6 px: the PSF ends within 20 px
-    glow = ScatterParams(forward=0.5, spread=0.002, glow=50.0)
+    base = P({"psf.forward": 0.5, "psf.spread": 0.002})  # σ = √(ρβℓ)·f ≈ 6 px: the PSF ends in 20 px
+    glow = P({"psf.forward": 0.5, "psf.spread": 0.002, "glow.gain": 50.0})
     def fog(image, params):
         return ScatterFogger(image, ray, 255, "linear", params, K)(0.06)
 
@@ -159,12 +163,12 @@ def test_glow_appears_around_an_emitter_and_nowhere_else():
     def light(params):  # linear light, not clipped at white
         return ScatterFogger(lamp, ray, 255, "linear", params, K).blend(0.06)
     wide = light(glow) - light(base)
-    narrow = light(ScatterParams(forward=0.5, spread=0.002, glow=50.0, glow_spread=0.0002)) - light(base)
+    narrow = light(P({"psf.forward": 0.5, "psf.spread": 0.002, "glow.gain": 50.0, "glow.spread": 0.0002})) - light(base)
     ring = (r > 2) & (r < 4)
     assert narrow.mean(axis=2)[ring].mean() > 1.5 * wide.mean(axis=2)[ring].mean()
     assert narrow.sum() == pytest.approx(wide.sum(), rel=0.02)
     # glow_dark: the same lamp glows in a dark image, not in a bright one (by day white saturates too)
-    dark_glow = ScatterParams(forward=0.5, spread=0.002, glow=50.0, glow_dark=0.045)
+    dark_glow = P({"psf.forward": 0.5, "psf.spread": 0.002, "glow.gain": 50.0, "night.luminance": 0.045})
     assert np.allclose(light(dark_glow), light(glow), atol=1e-4)    # median ≈ 0.0015 ≪ 0.045: weight ≈ 1
     day = np.full_like(lamp, 0.8)
     day[44:47, 29:32] = 1.0
@@ -190,20 +194,20 @@ def test_glow_comes_from_small_sources_and_its_tail_keeps_the_energy():
     both[60:90, 60:120] = 1.0         # a lit patch of road: 1800 px, 17 %
     lamp = img.copy()
     lamp[44:47, 29:32] = 1.0
-    base = ScatterParams(forward=0.5, spread=0.002)
+    base = P({"psf.forward": 0.5, "psf.spread": 0.002})
 
     def light(image, params):
         return ScatterFogger(image, ray, 255, "linear", params, K).blend(0.06)
-    capped = ScatterParams(forward=0.5, spread=0.002, glow=50.0, glow_max_area=0.01)
+    capped = P({"psf.forward": 0.5, "psf.spread": 0.002, "glow.gain": 50.0, "glow.max_area": 0.01})
     # the patch does not glow, the lamp does, as it does alone
     assert np.allclose(light(both, capped) - light(both, base), light(lamp, capped) - light(lamp, base), atol=1e-5)
-    uncapped = ScatterParams(forward=0.5, spread=0.002, glow=50.0)
+    uncapped = P({"psf.forward": 0.5, "psf.spread": 0.002, "glow.gain": 50.0})
     assert (light(both, uncapped) - light(both, base)).sum() > 10 * (light(both, capped) - light(both, base)).sum()
     # a cap above the patch's size lets it glow again
-    assert np.allclose(light(both, replace(capped, glow_max_area=0.5)), light(both, uncapped), atol=1e-6)
+    assert np.allclose(light(both, capped.with_values({"glow.max_area": 0.5})), light(both, uncapped), atol=1e-6)
     # the tail: a share of the glow by the scene's wide PSF, the same energy, less of it near the lamp
-    core = ScatterParams(forward=0.5, spread=0.02, glow=50.0, glow_spread=0.0002)
-    tailed = replace(core, glow_tail=0.5)
+    core = P({"psf.forward": 0.5, "psf.spread": 0.02, "glow.gain": 50.0, "glow.spread": 0.0002})
+    tailed = core.with_values({"glow.tail": 0.5})
     g_core, g_tail = light(lamp, core) - light(lamp, base), light(lamp, tailed) - light(lamp, base)
     yy, xx = np.mgrid[:90, :120]
     r = np.hypot(xx - 30, yy - 45)
@@ -249,15 +253,22 @@ def test_elevation_map_and_world_up():
 
 def test_shipped_parameters_load_and_malformed_files_are_refused(tmp_path):
     doc = load_params_file()
-    assert doc.version == 1 and doc.format == "fogsim-scatter-params"
-    assert shipped_params_path().is_file() and load_params() == ScatterParams(**doc.parameters.model_dump())
+    assert doc.version == 2 and doc.format == "fogsim-scatter-params"
+    assert shipped_params_path().is_file() and load_params() == doc.parameters
     good = json.loads(shipped_params_path().read_text())
+    psf = good["parameters"]["psf"]
+    v1 = json.loads(V1_FILE.read_text())
     cases = {
-        "range": ({**good, "parameters": {**good["parameters"], "forward": 1.5}}, "parameters.forward"),
+        "range": ({**good, "parameters": {**good["parameters"], "psf": {**psf, "forward": 1.5}}},
+                  "parameters.psf.forward"),
         "unknown": ({**good, "parameters": {**good["parameters"], "fwd": 0.1}}, "fwd"),
-        "version": ({**good, "version": 2}, "version"),
+        "unknown in a block": ({**good, "parameters": {**good["parameters"], "psf": {**psf, "fwd": 0.1}}}, "fwd"),
+        "version": ({**good, "version": 3}, "version"),
         "missing": ({k: v for k, v in good.items() if k != "parameters"}, "parameters"),
-        "type": ({**good, "parameters": {**good["parameters"], "spread": "wide"}}, "parameters.spread"),
+        "type": ({**good, "parameters": {**good["parameters"], "psf": {**psf, "spread": "wide"}}},
+                 "parameters.psf.spread"),
+        "v1 range": ({**v1, "parameters": {**v1["parameters"], "forward": 1.5}}, "parameters.psf.forward"),
+        "v1 unknown": ({**v1, "parameters": {**v1["parameters"], "fwd": 0.1}}, "fwd"),
     }
     for name, (bad, where) in cases.items():
         path = tmp_path / f"{name}.json"
@@ -270,7 +281,7 @@ def test_shipped_parameters_load_and_malformed_files_are_refused(tmp_path):
     with pytest.raises(InputError):
         load_params(tmp_path / "broken.json")
     with pytest.raises(ValueError, match="glow"):
-        ScatterParams(glow=-1.0)
+        P({"glow.gain": -1.0})
 
 
 def test_scatter_function_keeps_the_dtype_and_brightens_the_far_field_above_the_horizon():
@@ -279,7 +290,7 @@ def test_scatter_function_keeps_the_dtype_and_brightens_the_far_field_above_the_
     for dtype, im in ((np.uint8, img), (np.uint16, img.astype(np.uint16) * 257), (np.float32, as_float)):
         out = scatter(im, ray, 0.06, intrinsics=K)
         assert out.dtype == dtype and out.shape == im.shape
-    p = ScatterParams(level=0.8, elevation=2.0)
+    p = P({"airlight.level": 0.8, "airlight.elevation": 2.0})
     out = scatter(img, ray, 0.12, airlight=150, params=p, intrinsics=K).astype(float).mean(axis=2)
     assert out[2].mean() > out[11].mean() + 5  # the sky gets brighter with elevation
 
@@ -315,7 +326,7 @@ def test_preset_kind_scatter_is_declared_and_fogs_a_rendered_frame(tmp_path):
 
     config = load_render_preset("default", frames=1, resolution="64x48", levels="0,0.06", fog="scatter")
     fs = fog_settings(config)
-    assert fs["model"] == "scatter" and fs["space"] == "linear" and fs["scatter_params"] is None
+    assert fs.kind == "scatter" and fs.blend_space == "linear" and fs.scatter_file is None
     from fogsim.dataset.layout import DatasetLayout
     from fogsim.render.frame import DescribedFrame, FramePasses, commit_frame
 
@@ -345,7 +356,7 @@ def test_fog_physics_on_a_tiny_night_frame_has_every_new_column():
     mask = np.zeros((H, W), np.uint16)
     mask[20:35, 30:50] = 1
     clear = img ** 2.2
-    truth = scatter_model(ScatterParams(forward=0.5, spread=0.01, glow=20.0))
+    truth = scatter_model(P({"psf.forward": 0.5, "psf.spread": 0.01, "glow.gain": 20.0}))
     rng = np.random.default_rng(1)
     renders = {b: tuple(noisy_render(0.3 * koschmieder_linear(clear, ray, b, truth, K), 0.05, rng) for _ in range(2))
                for b in (0.03, 0.09)}
@@ -383,7 +394,7 @@ def test_fit_fog_and_the_bench_column_on_fog_physics_runs(bench_dir, tmp_path, c
     doc = load_params_file(out)
     assert doc.fitted_on.after <= doc.fitted_on.before + 1e-6 and doc.fitted_on.betas == [0.06, 0.12]
     assert doc.fitted_on.frames == 1 and doc.fitted_on.resolution == "96x64"
-    assert load_params(out) == ScatterParams(**doc.parameters.model_dump())
+    assert load_params(out) == doc.parameters
     result = analyse(bench_dir)
     assert "scatter" in result["models"] and "| scatter |" in (bench_dir / "report" / "fog_physics.md").read_text()
     # the bench compares a new fit before it ships: --scatter-params
@@ -410,15 +421,15 @@ def test_shipped_parameters_are_fitted_and_say_on_what():
         assert run.style and run.seed is not None and run.frames >= 1 and run.time_of_day in ("day", "night")
     assert fit.after < fit.before  # the fit beats Koschmieder on what it was fitted on
     p = load_params()
-    assert p.forward > 0 and p.spread > 0 and p != KOSCHMIEDER
+    assert p.psf.forward > 0 and p.psf.spread > 0 and p != KOSCHMIEDER
 
 
 def test_fade_scales_the_airlight_by_exp_minus_lambda_beta():
     img, ray = street()
-    base = ScatterParams(level=0.8)
+    base = P({"airlight.level": 0.8})
     for beta in (0.03, 0.12):
         plain = ScatterFogger(img, ray, 255, "linear", base, K).blend(beta)
-        faded = ScatterFogger(img, ray, 255, "linear", ScatterParams(level=0.8, fade=5.0), K).blend(beta)
+        faded = ScatterFogger(img, ray, 255, "linear", P({"airlight.level": 0.8, "airlight.fade": 5.0}), K).blend(beta)
         t = np.exp(-beta * ray)[..., None]
         lin = ScatterFogger(img, ray, 255, "linear", base, K).blend(0.0)  # the image in linear light
         air_plain, air_faded = plain - lin * t, faded - lin * t
@@ -485,8 +496,9 @@ def test_glow_only_refit_finds_the_lamps_glow_and_keeps_the_rest():
     img[40:43, 10:13] = 1.0          # a lamp
     img[50:60, 40:80] = 1.0          # a lit patch of road (8 % of the image)
     clear = img ** 2.2
-    day = ScatterParams(forward=0.4, spread=1.0, level=0.9)
-    truth = scatter_model(replace(day, glow=30.0, glow_spread=0.003, glow_max_area=0.02, glow_dark=0.045))
+    day = P({"psf.forward": 0.4, "psf.spread": 1.0, "airlight.level": 0.9})
+    truth = scatter_model(day.with_values({"glow.gain": 30.0, "glow.spread": 0.003, "glow.max_area": 0.02,
+                                           "night.luminance": 0.045}))
     rng = np.random.default_rng(2)
     renders = {b: tuple(noisy_render(0.3 * koschmieder_linear(clear, ray, b, truth, K), 0.02, rng) for _ in range(2))
                for b in (0.06, 0.12)}
@@ -494,8 +506,9 @@ def test_glow_only_refit_finds_the_lamps_glow_and_keeps_the_rest():
             "camera": K, "up": None, "night": True}
     params, glow = fit_glow(day, [data], frame_levels(data), log=lambda *a: None)
     assert glow["after"] < glow["before"]
-    assert params.glow > 1 and 0 < params.glow_max_area < 0.08
-    assert replace(params, glow=0.0, glow_spread=0.0, glow_max_area=0.0, glow_tail=0.0, glow_dark=0.0) == day
+    assert params.glow.gain > 1 and 0 < params.glow.max_area < 0.08
+    off = {"glow.gain": 0.0, "glow.spread": 0.0, "glow.max_area": 0.0, "glow.tail": 0.0, "night.luminance": 0.0}
+    assert params.with_values(off) == day
 
 
 def test_glow_only_refit_needs_night_runs(bench_dir, tmp_path, capsys):  # noqa: F811
@@ -505,3 +518,33 @@ def test_glow_only_refit_needs_night_runs(bench_dir, tmp_path, capsys):  # noqa:
     capsys.readouterr()
     assert main(["fit-fog", str(bench_dir), "--glow-only", "--out", str(out)]) == 2
     assert "no night frame" in capsys.readouterr().err and not out.exists()
+
+
+def test_every_parameter_is_declared_once_in_blocks():
+    p = load_params()
+    assert set(p.model_dump()) == {"psf", "direct", "airlight", "glow", "night"}
+    assert len(TERMS) == 9 and all(KOSCHMIEDER.without(t) == KOSCHMIEDER for t in TERMS)
+    assert p.without(*TERMS).glow.gain == 0 and p.without(*TERMS).airlight.level == 1.0
+    with pytest.raises(ValueError, match="not model terms"):
+        p.without("glow.threshold")
+    day = list(fit_space("day"))
+    assert day[0] == "direct.exposure_key" and "psf.spread" in day and "glow.gain" not in day
+    assert set(fit_space("night")) == {"glow.gain", "glow.tail", "glow.spread", "glow.max_area"}
+    import fogsim.fog.scatter as module
+    from fogsim.schema.scatter import leaves
+
+    for path, _ in leaves():  # the module's formula names every parameter by its path
+        assert f"``{path}``" in module.__doc__, path
+
+
+def test_the_version_1_file_still_loads_into_the_blocks(tmp_path):
+    doc = ScatterParamsFile.model_validate(json.loads(V1_FILE.read_text()))
+    assert doc.version == 2 and doc.parameters == load_params()  # the shipped v2 file holds the same values
+    flat = json.loads(V1_FILE.read_text())["parameters"]
+    assert doc.parameters.glow.gain == flat["glow"] and doc.parameters.night.luminance == flat["glow_dark"]
+    assert load_params(V1_FILE) == load_params()
+
+
+def test_the_docs_table_is_the_declaration():
+    page = (Path(__file__).parents[1] / "docs" / "fog-physics.md").read_text()
+    assert parameter_table() in page, "docs/fog-physics.md: paste fogsim.schema.scatter.parameter_table()"

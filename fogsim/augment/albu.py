@@ -27,18 +27,14 @@ A = require("albumentations", "augment")
 
 
 class Fog(A.ImageOnlyTransform):
-    """Koschmieder fog with β drawn per call (see :class:`fogsim.augment.spec.FogSpec` for every
-    parameter); ``depth_key`` names the depth target (H×W or H×W×1 metres, ray distance unless
+    """Physical fog with β drawn per call: every keyword of :class:`fogsim.augment.spec.FogSpec`
+    (``beta``, ``model``, ``scatter_params``, ``space``, …) is the spec's, forwarded as it is;
+    ``depth_key`` names the depth target (H×W or H×W×1 metres, ray distance unless
     ``depth="planar"``). ``p``: probability of applying it."""
 
-    def __init__(self, beta=(0.0, 0.12), sample: str = "beta", airlight: float = 255.0,
-                 airlight_jitter: float = 0.0, depth: str = "ray", intrinsics=None, hfov: float | None = None,
-                 space: str = "srgb", kernel=None, heterogeneity: float = 0.0, heterogeneity_scale: float = 64.0,
-                 depth_key: str = "depth", p: float = 1.0):
+    def __init__(self, beta=(0.0, 0.12), depth_key: str = "depth", p: float = 1.0, **spec: Any):
         super().__init__(p=p)
-        self.spec = FogSpec(beta=beta, sample=sample, airlight=airlight, airlight_jitter=airlight_jitter,
-                            depth=depth, intrinsics=intrinsics, hfov=hfov, space=space, kernel=kernel,
-                            heterogeneity=heterogeneity, heterogeneity_scale=heterogeneity_scale)
+        self.spec = FogSpec(beta=beta, **spec)
         self.depth_key = depth_key
 
     @property

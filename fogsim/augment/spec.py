@@ -5,8 +5,9 @@ the batched torch function, the Ultralytics training hook): the range or list β
 uniform in β or in visibility, the airlight and its jitter, the depth convention, the blend
 space, the extended kernel and heterogeneity. :meth:`FogSpec.draw` draws one sample's
 parameters from a NumPy ``Generator`` (seeded by the caller: the same seed gives the same
-draws); :func:`apply_fog` is the reference every other path is tested against — it is
-:func:`fogsim.fog.model.koschmieder` (or ``koschmieder_extended``) with the depth converted.
+draws); :func:`apply_fog` is the reference every other path is tested against — the fog record's
+fogger (:class:`fogsim.fog.engine.FogSettings`, as ``fogsim fog`` and a render apply it) with the
+depth converted.
 
 Depth requirements (docs/augment.md): metres; **ray distance** from the camera centre by
 default, or planar Z along the optical axis with ``depth="planar"`` and the camera's
@@ -22,13 +23,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsim.camera import Intrinsics, planar_to_ray
+from fogsim.fog.engine import FogSettings, Heterogeneity
 from fogsim.fog.levels import beta_from_visibility, visibility_from_beta
-from fogsim.fog.model import Kernel, check_heterogeneity, density_field, koschmieder, koschmieder_extended
-from fogsim.schema.presets import SPACES
+from fogsim.fog.model import Kernel, check_heterogeneity
+from fogsim.schema.vocabulary import POST_PROCESS_KINDS
 
 DEPTH_KINDS = ("ray", "planar")
 SAMPLING = ("beta", "visibility")
-MODELS = ("koschmieder", "scatter")
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,10 @@ class FogSpec:
     ``model``: ``"koschmieder"`` (default) or ``"scatter"`` — :func:`fogsim.fog.scatter.scatter`
     (forward scatter, elevation airlight, glow; NumPy and albumentations only, no kernel or
     heterogeneity), with the parameter file ``scatter_params`` (None = the shipped fitted one).
+    ``space`` None is the model's own: sRGB for Koschmieder (the paper's), linear light for scatter
+    (where it was fitted). :attr:`fog` is the fog record all this applies
+    (:class:`fogsim.fog.engine.FogSettings`, the one every fogsim fog is made by; its airlight is
+    drawn per sample).
     """
 
     beta: tuple[float, float] | tuple[float, ...] = (0.0, 0.12)
@@ -66,15 +71,15 @@ class FogSpec:
     depth: str = "ray"
     intrinsics: Intrinsics | None = None
     hfov: float | None = None
-    space: str = "srgb"
+    space: str | None = None
     kernel: Kernel | None = None
     heterogeneity: float = 0.0
     heterogeneity_scale: float = 64.0
     model: str = "koschmieder"
     scatter_params: str | None = None
     is_list: bool = False  # set by __post_init__: beta is a list of values (not a range)
-    #: the scatter model's parameters, read once by __post_init__ (not per sample)
-    params: object = field(default=None, init=False, repr=False, compare=False)
+    #: the fog record (set by __post_init__; the scatter model's parameters are read once, not per sample)
+    fog: FogSettings = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         beta = self.beta
@@ -98,20 +103,18 @@ class FogSpec:
             raise ValueError("planar depth needs the camera: intrinsics or hfov (degrees)")
         if self.hfov is not None and not 0 < self.hfov < 180:
             raise ValueError(f"hfov must be in (0, 180) degrees, got {self.hfov}")
-        if self.space not in SPACES:
-            raise ValueError(f"space must be one of {', '.join(SPACES)}, got {self.space!r}")
+        if self.model not in POST_PROCESS_KINDS:
+            raise ValueError(f"model must be one of {', '.join(POST_PROCESS_KINDS)}, got {self.model!r}")
         if self.heterogeneity:
             check_heterogeneity(self.heterogeneity, self.heterogeneity_scale)
-        if self.model not in MODELS:
-            raise ValueError(f"model must be one of {', '.join(MODELS)}, got {self.model!r}")
-        if self.model == "scatter" and (self.kernel is not None or self.heterogeneity):
-            raise ValueError("the scatter model has no extended kernel or heterogeneity")
+        fog = FogSettings(self.model, self.airlight, self.space, self.kernel,
+                          Heterogeneity(self.heterogeneity, self.heterogeneity_scale) if self.heterogeneity else None,
+                          self.scatter_params)
+        fog.params  # a scatter parameter file is read (and checked) here, once
         object.__setattr__(self, "beta", beta)
         object.__setattr__(self, "is_list", is_list)
-        if self.model == "scatter":
-            from fogsim.fog.scatter import load_params
-
-            object.__setattr__(self, "params", load_params(self.scatter_params))
+        object.__setattr__(self, "space", fog.blend_space)
+        object.__setattr__(self, "fog", fog)
 
     def draw_beta(self, rng: np.random.Generator) -> float:
         """One β (1/m) from the range or list."""
@@ -131,7 +134,7 @@ class FogSpec:
             a = float(a + rng.uniform(-self.airlight_jitter, self.airlight_jitter))
         density = None
         if self.heterogeneity and shape is not None:
-            density = density_field(shape, rng, self.heterogeneity, self.heterogeneity_scale)
+            density = self.fog.density(shape, rng)
         return Draw(beta, (a, a, a), density)
 
     def camera(self, height: int, width: int) -> Intrinsics:
@@ -154,19 +157,11 @@ class FogSpec:
 
 def apply_fog(image: np.ndarray, depth: np.ndarray, draw: Draw, spec: FogSpec = FogSpec()) -> np.ndarray:
     """The reference: fog ``image`` (H×W×3 uint8/uint16/float) with ``draw`` over ``depth``
-    (see the module docstring); same dtype back. Channel order does not matter for grey airlight."""
+    (see the module docstring) by the spec's fog record; same dtype back. Channel order does not
+    matter for grey airlight."""
     distance = spec.ray_distance(depth)
-    if spec.model == "scatter":
-        if draw.beta == 0:
-            return image.copy()
-        from fogsim.fog.scatter import scatter
-
-        camera = spec.camera(*distance.shape) if spec.intrinsics is not None or spec.hfov is not None else None
-        return scatter(image, distance, draw.beta, draw.airlight, spec.space, spec.params,
-                       camera)
-    if spec.kernel is None:
-        return koschmieder(image, distance, draw.beta, draw.airlight, spec.space, draw.density)
-    return koschmieder_extended(image, distance, draw.beta, spec.kernel, draw.airlight, spec.space, draw.density)
+    camera = spec.camera(*distance.shape) if spec.intrinsics is not None or spec.hfov is not None else None
+    return spec.fog.fogger(image, distance, camera, density=draw.density, airlight=draw.airlight)(draw.beta)
 
 
 def random_fog(image: np.ndarray, depth: np.ndarray, rng: np.random.Generator,

@@ -4,14 +4,15 @@ Reads one or more ``fogsim bench fog-physics`` folders (each: a clear run and tw
 runs of the same frames, see :mod:`fogsim.bench.fog_physics`) and fits, by a bounded pattern
 search (Hooke–Jeeves: coordinate steps that halve when nothing improves; deterministic):
 
-1. on the day frames, ``exposure_key``, ``flatten``, ``forward``, ``spread``, ``illumination`` and
-   the airlight's ``level``, ``fade``, ``elevation``, ``sky_exponent``, minimising the mean over β
+1. on the day frames, the parameters :func:`fogsim.schema.scatter.fit_space` gives for the day
+   (``direct.exposure_key``, ``psf.forward``, ``psf.spread``, ``direct.illumination``, the airlight's
+   ``level``, ``fade``, ``elevation``, ``sky_exponent``, ``direct.flatten``), minimising the mean over β
    of the noise-free normalised RMS
    (path-traced image scaled so its horizon is A, interior non-sky pixels,
    :mod:`fogsim.fog.physics`; pooled over frames) relative to linear Koschmieder's at that β
    (the target is a ratio per β: every β counts alike);
-2. on the night frames (if any), ``glow``, ``glow_tail``, ``glow_spread`` and ``glow_max_area``
-   (the last two on a grid), minimising the squared log-ratio of
+2. on the night frames (if any), the night's: ``glow.gain`` and ``glow.tail`` searched, ``glow.spread``
+   and ``glow.max_area`` on their grids, minimising the squared log-ratio of
    the model's and the path-traced radial luminance profile around each lamp (:func:`fogsim.fog.physics.lamps`)
    plus the night images' normalised RMS relative to Koschmieder's (a halo must not brighten the whole
    night).
@@ -25,7 +26,7 @@ presets, seeds, frames, β and the objective before (Koschmieder: every term off
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -33,25 +34,23 @@ import numpy as np
 from fogsim.bench.fog_physics import committed_frames, load_frame
 from fogsim.colour import linear_to_srgb, luminance
 from fogsim.errors import InputError
+from fogsim.fog.engine import FogSettings
 from fogsim.fog.physics import horizon_radiance, interior_mask, lamps, radial_profile
 from fogsim.fog.scatter import ScatterFogger, ScatterParams
 from fogsim.schema.base import load_json
 from fogsim.schema.documents import RenderRunFile, RenderRunParameters
+from fogsim.schema.scatter import SCATTER_PARAMS_VERSION, TERMS, fit_space
 
-#: the day parameters: name → (low, high, first step); ``spread`` and ``glow`` are searched in log10
-#: bounded to the physical side: objects are not lit more in fog than in clear (μ ≥ 0), the airlight
-#: does not grow with β (λ ≥ 0) and stays near the horizon's (a ∈ [0.5, 1.5]) — unbounded, a fit on
-#: one street style (μ = −14 m: objects 5× brighter at β = 0.12) failed on the others (docs/fog-physics.md)
-DAY_BOUNDS = {"exposure_key": (0.0, 1.5, 0.2), "forward": (0.0, 0.95, 0.2), "spread": (-3.0, 1.0, 0.5),
-              "illumination": (0.0, 40.0, 8.0), "level": (0.5, 1.5, 0.1), "fade": (0.0, 20.0, 4.0),
-              "elevation": (-3.0, 6.0, 1.0), "sky_exponent": (-1.0, 1.5, 0.25),
-              "flatten": (0.0, 0.9, 0.2)}
-#: the night parameters: the lamps' gain (log10 G) and the share of it in the wide wings (searched), the
-#: core's width (log10 ρ_g) and the largest saturated region that is a lamp (share of the image) on a grid
-GLOW_BOUNDS = {"glow": (-1.0, 4.0, 1.0), "glow_tail": (0.0, 0.95, 0.25)}
-GLOW_SPREAD_GRID = (-4.0, -3.5, -3.0, -2.5, -2.0, -1.5, -1.0)  # log10 ρ_g
-GLOW_AREA_GRID = (0.0, 0.02, 0.005, 0.001)                   # 0: every saturated region
-LOG_PARAMS = ("spread", "glow", "glow_spread")
+#: the day parameters (path → fit record: low, high, first step, log10?) and the night ones (the lamps' gain
+#: and the share of it in the wide wings searched; the core's width and the largest saturated region that
+#: is a lamp on a grid): declared with the parameters (:func:`fogsim.schema.scatter.fit_space`). The day
+#: bounds keep to the physical side: objects are not lit more in fog than in clear (μ ≥ 0), the airlight
+#: does not grow with β (λ ≥ 0) and stays near the horizon's (a ∈ [0.5, 1.5]) — unbounded, a fit on one
+#: street style (μ = −14 m: objects 5× brighter at β = 0.12) failed on the others (docs/fog-physics.md)
+DAY_SPACE = fit_space("day")
+NIGHT_SPACE = fit_space("night")
+GLOW_BOUNDS = {path: fit for path, fit in NIGHT_SPACE.items() if "grid" not in fit}
+GLOW_SPREAD, GLOW_AREA = "glow.spread", "glow.max_area"
 #: the glow's day/night boundary (median linear luminance of the clear image, not fitted: between the
 #: measured night streets, 0.020–0.032, and day streets, 0.071–0.20; :func:`fogsim.fog.scatter.night_weight`)
 GLOW_DARK = 0.045
@@ -136,7 +135,8 @@ def fogger(params: ScatterParams, data: dict) -> ScatterFogger:
     if "srgb16" not in data:
         srgb = linear_to_srgb(np.clip(data["clear_linear"], 0.0, 1.0))
         data["srgb16"] = np.round(srgb * 65535.0).astype(np.uint16)
-    return ScatterFogger(data["srgb16"], data["distance"], 255.0, "linear", params, data["camera"], up=data["up"])
+    return FogSettings("scatter", 255.0, "linear", scatter=params).fogger(data["srgb16"], data["distance"],
+                                                                         data["camera"], data["up"])
 
 
 def model_images(params: ScatterParams, frames: list[FitFrame]):
@@ -179,40 +179,42 @@ def glow_objective(params: ScatterParams, frames: list[dict]) -> float | None:
     return float(np.mean(errs)) if errs else None
 
 
-def _set(params: ScatterParams, name: str, x: float) -> ScatterParams:
-    return replace(params, **{name: 10.0 ** x if name in LOG_PARAMS else x})
+def _set(params: ScatterParams, path: str, x: float, space: dict) -> ScatterParams:
+    return params.with_values({path: 10.0 ** x if space[path].get("log") else x})
 
 
-def _get(params: ScatterParams, name: str) -> float:
-    v = getattr(params, name)
-    return math.log10(max(v, 1e-3)) if name in LOG_PARAMS else v
+def _get(params: ScatterParams, path: str, space: dict) -> float:
+    v = params.value(path)
+    return math.log10(max(v, 1e-3)) if space[path].get("log") else v
 
 
-def pattern_search(params: ScatterParams, bounds: dict, objective, log=print) -> tuple[ScatterParams, float]:
-    """Hooke–Jeeves without the pattern move: try ±step on each parameter, keep an improvement,
-    halve the steps when none helps; stop at :data:`MIN_STEP` of the first steps."""
+def pattern_search(params: ScatterParams, space: dict, objective, log=print) -> tuple[ScatterParams, float]:
+    """Hooke–Jeeves without the pattern move over ``space`` (path → ``low``, ``high``, ``step``, ``log``):
+    try ±step on each parameter, keep an improvement, halve the steps when none helps; stop at
+    :data:`MIN_STEP` of the first steps."""
     best = objective(params)
-    steps = {n: b[2] for n, b in bounds.items()}
-    while any(steps[n] >= bounds[n][2] * MIN_STEP for n in bounds):
+    steps = {n: b["step"] for n, b in space.items()}
+    while any(steps[n] >= space[n]["step"] * MIN_STEP for n in space):
         improved = False
-        for n, (lo, hi, _) in bounds.items():
+        for n, b in space.items():
             for sign in (+1, -1):
-                x = min(hi, max(lo, _get(params, n) + sign * steps[n]))
-                trial = _set(params, n, x)
+                x = min(b["high"], max(b["low"], _get(params, n, space) + sign * steps[n]))
+                trial = _set(params, n, x, space)
                 value = objective(trial)
                 if value < best - 1e-6:
                     params, best, improved = trial, value, True
                     break
         if not improved:
             steps = {n: s / 2 for n, s in steps.items()}
-        log(f"fit-fog: {best:.4f} " + " ".join(f"{n}={getattr(params, n):.4g}" for n in bounds))
+        log(f"fit-fog: {best:.4f} " + " ".join(f"{n}={params.value(n):.4g}" for n in space))
     return params, best
 
 
 def fit_glow(params: ScatterParams, night: list[dict], night_levels: list[FitFrame], log=print):
     """The glow's parameters fitted on the night frames, the day ones kept: (parameters, {"before",
     "after"} of the night objective, or None when there is no lamp to fit on: glow off)."""
-    params = replace(params, glow=max(params.glow, 1.0), glow_dark=params.glow_dark or GLOW_DARK)
+    params = params.with_values({"glow.gain": max(params.glow.gain, 1.0),
+                                 "night.luminance": params.night.luminance or GLOW_DARK})
     night_reference = day_rms(ScatterParams(), night_levels) if night_levels else None
 
     def night_objective(p):  # the halo's profile, and the whole night image against Koschmieder's error
@@ -220,15 +222,15 @@ def fit_glow(params: ScatterParams, night: list[dict], night_levels: list[FitFra
         if ring is None or not night_levels:
             return ring
         return ring + day_objective(p, night_levels, night_reference)
-    glow_before = night_objective(replace(params, glow=0.0))
+    glow_before = night_objective(params.with_values({"glow.gain": 0.0}))
     if glow_before is None:
-        return replace(params, glow=0.0), None
+        return params.with_values({"glow.gain": 0.0}), None
     # G and the PSF's width trade against each other (a narrower halo needs less gain): the width and
     # the lamps' largest size on a grid, the gain and its tail searched at each, the best kept
     best = None
-    for area in GLOW_AREA_GRID:
-        for log_rho in GLOW_SPREAD_GRID:
-            trial = replace(params, glow_spread=10.0 ** log_rho, glow_max_area=area, glow_tail=0.0)
+    for area in NIGHT_SPACE[GLOW_AREA]["grid"]:
+        for log_rho in NIGHT_SPACE[GLOW_SPREAD]["grid"]:
+            trial = params.with_values({GLOW_SPREAD: 10.0 ** log_rho, GLOW_AREA: area, "glow.tail": 0.0})
             trial, g = pattern_search(trial, GLOW_BOUNDS, night_objective, log)
             if best is None or g < best[1]:
                 best = (trial, g)
@@ -252,11 +254,11 @@ def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> d
     reference = day_rms(koschmieder, day)
     before = float(np.mean(list(reference.values())))
     log(f"fit-fog: {len(day)} day frame-levels, {len(night)} night frames; Koschmieder (linear) {before:.4f}")
-    start = start or ScatterParams(forward=0.5, spread=0.1)
+    start = start or ScatterParams(psf={"forward": 0.5, "spread": 0.1})
     # never end worse than Koschmieder: the search only improves on its start
     if day_objective(start, day, reference) > day_objective(koschmieder, day, reference):
         start = koschmieder
-    params, _ = pattern_search(start, DAY_BOUNDS, lambda p: day_objective(p, day, reference), log)
+    params, _ = pattern_search(start, DAY_SPACE, lambda p: day_objective(p, day, reference), log)
     fitted = day_rms(params, day)
     after = float(np.mean(list(fitted.values())))
     glow = None
@@ -265,7 +267,7 @@ def fit(folders: list[Path], start: ScatterParams | None = None, log=print) -> d
     note = ("day: mean over β of the noise-free normalised RMS (interior non-sky pixels, A = 1), fitted as its "
             "ratio to Koschmieder's per β; before = Koschmieder in linear light; per β (K → scatter): "
             + ", ".join(f"{b:g}: {reference[b]:.3f} → {fitted[b]:.3f}" for b in reference)) + _night_note(glow)
-    return {"format": "fogsim-scatter-params", "version": 1, "parameters": params.to_dict(),
+    return {"format": "fogsim-scatter-params", "version": SCATTER_PARAMS_VERSION, "parameters": params.to_dict(),
             "fitted_on": {**info, "objective": "normalised RMS (day); night: ring-profile log error + RMS ratio (glow)",
                           "before": round(before, 5), "after": round(after, 5)},
             "fogsim_version": __version__, "note": note}
@@ -279,7 +281,7 @@ def fit_glow_only(folders: list[Path], start: dict, log=print) -> dict:
     _, night, night_levels, info = prepare(folders)
     if not night:
         raise InputError(folders[0], "no night frame to fit the glow on")
-    params, glow = fit_glow(ScatterParams(**start["parameters"]), night, night_levels, log)
+    params, glow = fit_glow(ScatterParams.model_validate(start["parameters"]), night, night_levels, log)
     was = start.get("fitted_on", {})
     names = {r["folder"] for r in info["runs"]}
     merged = {**was, "runs": [r for r in was.get("runs", []) if r["folder"] not in names] + info["runs"]}
@@ -309,9 +311,7 @@ def run(args) -> int:
         doc = fit(folders, start=start, log=log)
     check(doc, ScatterParamsFile, args.out)
     write_json(args.out, doc)
-    p = doc["parameters"]
+    p = ScatterParams.model_validate(doc["parameters"])
     print(f"fit-fog: RMS normalised {doc['fitted_on']['before']:.3f} (Koschmieder) → {doc['fitted_on']['after']:.3f} "
-          f"(scatter); k={p['forward']:.3g} ρ={p['spread']:.3g} μ={p['illumination']:.3g} m "
-          f"c={p['elevation']:.3g} κ={p['exposure_key']:.3g} ν={p['sky_exponent']:.3g} f={p['flatten']:.3g} "
-          f"G={p['glow']:.3g} → {args.out}")
+          f"(scatter); " + " ".join(f"{path}={p.value(path):.3g}" for path in TERMS) + f" → {args.out}")
     return 0

@@ -21,9 +21,9 @@ import numpy as np
 
 from fogsim.bench.timing import median_ms
 from fogsim.camera import clear_ray_cache, planar_to_ray
+from fogsim.fog.engine import FogSettings
 from fogsim.fog.levels import load_preset
 from fogsim.fog.model import PAPER_KERNEL, Fogger, koschmieder_extended
-from fogsim.fog.scatter import ScatterFogger
 from fogsim.fog.synthetic import demo_scene
 
 FOGGY = (0.03, 0.06, 0.09, 0.12)
@@ -87,9 +87,9 @@ def run(repeat: int = 15, size: tuple[int, int] = SIZE) -> int:
         "baseline": lambda: [baseline_eq2(rgb, ray_finite, b) for b in FOGGY],
         "standard": standard_levels,
         "extended": extended_levels,
-        "scatter": per_model(lambda: ScatterFogger(rgb, ray, space="srgb", intrinsics=K)),
+        "scatter": per_model(lambda: FogSettings("scatter", space="srgb").fogger(rgb, ray, K)),
         "linear": per_model(lambda: Fogger(rgb, ray, space="linear")),
-        "scatter linear": per_model(lambda: ScatterFogger(rgb, ray, space="linear", intrinsics=K)),
+        "scatter linear": per_model(lambda: FogSettings("scatter").fogger(rgb, ray, K)),
     }, repeat)
     per_level = {k: v / len(FOGGY) for k, v in per_level.items()}
     cold = False

@@ -9,8 +9,9 @@ from fogsim.dataset.writer import TRAIN_FRACTION, check_train_fraction
 from fogsim.errors import EXIT_FAILED, EXIT_OK, InputError
 from fogsim.fileio import MAX_PIXELS
 from fogsim.fog.labelled import SPLIT_BY
-from fogsim.fog.model import KERNELS, SPACES, airlight_rgb, check_heterogeneity
+from fogsim.fog.model import airlight_rgb, check_heterogeneity
 from fogsim.readers.base import DEPTH_ENCODINGS
+from fogsim.schema.vocabulary import KERNELS, POST_PROCESS_KINDS, SPACES
 
 
 def _add_fog_options(p: argparse.ArgumentParser) -> None:
@@ -18,7 +19,7 @@ def _add_fog_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--levels", help="preset name (paper, foggy-cityscapes) or comma-separated β in 1/m "
                                      "(default: paper)")
     g.add_argument("--visibility", help="comma-separated visibilities in metres instead of β (β = ln20/V)")
-    g.add_argument("--model", choices=("koschmieder", "scatter"), default="koschmieder",
+    g.add_argument("--model", choices=POST_PROCESS_KINDS, default="koschmieder",
                    help="koschmieder (the paper's law) or scatter: forward scattering, airlight by elevation "
                    "and glow, fitted on path-traced fog (docs: Fog physics)")
     g.add_argument("--scatter-params", metavar="FILE", help="--model scatter: a parameter file written by "
@@ -220,6 +221,7 @@ def _with_depth_from(samples, depth_from: str | None, out: str | None = None, ho
 
 def _job(args, out: str, classes: tuple[str, ...] = ()):
     from fogsim.fog.batch import FogJob
+    from fogsim.fog.engine import FogSettings, Heterogeneity
     from fogsim.fog.levels import parse_levels
     from fogsim.fog.model import Kernel
 
@@ -238,19 +240,19 @@ def _job(args, out: str, classes: tuple[str, ...] = ()):
         airlight_rgb(airlight, name="--airlight")  # the model's range, checked before any work
     kernel = Kernel(args.kernel, args.kernel_size, args.sigma, args.eps) if args.extended else None
     model = getattr(args, "model", "koschmieder")
-    space = args.space or ("linear" if model == "scatter" else "srgb")
-    scatter_params = None
+    scatter_file = None
     if model == "scatter":
         if args.extended or args.heterogeneity:
             raise ValueError("--model scatter has no --extended kernel or --heterogeneity (Koschmieder only)")
-        from fogsim.fog.scatter import load_params
-
         if args.scatter_params:
-            scatter_params = str(Path(args.scatter_params).resolve())
-        load_params(scatter_params)  # a malformed file: one line naming it, before any work
+            scatter_file = str(Path(args.scatter_params).resolve())
     elif args.scatter_params:
         raise ValueError("--scatter-params needs --model scatter")
     check_heterogeneity(args.heterogeneity, args.heterogeneity_scale, ("--heterogeneity", "--heterogeneity-scale"))
+    fog = FogSettings(model, airlight, args.space, kernel,
+                      Heterogeneity(args.heterogeneity, args.heterogeneity_scale) if args.heterogeneity else None,
+                      scatter_file)
+    fog.params  # a malformed scatter parameter file: one line naming it, before any work
     fill = args.fill or ("inpaint" if getattr(args, "cityscapes", None) else "none")
     from fogsim.fog.fill import fill_methods
 
@@ -268,10 +270,8 @@ def _job(args, out: str, classes: tuple[str, ...] = ()):
         inputs["train_fraction"] = check_train_fraction(TRAIN_FRACTION if train_fraction is None else train_fraction,
                                                         "--train-fraction")
         inputs["split_by"] = getattr(args, "split_by", None) or "frame"
-    return FogJob(levels, out, airlight, space, kernel, fill, args.heterogeneity,
-                  args.heterogeneity_scale, args.seed, getattr(args, "image_format", "png"), inputs,
-                  labels=bool(classes), classes=tuple(classes), min_pixels=min_pixels, max_pixels=max_pixels,
-                  model=model, scatter_params=scatter_params)
+    return FogJob(levels, out, fog, fill, args.seed, getattr(args, "image_format", "png"), inputs,
+                  labels=bool(classes), classes=tuple(classes), min_pixels=min_pixels, max_pixels=max_pixels)
 
 
 def _inputs(args) -> dict:

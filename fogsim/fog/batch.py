@@ -52,31 +52,29 @@ from fogsim.fileio import (
     write_json,
 )
 from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
+from fogsim.fog.engine import ESTIMATE, FogSettings
 from fogsim.fog.labelled import SPLIT_BY, check_labelled, checked_records, key_folder
 from fogsim.fog.levels import FogLevel
-from fogsim.fog.model import Fogger, Kernel, density_field, estimate_airlight
-from fogsim.fog.scatter import ScatterFogger, load_params
 from fogsim.fog.visibility import attach_visibility
 from fogsim.readers.base import Sample
 from fogsim.runs import claim_output, sample_seed
 from fogsim.schema.base import load_json
 from fogsim.schema.documents import FogFrameMeta, FogRunFile
+from fogsim.schema.vocabulary import model_word
 
 RUN_FILE = "fogsim_run.json"
 
 
 @dataclass(frozen=True)
 class FogJob:
-    """What to do to every sample. ``airlight`` is RGB in 8-bit units or ``"estimate"``."""
+    """What to do to every sample: the levels (β), the fog record (:class:`~fogsim.fog.engine.FogSettings`:
+    model, airlight — RGB in 8-bit units or ``"estimate"`` —, blend space, kernel, heterogeneity,
+    scatter parameters), how depth holes are filled and where it all goes."""
 
     levels: tuple[FogLevel, ...]
     out: str
-    airlight: tuple[float, float, float] | str = (255.0, 255.0, 255.0)
-    space: str = "srgb"
-    kernel: Kernel | None = None
+    fog: FogSettings = FogSettings()
     fill: str = "none"
-    heterogeneity: float = 0.0
-    heterogeneity_scale: float = 64.0
     seed: int = 0
     image_format: str = "png"
     inputs: dict = field(default_factory=dict, hash=False)  # what is read and how (see cli._inputs)
@@ -84,27 +82,14 @@ class FogJob:
     classes: tuple[str, ...] = ()  # the dataset's own class list (labels only)
     min_pixels: int = 0           # kept annotations with fewer pixels → ignore regions (labels only)
     max_pixels: int = MAX_PIXELS  # an image of more pixels fails (--max-pixels; not a run parameter)
-    model: str = "koschmieder"    # or "scatter" (fogsim.fog.scatter)
-    scatter_params: str | None = None  # the scatter model's parameter file (None: the shipped one)
 
     def parameters(self) -> dict:
-        """The run parameters recorded in ``fogsim_run.json`` and compared on resume."""
-        return {
-            "levels": [lv.to_dict() for lv in self.levels],
-            "airlight": self.airlight if isinstance(self.airlight, str) else list(self.airlight),
-            "airlight_units": "8-bit (255 = white)",
-            "blend_space": self.space,
-            "model": "extended" if self.kernel else "standard",
-            "kernel": self.kernel.to_dict() if self.kernel else None,
-            "fill": self.fill,
-            "heterogeneity": {"amplitude": self.heterogeneity, "scale_px": self.heterogeneity_scale}
-            if self.heterogeneity else None,
-            "seed": self.seed,
-            "image_format": self.image_format,
-            "inputs": self.inputs,
-        } | ({"labels": {"classes": list(self.classes), "min_pixels": self.min_pixels}} if self.labels else {}) \
-            | ({"fog_model": "scatter", "scatter_params": load_params(self.scatter_params).to_dict(),
-                "scatter_params_file": self.scatter_params} if self.model == "scatter" else {})
+        """The run parameters recorded in ``fogsim_run.json`` and compared on resume (the fog record's
+        keys, :meth:`FogSettings.record`, beside the levels and the inputs)."""
+        return {"levels": [lv.to_dict() for lv in self.levels], **self.fog.record(),
+                "airlight_units": "8-bit (255 = white)", "fill": self.fill, "seed": self.seed,
+                "image_format": self.image_format, "inputs": self.inputs} \
+            | ({"labels": {"classes": list(self.classes), "min_pixels": self.min_pixels}} if self.labels else {})
 
     @property
     def layout(self) -> DatasetLayout:
@@ -134,27 +119,16 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
     records = checked_records(sample, job.classes, job.min_pixels, w, h) if job.labels else None
     dist = sample_distance(sample, w, h, job.fill, image)
     seed = sample_seed(job.seed, sample.key)
-    density = None
-    if job.heterogeneity:
-        density = density_field((h, w), np.random.default_rng(seed), job.heterogeneity,
-                                job.heterogeneity_scale)
-    airlight = estimate_airlight(image) if job.airlight == "estimate" else np.asarray(job.airlight)
-    if job.model == "scatter":
-        K = dist.record.get("intrinsics") or (sample.intrinsics.to_dict() if sample.intrinsics else None)
-        fogger = ScatterFogger(image, dist.ray, airlight, job.space, load_params(job.scatter_params),
-                               Intrinsics.from_dict(K) if K else None)
-        model = "scatter"
-    else:
-        fogger = Fogger(image, dist.ray, airlight, job.space, job.kernel, density)
-        model = "extended" if job.kernel else "standard"
-    common = {"source": sample.source, "key": sample.key,
+    fog = job.fog
+    density = fog.density((h, w), np.random.default_rng(seed))
+    airlight = fog.airlight_for(image)
+    K = dist.record.get("intrinsics") or (sample.intrinsics.to_dict() if sample.intrinsics else None)
+    fogger = fog.fogger(image, dist.ray, Intrinsics.from_dict(K) if K else None, density=density, airlight=airlight)
+    common = {"source": sample.source, "key": sample.key, **fog.record(),
               "airlight_rgb": [round(float(a), 3) for a in airlight],
-              "airlight_method": "dark-channel estimate" if job.airlight == "estimate" else "constant",
-              "blend_space": job.space, "model": model,
-              "kernel": job.kernel.to_dict() if job.kernel else None,
-              **dist.record, "sample_seed": seed if job.heterogeneity else None,
-              "heterogeneity": job.parameters()["heterogeneity"], "fogsim_version": __version__,
-              "bit_depth": _bit_depth(image.dtype, job.image_format)}
+              "airlight_method": "dark-channel estimate" if fog.airlight == ESTIMATE else "constant",
+              **dist.record, "sample_seed": seed if fog.heterogeneity else None,
+              "fogsim_version": __version__, "bit_depth": _bit_depth(image.dtype, job.image_format)}
     if not job.labels and (sample.meta or {}).get("labels_missing"):
         common["labels_missing"] = sample.meta["labels_missing"]  # why an images-only sidecar has no labels
     images = {}
@@ -174,11 +148,10 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
         frame = frame_from_key(sample.key)
         write_frame_labels(job.layout, frame, job.levels, records, w, h)
         coverage = None if dist.record.get("hole_fraction") is None else round(1 - dist.record["hole_fraction"], 6)
-        camera = dist.record.get("intrinsics") or (sample.intrinsics.to_dict() if sample.intrinsics else None)
         write_json(job.layout.meta(frame), {
             "frame": frame, "width": w, "height": h, "source": sample.source, "classes": list(job.classes),
             "objects": records, "levels": [lv.to_dict() for lv in job.levels], **common,
-            "depth_coverage": coverage, "camera": camera, "sample": sample.meta or None})
+            "depth_coverage": coverage, "camera": K, "sample": sample.meta or None})
 
 
 def _bit_depth(dtype, image_format: str) -> dict:
@@ -202,9 +175,25 @@ class Summary:
                 f"→ {job.out}")
 
 
+def upgrade_parameters(stored: dict) -> dict:
+    """A ``fogsim_run.json``'s parameters in today's words (:mod:`fogsim.schema.vocabulary`): before
+    fogsim 0.4 a Koschmieder run said ``"model": "standard"`` or ``"extended"``, a scatter run
+    ``"model": "standard"`` beside ``"fog_model": "scatter"`` (with kernel and heterogeneity None)."""
+    p = dict(stored)
+    if "fog_model" in p:
+        p["model"] = model_word(p.pop("fog_model"))
+        if p["model"] != "koschmieder":
+            p.pop("kernel", None)
+            p.pop("heterogeneity", None)
+    elif isinstance(p.get("model"), str):
+        p["model"] = model_word(p["model"])
+    return p
+
+
 def check_run_file(job: FogJob, environment: dict) -> None:
-    """Claim ``OUT/fogsim_run.json`` for this job, or refuse a folder holding another run."""
-    claim_output(Path(job.out) / RUN_FILE, job.parameters(), environment, what="run")
+    """Claim ``OUT/fogsim_run.json`` for this job, or refuse a folder holding another run (one
+    written by an older fogsim, in its words, resumes: :func:`upgrade_parameters`)."""
+    claim_output(Path(job.out) / RUN_FILE, job.parameters(), environment, what="run", upgrade=upgrade_parameters)
 
 
 def _worker(args):
@@ -298,7 +287,7 @@ def finalize_dataset(out: str | Path, train_fraction: float | None = None, split
     if not run_file.is_file():
         raise InputError(out, f"no {RUN_FILE} here: not a fogsim fog output to finalize")
     run = load_json(run_file, FogRunFile)
-    params = read_json(run_file)["parameters"]  # as written (checked above), for dataset.json
+    params = upgrade_parameters(read_json(run_file)["parameters"])  # checked above; today's words for dataset.json
     if run.parameters.labels is None:
         raise InputError(run_file, "this run wrote images without labels (--no-labels): there is no "
                                    "dataset to finalize")

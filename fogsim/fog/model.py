@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from fogsim.colour import from_float, full_scale, linear_to_srgb, srgb_to_linear
-from fogsim.schema.presets import KERNELS, SPACES  # noqa: E402  (declared once, with the preset schema)
+from fogsim.schema.vocabulary import KERNELS, SPACES
 
 
 @dataclass(frozen=True)

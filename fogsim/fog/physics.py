@@ -48,9 +48,10 @@ import numpy as np
 
 from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.colour import linear_to_srgb, linear_to_srgb8, luminance, srgb_to_linear
+from fogsim.fog.engine import FogSettings
 from fogsim.fog.levels import visibility_from_beta
-from fogsim.fog.model import PAPER_KERNEL, Fogger, Kernel
-from fogsim.fog.scatter import ScatterFogger, ScatterParams, load_params
+from fogsim.fog.model import PAPER_KERNEL, Kernel
+from fogsim.fog.scatter import ScatterParams
 from fogsim.fog.visibility import transmission_at
 
 #: distance bins in metres: [lo, hi)
@@ -69,39 +70,23 @@ def bin_name(lo: float, hi: float) -> str:
 BIN_NAMES = tuple(bin_name(lo, hi) for lo, hi in BINS)
 
 
-@dataclass(frozen=True)
-class Model:
-    """One fog model: a Koschmieder variant (blend space and kernel, None = the standard law) or,
-    with ``kind = "scatter"``, the scatter model (:mod:`fogsim.fog.scatter`) with ``params``."""
-
-    space: str
-    kernel: Kernel | None = None
-    kind: str = "koschmieder"
-    params: ScatterParams | None = None
-
-    @property
-    def name(self) -> str:
-        if self.kind == "scatter":
-            return "scatter" if self.space == "linear" else f"scatter-{self.space}"
-        if self.kernel is None:
-            return self.space
-        k = self.kernel
-        extra = f",s{k.sigma:g}" if k.kind == "gaussian" else ""
-        return f"{self.space}+{k.kind}{k.size}{extra}"
+def koschmieder_model(space: str, kernel: Kernel | None = None) -> FogSettings:
+    """A Koschmieder variant of the comparison: blend ``space`` and ``kernel`` (None = the standard law)."""
+    return FogSettings("koschmieder", 255.0, space, kernel)
 
 
-def default_models(kernels=(PAPER_KERNEL,), scatter: ScatterParams | bool = True) -> tuple[Model, ...]:
+def default_models(kernels=(PAPER_KERNEL,), scatter: ScatterParams | bool = True) -> tuple[FogSettings, ...]:
     """sRGB and linear blending, standard and with each extended kernel; then the scatter model
     in linear light (``scatter``: True = the shipped parameters, False = none, or the parameters)."""
-    models = tuple(Model(space, k) for k in (None, *kernels) for space in ("srgb", "linear"))
+    models = tuple(koschmieder_model(space, k) for k in (None, *kernels) for space in ("srgb", "linear"))
     if scatter is not False:
         models += (scatter_model(None if scatter is True else scatter),)
     return models
 
 
-def scatter_model(params: ScatterParams | None = None, space: str = "linear") -> Model:
-    """The scatter model as a :class:`Model` (``params`` None: the shipped parameters)."""
-    return Model(space, kind="scatter", params=params or load_params())
+def scatter_model(params: ScatterParams | None = None, space: str = "linear") -> FogSettings:
+    """The scatter model as a fog record (``params`` None: the shipped parameters)."""
+    return FogSettings("scatter", 255.0, space, scatter=params)
 
 
 # ----------------------------------------------------------------------------- pieces
@@ -156,7 +141,7 @@ def horizon_radiance(image: np.ndarray, distance: np.ndarray, mask: np.ndarray,
             "profile_top_to_bottom": profile}
 
 
-def koschmieder_linear(clear_linear: np.ndarray, distance: np.ndarray, beta: float, model: Model,
+def koschmieder_linear(clear_linear: np.ndarray, distance: np.ndarray, beta: float, model: FogSettings,
                        camera: Intrinsics | None = None, up=None) -> np.ndarray:
     """The model's fogged image in linear light, float32, from the clear render (clipped at
     white and sRGB-encoded as the dataset stores it, but in float). ``camera`` and ``up`` (world
@@ -164,11 +149,11 @@ def koschmieder_linear(clear_linear: np.ndarray, distance: np.ndarray, beta: flo
     is not clipped at white (the path-traced one is not either: normalised, the fog above the
     horizon is brighter than A — a float or HDR output keeps that, an 8-bit one clips it)."""
     srgb = linear_to_srgb(np.clip(clear_linear, 0.0, 1.0))
+    fogger = model.fogger(srgb, distance, camera, up)
     if model.kind == "scatter":  # not clipped at white: its airlight exceeds A above the horizon, as the fog's does
-        out = ScatterFogger(srgb, distance, 255.0, model.space, model.params, camera, up=up).blend(beta)
-        return out if model.space == "linear" else srgb_to_linear(np.clip(out, 0.0, None))
-    out = Fogger(srgb, distance, 255.0, model.space, model.kernel)(beta)
-    return srgb_to_linear(np.clip(out, 0.0, 1.0))
+        out = fogger.blend(beta)
+        return out if model.blend_space == "linear" else srgb_to_linear(np.clip(out, 0.0, None))
+    return srgb_to_linear(np.clip(fogger(beta), 0.0, 1.0))
 
 
 @dataclass
@@ -202,7 +187,7 @@ class _Sums:
 class Comparison:
     """Koschmieder models against path-traced renders, accumulated over frames (see the module)."""
 
-    models: tuple[Model, ...] = field(default_factory=default_models)
+    models: tuple[FogSettings, ...] = field(default_factory=default_models)
     bins: tuple = BINS
     panels: dict = field(default_factory=dict)   # frame → RGB uint8 panel image
     max_panels: int = 4
@@ -442,6 +427,6 @@ def noisy_render(image: np.ndarray, sigma: float, rng: np.random.Generator) -> n
     return (image * (1.0 + rng.normal(0.0, sigma, image.shape))).astype(np.float32)
 
 
-__all__ = ["BINS", "BIN_NAMES", "GLOW_RINGS", "Comparison", "Model", "default_models", "far_luminance",
-           "horizon_radiance", "interior_mask", "koschmieder_linear", "lamps", "noisy_render", "radial_profile",
+__all__ = ["BINS", "BIN_NAMES", "GLOW_RINGS", "Comparison", "default_models", "far_luminance", "horizon_radiance",
+           "interior_mask", "koschmieder_linear", "koschmieder_model", "lamps", "noisy_render", "radial_profile",
            "scatter_model", "signed_map"]

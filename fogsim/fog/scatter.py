@@ -6,30 +6,41 @@ Per pixel x with ray distance ℓ (m), extinction β (1/m), optical depth T = β
 
     I_fog = m·I·t  +  PSF ⊛ [ m·I·(t_f − t) + G·s·m·I·(1 − t) ]  +  a·e^(−λβ)·A·e^(c·sin θ)·(1 − t_f)
 
+The parameters come in five blocks (:class:`ScatterParams`, declared once in :mod:`fogsim.schema.scatter`,
+with ranges, defaults and what the fit searches):
+
 * t = e^(−βℓ): the light that reaches the camera unscattered (Koschmieder's transmission);
-* t_f = e^(−β(1−k)ℓ): light that is unscattered *or* scattered into the forward peak of the
-  droplets' phase function — the delta-scaling approximation (Joseph et al. 1976, δ-Eddington:
-  a share k ≈ g² of scattering is treated as not deflected). The part t_f − t is the image-forming
-  light that still arrives, but spread by the atmospheric point-spread function;
-* PSF: a Gaussian in angle whose variance grows linearly with optical depth, σ_θ² = ρ·T (the
-  small-angle diffusion limit of forward-peaked multiple scattering, the regime Narasimhan &
-  Nayar's APSF covers for T ≲ 1–2), splatted from each source pixel with *its own* width
-  (energy conserving: every source pixel's light is spread, not gathered);
-* m = g·e^(−μβ): objects in fog are lit by the fog's diffuse light, not by the clear sky: g
-  (:func:`exposure_gain`, off when κ = 0) maps the clear image's median luminance to κ·A, so the
-  direct term no longer depends on how the clear image was lit or exposed, and e^(−μβ) lets that
-  light fade as the fog thickens; I itself has its sun and shadow flattened by a share f,
-  I → r·(I/r)^(1−f) around the median r;
-* a·e^(−λβ)·(Ω/Ω₀)^(−ν)·A·e^(c·sin θ): the airlight in units of the horizon radiance A (the ``airlight``
-  argument: what the camera's exposure puts at the lowest sky) — a level a (the fog between
-  camera and scene is not the sky seen through all of it) that fades with β as the fog layer's
-  light from above is itself attenuated (λ, m; empirical), and brightens with the viewing
-  elevation θ, as the path to the top of the fog layer, which is lit from above, gets shorter;
-  Ω is the share of sky in view (Ω₀ = :data:`SKY_REFERENCE`): in Cycles' fog the street's airlight
-  relative to the lowest visible sky falls as the view opens up (empirical, ν fitted);
-* glow: pixels that are saturated in the clear image (linear luminance above the threshold,
-  s ∈ [0, 1]) stand for sources far brighter than white; their light is scattered by a PSF of
-  the same form (its own width ρ_g, or ρ) with a gain G, so lamps and headlights glow.
+* ``psf`` (k ``psf.forward``, ρ ``psf.spread``): t_f = e^(−β(1−k)ℓ) is the light that is unscattered *or*
+  scattered into the forward peak of the droplets' phase function — the delta-scaling approximation
+  (Joseph et al. 1976, δ-Eddington: a share k ≈ g² of scattering is treated as not deflected). The part
+  t_f − t is the image-forming light that still arrives, but spread by the atmospheric point-spread
+  function: a Gaussian in angle whose variance grows linearly with optical depth, σ_θ² = ρ·T (the
+  small-angle diffusion limit of forward-peaked multiple scattering, the regime Narasimhan & Nayar's
+  APSF covers for T ≲ 1–2), splatted from each source pixel with *its own* width (energy conserving:
+  every source pixel's light is spread, not gathered);
+* ``direct`` (μ ``direct.illumination``, κ ``direct.exposure_key``, f ``direct.flatten``): m = g·e^(−μβ):
+  objects in fog are lit by the fog's diffuse light, not by the clear sky: g (:func:`exposure_gain`, off
+  when κ = 0) maps the clear image's median luminance to κ·A, so the direct term no longer depends on
+  how the clear image was lit or exposed, and e^(−μβ) lets that light fade as the fog thickens; I
+  itself has its sun and shadow flattened by a share f, I → r·(I/r)^(1−f) around the median r;
+* ``airlight`` (a ``airlight.level``, λ ``airlight.fade``, c ``airlight.elevation``, ν ``airlight.sky_exponent``):
+  a·e^(−λβ)·(Ω/Ω₀)^(−ν)·A·e^(c·sin θ), the airlight in units of the horizon radiance A (the
+  ``airlight`` argument: what the camera's exposure puts at the lowest sky) — a level a (the fog
+  between camera and scene is not the sky seen through all of it) that fades with β as the fog layer's
+  light from above is itself attenuated (λ, m; empirical), and brightens with the viewing elevation θ,
+  as the path to the top of the fog layer, which is lit from above, gets shorter; Ω is the share of sky
+  in view (Ω₀ = :data:`SKY_REFERENCE`): in Cycles' fog the street's airlight relative to the lowest
+  visible sky falls as the view opens up (empirical, ν fitted);
+* ``glow`` (G ``glow.gain``, ``glow.threshold``, ρ_g ``glow.spread``, w ``glow.tail``, ``glow.max_area``):
+  pixels that are saturated in the clear image (linear luminance above the threshold, s ∈ [0, 1]) stand
+  for sources far brighter than white; their light is scattered by a PSF of the same form with a gain
+  G — a share w by the scene's wide PSF ρ (the APSF's wings), the rest by its own narrow ρ_g (its core)
+  — so lamps and headlights glow; a saturated region larger than ``max_area`` of the image is a lit
+  surface, not a lamp;
+* ``night`` (Y_g ``night.luminance``): the model's day/night switch, the night weight
+  1/(1 + (median Y/Y_g)^8) of the clear image (:func:`night_weight`; 0 = off): the glow is a night rule
+  (by day white surfaces saturate too), κ, c and ν are day rules (at night lamps, not the fog's light
+  from above, light the scene and the fog).
 
 With k = μ = λ = c = G = κ = ν = f = 0 and a = 1 the model is Koschmieder's law exactly (the same blend as
 :class:`fogsim.fog.model.Fogger`). ``space="linear"`` (the default here, physically right)
@@ -44,7 +55,7 @@ to about :data:`WORK_WIDTH` pixels wide (the blur is wide; the direct term stays
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
+import os
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
@@ -73,7 +84,7 @@ from fogsim.fog.scatter_optics import (
     splat,
     up_from_world_to_camera,
 )
-from fogsim.schema.base import check, load_json
+from fogsim.schema.base import load_json
 from fogsim.schema.scatter import ScatterParameters, ScatterParamsFile
 
 #: the shipped parameter file (fitted by ``fogsim fit-fog``)
@@ -93,59 +104,10 @@ GLOW_DARK_POWER = 8
 SKY_MIN = 0.02
 
 
-@dataclass(frozen=True)
-class ScatterParams:
-    """The model's parameters (see the module docstring). All zero but ``spread``: Koschmieder.
-
-    ``forward`` k ∈ [0, 1): share of β scattered into the forward peak; ``spread`` ρ (rad²):
-    σ_θ² = ρ·βℓ; ``illumination`` μ (m): m = e^(−μβ); ``level`` a, ``fade`` λ (m) and
-    ``elevation`` c: airlight a·e^(−λβ)·A·e^(c·sin θ);
-    ``glow`` G ≥ 0 and ``glow_threshold`` (linear luminance in (0, 1]) for saturated sources;
-    ``exposure_key`` κ ≥ 0 (0: off): the direct term scaled so the clear image's median luminance
-    becomes κ·A (:func:`exposure_gain`); ``glow_spread`` ρ_g (rad², 0: ``spread``): the glow's own
-    PSF, σ_θ² = ρ_g·βℓ (a lamp's halo is the narrow core of the APSF, the scene's haze its wide wings);
-    ``sky_exponent`` ν (0: off): the airlight × (Ω/Ω₀)^(−ν), Ω the share of sky in view (:func:`sky_gain`);
-    ``flatten`` f ∈ [0, 1) (0: off): the direct term's contrast compressed, I → r·(I/r)^(1−f)
-    (:func:`direct_planes`: sun and shadow give way to the fog's even light); ``glow_dark`` Y_g (linear
-    luminance, 0: glow in every image): the glow is weighted by :func:`night_weight` of the clear image's
-    median luminance — by day white surfaces saturate too, and are not lamps; the day rules (exposure
-    gain g, elevation c, sky exponent ν) are weighted by 1 − that: at night lamps, not the fog's light
-    from above, light the scene and the fog; ``glow_max_area`` (share of the image, 0: no limit): a
-    saturated region larger than this is a lit surface (a road under headlights, a sunlit wall), not a
-    source far brighter than white, and does not glow; ``glow_tail`` w ∈ [0, 1): the share of the glow
-    spread by the scene's wide PSF (ρ, the APSF's wings), the rest by ρ_g (its narrow core).
-    """
-
-    forward: float = 0.0
-    spread: float = 0.1
-    illumination: float = 0.0
-    level: float = 1.0
-    fade: float = 0.0
-    elevation: float = 0.0
-    glow: float = 0.0
-    glow_threshold: float = 0.9
-    exposure_key: float = 0.0
-    glow_spread: float = 0.0
-    sky_exponent: float = 0.0
-    flatten: float = 0.0
-    glow_dark: float = 0.0
-    glow_max_area: float = 0.0
-    glow_tail: float = 0.0
-
-    def __post_init__(self):
-        check(asdict(self), ScatterParameters)  # the one place for the ranges (ValueError naming the key)
-
-    def without(self, *terms: str) -> "ScatterParams":
-        """A copy with terms switched off: ``forward``, ``illumination``, ``level``, ``fade``, ``elevation``,
-        ``glow``."""
-        return replace(self, **{t: 1.0 if t == "level" else 0.0 for t in terms})
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-
+#: The model's parameters: the schema's record, declared once in :mod:`fogsim.schema.scatter` (blocks
+#: ``psf``, ``direct``, ``airlight``, ``glow``, ``night``; every default switches its term off).
+ScatterParams = ScatterParameters
 KOSCHMIEDER = ScatterParams()
-TERMS = ("forward", "illumination", "level", "fade", "elevation", "glow", "exposure_key", "sky_exponent", "flatten")
 
 
 @lru_cache(maxsize=4)
@@ -167,14 +129,24 @@ def load_params_file(path: str | Path | None = None) -> ScatterParamsFile:
 
 @lru_cache(maxsize=1)
 def _shipped() -> ScatterParams:
-    return ScatterParams(**load_params_file().parameters.model_dump())
+    return load_params_file().parameters
 
 
 def load_params(path: str | Path | None = None) -> ScatterParams:
-    """:class:`ScatterParams` from a parameter file (default: the shipped, fitted one)."""
+    """:class:`ScatterParams` from a parameter file (default: the shipped, fitted one), read once
+    per file (cached by its resolved path, modification time and size: an edited file is re-read)."""
     if path is None:
         return _shipped()
-    return ScatterParams(**load_params_file(path).parameters.model_dump())
+    try:
+        st = os.stat(path)
+    except OSError:
+        return load_params_file(path).parameters  # its one-line error
+    return _cached_params(str(Path(path).resolve()), st.st_mtime_ns, st.st_size)
+
+
+@lru_cache(maxsize=16)
+def _cached_params(path: str, mtime_ns: int, size: int) -> ScatterParams:
+    return load_params_file(path).parameters
 
 
 def median_luminance(image: np.ndarray, distance: np.ndarray) -> float | None:
@@ -268,6 +240,7 @@ class ScatterFogger:
         self.image, self.dtype, self.space = image, image.dtype, space
         self.params = params if params is not None else load_params()
         p = self.params
+        d, night = p.direct, p.night.luminance  # night: the day/night switch's luminance (0: off)
         h, w = image.shape[:2]
         scale = np.float32(full_scale(image.dtype))
         self.distance = distance.astype(np.float32, copy=False)
@@ -276,18 +249,18 @@ class ScatterFogger:
         if space == "linear":
             a = srgb_to_linear(a)
         self._a = [float(v) for v in a]
-        # how much of a night image this is (glow_dark: the median luminance against Y_g; 0 = day): the
+        # how much of a night image this is (night.luminance Y_g against the median luminance; 0 = day): the
         # glow is a night rule, the fog-lit objects and the sky-lit airlight are day rules
-        y_med = median_luminance(image, self.distance) if p.exposure_key or p.flatten or p.glow_dark else None
-        self.glow_weight = 1.0 if not p.glow_dark or y_med is None else night_weight(y_med, p.glow_dark)
-        day = 1.0 - self.glow_weight if p.glow_dark else 1.0
+        y_med = median_luminance(image, self.distance) if d.exposure_key or d.flatten or night else None
+        self.glow_weight = 1.0 if not night or y_med is None else night_weight(y_med, night)
+        day = 1.0 - self.glow_weight if night else 1.0
         # the airlight's per-image gain from the share of sky in view (1: off)
-        self.sky_gain = sky_gain(self.distance, p.sky_exponent * day) if p.sky_exponent else 1.0
+        self.sky_gain = sky_gain(self.distance, p.airlight.sky_exponent * day) if p.airlight.sky_exponent else 1.0
         # the direct term's per-image gain and flattening (off: 1 and 0), folded into the colour planes
         self.exposure_gain = 1.0
-        if p.exposure_key and y_med is not None:  # at night lamps, not the fog's light from above, light it
-            self.exposure_gain = exposure_gain(y_med, p.exposure_key, a_linear) ** day
-        flatten = p.flatten if y_med is not None else 0.0
+        if d.exposure_key and y_med is not None:  # at night lamps, not the fog's light from above, light it
+            self.exposure_gain = exposure_gain(y_med, d.exposure_key, a_linear) ** day
+        flatten = d.flatten if y_med is not None else 0.0
         reference = 1.0 if y_med is None else (y_med if space == "linear" else float(linear_to_srgb(y_med)))
         gain = self.exposure_gain if space == "linear" else self.exposure_gain ** (1.0 / SRGB_GAMMA)
         self._planes = direct_planes(image, space, gain, flatten, reference)  # blend space (contiguous planes)
@@ -295,11 +268,12 @@ class ScatterFogger:
         # β-independent parts of the blend: the airlight's gain e^(c·sin θ) (None: 1) and ℓ + μ,
         # so that the direct term's factor m·t = e^(−β(ℓ + μ)) is one exponential
         self._air_gain = self._log_gain = None
-        if p.elevation:
-            self._log_gain = np.multiply(smooth_elevation_sine((h, w), intrinsics, up), np.float32(p.elevation * day))
+        if p.airlight.elevation:
+            self._log_gain = np.multiply(smooth_elevation_sine((h, w), intrinsics, up),
+                                         np.float32(p.airlight.elevation * day))
             self._air_gain = cv2.exp(self._log_gain)
-        self._dist_mu = self.distance + np.float32(p.illumination) if p.illumination else self.distance
-        self._scatter = p.forward > 0 or p.glow > 0
+        self._dist_mu = self.distance + np.float32(d.illumination) if d.illumination else self.distance
+        self._scatter = p.psf.forward > 0 or p.glow.gain > 0
         if self._scatter:
             f = max(1, int(math.ceil(w / WORK_WIDTH)))
             self._small = (max(1, w // f), max(1, h // f))
@@ -308,8 +282,8 @@ class ScatterFogger:
                                          for q in self._planes])
             self._dist_small = cv2.resize(self.distance, self._small, interpolation=cv2.INTER_NEAREST)
             self._glow_small = None
-            if p.glow > 0 and self.glow_weight > 1e-3:
-                self._glow_small = self._glow_source(image, p.glow_threshold)
+            if p.glow.gain > 0 and self.glow_weight > 1e-3:
+                self._glow_small = self._glow_source(image, p.glow.threshold)
                 if self._glow_small is not None and self.glow_weight < 1.0:
                     self._glow_small *= np.float32(self.glow_weight)
 
@@ -339,8 +313,8 @@ class ScatterFogger:
             else srgb_to_linear(px.astype(np.float32) / np.float32(full_scale(image.dtype)))
         lum = lin @ np.array(LUMINANCE_WEIGHTS, np.float32)
         sat = np.clip((lum - np.float32(threshold)) / np.float32(max(1e-3, 1.0 - threshold)), 0.0, 1.0)
-        if self.params.glow_max_area:
-            sat = sat * self._compact(ys, xs, sat > 0, image.shape[:2], self.params.glow_max_area)
+        if self.params.glow.max_area:
+            sat = sat * self._compact(ys, xs, sat > 0, image.shape[:2], self.params.glow.max_area)
             if not sat.any():
                 return None
         light = (lin if self.space == "linear" else px.astype(np.float32) / np.float32(full_scale(image.dtype)))
@@ -363,27 +337,27 @@ class ScatterFogger:
         p = self.params
         if not self._scatter or beta == 0:
             return None
-        m = np.float32(math.exp(-p.illumination * beta))
+        m = np.float32(math.exp(-p.direct.illumination * beta))
         d = self._dist_small
         t = np.exp(d * np.float32(-beta))
-        tf = np.exp(d * np.float32(-beta * (1.0 - p.forward)))
+        tf = np.exp(d * np.float32(-beta * (1.0 - p.psf.forward)))
         wt = (tf - t) * m
         src = cv2.multiply(self._rgb_small, cv2.merge([wt, wt, wt]))  # OpenCV: numpy's broadcast is slower here
         depth = np.where(np.isinf(d), np.float32(0.0), d * np.float32(beta))   # optical depth T = βℓ
-        sigma = psf_sigma_rad(depth, p.spread) * self._f_small
+        sigma = psf_sigma_rad(depth, p.psf.spread) * self._f_small
         glow = None
         if self._glow_small is not None:
-            wg = (1.0 - t) * (m * np.float32(p.glow))
+            wg = (1.0 - t) * (m * np.float32(p.glow.gain))
             glow = cv2.multiply(self._glow_small, cv2.merge([wg, wg, wg]))
-            if not p.glow_spread or p.glow_spread == p.spread:
+            if not p.glow.spread or p.glow.spread == p.psf.spread:
                 src += glow
                 glow = None
-            elif p.glow_tail:                                 # the wings: the scene's wide PSF
-                src += glow * np.float32(p.glow_tail)
-                glow *= np.float32(1.0 - p.glow_tail)
+            elif p.glow.tail:                                 # the wings: the scene's wide PSF
+                src += glow * np.float32(p.glow.tail)
+                glow *= np.float32(1.0 - p.glow.tail)
         out = splat(src, sigma)
         if glow is not None:                                  # the core: the lamps' own, narrower PSF
-            out += splat(glow, psf_sigma_rad(depth, p.glow_spread) * self._f_small)
+            out += splat(glow, psf_sigma_rad(depth, p.glow.spread) * self._f_small)
         return out
 
     def _buffer(self, name: str) -> np.ndarray:
@@ -424,13 +398,13 @@ class ScatterFogger:
         mt = self._exp(self._dist_mu, beta, "t")               # m·t
         air = self._buffer("air")          # first e^(c·sin θ)·t_f, then A·e^(c·sin θ)·(1 − t_f)
         gain = self._air_gain
-        if p.forward == 0 and not p.illumination:               # t_f = m·t
+        if p.psf.forward == 0 and not p.direct.illumination:               # t_f = m·t
             gt = mt if gain is None else np.multiply(mt, gain, out=air)
         elif gain is None:
-            gt = self._exp(self.distance, beta * (1.0 - p.forward), "air")
+            gt = self._exp(self.distance, beta * (1.0 - p.psf.forward), "air")
         else:                                                   # one exponential: e^(c·sin θ − β(1−k)ℓ)
-            gt = cv2.exp(cv2.scaleAdd(self.distance, -beta * (1.0 - p.forward), self._log_gain, dst=air), dst=air)
-        level = p.level * math.exp(-p.fade * beta) * self.sky_gain   # a·e^(−λβ)·(Ω/Ω₀)^(−ν)
+            gt = cv2.exp(cv2.scaleAdd(self.distance, -beta * (1.0 - p.psf.forward), self._log_gain, dst=air), dst=air)
+        level = p.airlight.level * math.exp(-p.airlight.fade * beta) * self.sky_gain   # a·e^(−λβ)·(Ω/Ω₀)^(−ν)
         a = [v * level for v in self._a]
         uniform = a[0] == a[1] == a[2]                          # a grey airlight is folded into the air plane
         unit = a[0] if uniform else 1.0
@@ -481,6 +455,6 @@ def scatter(image: np.ndarray, distance: np.ndarray, beta: float, airlight=255.0
     return ScatterFogger(image, distance, airlight, space, params, intrinsics, up)(beta)
 
 
-__all__ = ["KOSCHMIEDER", "PARAMS_FILE", "TERMS", "ScatterFogger", "ScatterParams", "elevation_sine",
+__all__ = ["KOSCHMIEDER", "PARAMS_FILE", "ScatterFogger", "ScatterParams", "elevation_sine",
            "gaussian_by_boxes", "load_params", "load_params_file", "psf_sigma_rad", "reduce_points", "scatter",
            "shipped_params_path", "smooth_elevation_sine", "splat", "up_from_world_to_camera"]

@@ -1,8 +1,9 @@
 """The preset's ``fog_model`` block turned into what the renderer uses (pure Python, no bpy).
 
-``fog_model.kind`` is ``"koschmieder"`` (the default: fog added after rendering by
-:class:`fogsim.fog.model.Fogger`, see :func:`fog_settings`) or ``"volumetric"`` (fog
-path-traced by Cycles in a participating medium, :mod:`fogsim.render.blender.fog_volume`,
+``fog_model.kind`` is one of :data:`fogsim.schema.vocabulary.FOG_KINDS`: ``"koschmieder"`` (the
+default) and ``"scatter"`` are added after rendering, from the clear render and its depth, by the
+fog record :func:`fog_settings` returns (:class:`fogsim.fog.engine.FogSettings`); ``"volumetric"``
+is fog path-traced by Cycles in a participating medium (:mod:`fogsim.render.blender.fog_volume`,
 settings in ``fog_model.volumetric``, see :func:`volumetric_settings`). Every key's type, range
 and default is declared in :class:`fogsim.schema.presets.FogModel` (and ``Volumetric``); both
 blocks are checked whichever kind is chosen, so ``--fog`` / ``--fog-medium``
@@ -14,6 +15,7 @@ Units: β in 1/m (from the preset's fog levels, not from here); lengths in metre
 """
 from __future__ import annotations
 
+from fogsim.fog.engine import FogSettings
 from fogsim.schema.base import check
 from fogsim.schema.presets import (
     DAY_SKY_STRENGTH,
@@ -53,21 +55,12 @@ def fog_model(config) -> FogModel:
     return check(config.fog_model, FogModel, config.source, prefix="fog_model")
 
 
-def fog_settings(config) -> dict:
-    """A RenderConfig's ``fog_model`` as Fogger arguments:
-    ``{"airlight": 8-bit units (a number or [R, G, B]), "space": blend space, "kernel": Kernel | None,
-    "model": the kind, "scatter_params": the scatter model's parameter file or None}`` (kind
-    ``"scatter"`` always blends linear light, where it was fitted; ``space`` is Koschmieder's).
+def fog_settings(config) -> FogSettings:
+    """A RenderConfig's ``fog_model`` as the fog record (:class:`fogsim.fog.engine.FogSettings`:
+    kind ``"scatter"`` always blends linear light, where it was fitted; ``space`` is Koschmieder's).
 
     Checks the whole block, the volumetric part included."""
-    from fogsim.fog.model import Kernel
-
-    m = fog_model(config)
-    kernel = Kernel(m.kernel, m.kernel_size, float(m.sigma), float(m.eps)) if m.extended else None
-    airlight = list(m.airlight) if isinstance(m.airlight, list) else m.airlight
-    space = "linear" if m.kind == "scatter" else m.space
-    return {"airlight": airlight, "space": space, "kernel": kernel, "model": m.kind,
-            "scatter_params": m.scatter_params}
+    return FogSettings.from_preset(fog_model(config))
 
 
 def volumetric_settings(config) -> dict | None:

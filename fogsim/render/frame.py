@@ -22,11 +22,11 @@ from fogsim.dataset.writer import frame_split, write_frame_labels
 from fogsim.depth.stereo import SGBMParams, hole_fraction, sgbm_disparity
 from fogsim.errors import InputError
 from fogsim.fileio import write_depth, write_image, write_json
-from fogsim.fog.model import Fogger
-from fogsim.fog.scatter import ScatterFogger, load_params, up_from_world_to_camera
+from fogsim.fog.scatter_optics import up_from_world_to_camera
 from fogsim.fog.visibility import attach_visibility
+from fogsim.render.fog_settings import fog_settings
 from fogsim.render.labels import object_records
-from fogsim.render.preset import RenderConfig, fog_settings
+from fogsim.render.preset import RenderConfig
 from fogsim.render.silhouette import silhouette_areas
 from fogsim.runs import frame_seed
 from fogsim.scene.classes import is_labelled
@@ -176,21 +176,13 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
     records = object_records(mask, ray, desc["objects"], sil, min_pixels=lab.min_pixels,
                              min_visible_fraction=lab.min_visible_fraction)
     t1 = time.perf_counter()
-    fs = fog_settings(config)
-    if fog is None and fs["model"] == "scatter":
-        params = load_params(fs["scatter_params"])
+    if fog is None:  # post-process fog (Koschmieder, scatter) from the clear render
+        fs = fog_settings(config)
         w2c = desc["camera"].get("world_to_camera")
-        fogger = ScatterFogger(rgb, ray, fs["airlight"], fs["space"], params, K,
-                               up_from_world_to_camera(w2c) if w2c is not None else None)
+        up = up_from_world_to_camera(w2c) if w2c is not None and fs.kind == "scatter" else None
+        fogger = fs.fogger(rgb, ray, K, up)
         foggy = {lv.key: fogger(lv.beta) for lv in config.levels}
-        fog_meta = {"model": "scatter", "distance": "planar→ray", "airlight": fs["airlight"],
-                    "blend_space": fs["space"], "scatter_params": params.to_dict(),
-                    "scatter_params_file": fs["scatter_params"]}
-    elif fog is None:
-        fogger = Fogger(rgb, ray, fs["airlight"], fs["space"], fs["kernel"])
-        foggy = {lv.key: fogger(lv.beta) for lv in config.levels}
-        fog_meta = {"model": "koschmieder", "distance": "planar→ray", "airlight": fs["airlight"],
-                    "blend_space": fs["space"], "kernel": fs["kernel"].to_dict() if fs["kernel"] else None}
+        fog_meta = {**fs.record(), "distance": "planar→ray"}
     else:
         foggy = fog.foggy
         if {lv.key for lv in config.levels} - set(foggy):

@@ -39,6 +39,7 @@ from fogsim.schema.base import (
     pair,
     word,
 )
+from fogsim.schema.vocabulary import FOG_EXPOSURES, FOG_KINDS, FOG_MEDIA, KERNELS, SPACES
 
 #: What a component name may hold: a name, never a path (no '/', '..', '.json').
 COMPONENT_NAME = re.compile(r"[A-Za-z0-9_-]+")
@@ -51,13 +52,6 @@ TRAIN_FRACTION = 0.8
 #: Labels: objects below this many visible pixels, or this visible fraction, are ignore regions.
 MIN_PIXELS, MIN_VISIBLE_FRACTION = 25, 0.1
 VEHICLES = ("car", "van", "truck", "bus")
-FOG_KINDS = ("koschmieder", "volumetric", "scatter")
-#: The participating media of ``fog_model.kind = "volumetric"`` (fogsim.render.blender.fog_volume).
-FOG_MEDIA = ("full", "hybrid", "ea")
-FOG_EXPOSURES = ("none", "auto")
-#: Koschmieder blend spaces and airlight kernels (fogsim.fog.model implements them).
-SPACES = ("srgb", "linear")
-KERNELS = ("box", "gaussian", "guided")
 #: A fog render's box domain must lie inside the camera's clip_end (2000 m): half-width ≤ this.
 MAX_FOG_EXTENT_M = 1400.0
 TIMES_OF_DAY = ("day", "night")
