@@ -24,7 +24,7 @@ K = Intrinsics.from_hfov(60.0, 96, 64)
 box = lambda size, mat: {"type": "box", "params": {"size": size, "material": mat}}  # noqa: E731
 desc = {"camera": {"intrinsics": K.to_dict(),
                    "world_to_camera": world_to_camera(camera_to_world([0, 0, 1.5])).tolist()},
-        "lighting": {"sun_elevation_deg": 40, "sun_azimuth_deg": 30},
+        "lighting": {"sun_elevation_deg": 40, "sun_azimuth_deg": 30, "sun_strength": 4.0, "sky_strength": 0.3},
         "objects": [{"id": 1, "class": "road", "asset": box([200, 400, 0.1], "asphalt"),
                      "transform": transform([0, 0, -0.1]).tolist()},
                     {"id": 7, "class": "building", "asset": box([40, 1, 3], "facade_brick"),
