@@ -1,6 +1,6 @@
 """The README is a front door and the manual cannot drift from the code.
 
-* README.md ≤ 150 lines, with the two commands exactly and links that resolve.
+* README.md ≤ 120 lines, with the two commands exactly and links that resolve.
 * Every ``fogsim …`` command in a ``bash`` block of the README or a docs page parses with the real
   parser (a renamed or removed flag fails here), and the ``python`` blocks of the docs run.
 * The generated CLI reference (``scripts/mkdocs_hooks.py``) has a section, the usage and every option
@@ -58,7 +58,7 @@ def walk(parser: argparse.ArgumentParser, path=("fogsim",)):
 # ----------------------------------------------------------------------------- the README
 def test_readme_is_a_front_door():
     text = README.read_text(encoding="utf-8")
-    assert len(text.splitlines()) <= 150
+    assert len(text.splitlines()) <= 120  # results live on their pages (one line and a link each)
     lines = [line.strip() for line in text.splitlines()]
     assert COMMAND_1 in lines and COMMAND_2 in lines  # unchanged: CI and newcomers run exactly these
     assert "![contact sheet" in text

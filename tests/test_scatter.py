@@ -240,7 +240,7 @@ def test_sparse_points_are_reduced_as_cv2_inter_area_would():
 def test_elevation_map_and_world_up():
     s = elevation_sine((H, W), K)
     assert abs(s[30, 40]) < 0.01 and s[0, 40] > 0.35 and s[-1, 40] < -0.35
-    # integer pixel coordinates are pixel centres (DESIGN.md): row 0 looks up by atan((0 − cy)/fy)
+    # integer pixel coordinates are pixel centres (docs/conventions.md): row 0 looks up by atan((0 − cy)/fy)
     assert s[0, 40] == pytest.approx(math.sin(math.atan(30 / 70)), abs=1e-6)
     assert s[30, 40] == pytest.approx(0.0, abs=1e-7)
     pitch = math.radians(10)  # camera pitched up: the centre looks 10° above the horizon

@@ -115,10 +115,11 @@ def cmd_render(args) -> int:
     shard = parse_shard(args.shard)
     require_bpy()
     from fogsim.render.blender.job import RUN_FILE, RenderJob
+    from fogsim.render.job_options import RunOptions
 
     if args.finalize_only and not (Path(args.out) / RUN_FILE).is_file():
         raise InputError(args.out, f"no {RUN_FILE} here: not a dataset to finalize")
-    job = RenderJob(config, args.out, shard, resume=not args.no_resume, gpu=args.gpu, quiet=args.quiet)
+    job = RenderJob(config, args.out, RunOptions(shard, not args.no_resume, args.gpu, args.quiet))
     try:
         return _render(job, args, shard)
     finally:
@@ -127,35 +128,31 @@ def cmd_render(args) -> int:
 
 def _cmd_scene(args) -> int:
     """Scene mode: the user's own Blender scene (:mod:`fogsim.render.blender.scene_mode`)."""
-    from fogsim.render.preset import check_overrides
+    from fogsim.render.job_options import RunOptions, SceneOptions
     from fogsim.render.scene_classes import load_class_map
     from fogsim.runs import check_output, parse_shard
 
     for flag, given in (("--preset", args.preset), ("--frames", args.frames), ("--stereo", args.stereo or None),
-                        ("--train-fraction", args.train_fraction)):
+                        ("--train-fraction", args.train_fraction), ("--assets", args.assets)):
         if given is not None:
-            raise ValueError(f"{flag} is not available with --scene (scene mode: --frame-range, --camera, "
-                             "--class-map, --levels, --samples, --resolution, --seed, --fog, --fog-medium)")
-    check_overrides(seed=args.seed, samples=args.samples, max_pixels=args.max_pixels, fog=args.fog,
-                    fog_medium=args.fog_medium)
+            raise ValueError(f"{flag} is not available with --scene (scene mode renders the scene's own objects: "
+                             "--frame-range, --camera, --class-map, --levels, --samples, --resolution, --seed, "
+                             "--fog, --fog-medium, --fog-scale)")
     blend = None if args.scene == "current" else args.scene
     check_output(args.out, {"--scene": blend})
-    class_map = load_class_map(args.class_map)
+    options = SceneOptions(camera=args.camera, frame_range=args.frame_range, class_map=load_class_map(args.class_map),
+                           levels=args.levels, samples=args.samples, resolution=args.resolution, seed=args.seed or 0,
+                           max_pixels=args.max_pixels, fog=args.fog, fog_medium=args.fog_medium,
+                           fog_scale=args.fog_scale).check()  # a bad flag is a usage error before Blender starts
     shard = parse_shard(args.shard)
-    if args.levels is not None:
-        from fogsim.fog.levels import parse_levels
-
-        parse_levels(args.levels)  # a bad --levels is a usage error before Blender starts
     require_bpy()
-    from fogsim.render.blender.scene_mode import RUN_FILE, open_scene, scene_job
+    from fogsim.render.blender.job import RUN_FILE
+    from fogsim.render.blender.scene_mode import open_scene, scene_job
 
     scene = open_scene(args.scene, args.quiet)
     if args.finalize_only and not (Path(args.out) / RUN_FILE).is_file():
         raise InputError(args.out, f"no {RUN_FILE} here: not a dataset to finalize")
-    job = scene_job(scene, args.out, camera=args.camera, frame_range=args.frame_range, class_map=class_map,
-                    levels=args.levels, samples=args.samples, resolution=args.resolution, seed=args.seed or 0,
-                    shard=shard, resume=not args.no_resume, gpu=args.gpu, quiet=args.quiet,
-                    max_pixels=args.max_pixels, fog=args.fog, fog_medium=args.fog_medium)
+    job = scene_job(scene, args.out, options, RunOptions(shard, not args.no_resume, args.gpu, args.quiet))
     if not args.quiet:
         print(job.summary)
         for note in job.notes:

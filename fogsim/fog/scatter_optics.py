@@ -1,7 +1,7 @@
 """The scatter fog model's image-space optics (:mod:`fogsim.fog.scatter`): each pixel's viewing
 elevation, and the atmospheric point-spread function — a Gaussian in angle whose width is each source
 pixel's own, splatted by layers of box filters (energy conserving), plus the reduction of a sparse
-image to the PSF's grid. Pixel coordinates as in DESIGN.md (integers are pixel centres)."""
+image to the PSF's grid. Pixel coordinates as in docs/conventions.md (integers are pixel centres)."""
 from __future__ import annotations
 
 import math
@@ -47,7 +47,7 @@ def _camera(shape: tuple[int, int], intrinsics: Intrinsics | None) -> Intrinsics
 
 def _sine_at(u: np.ndarray, v: np.ndarray, K: Intrinsics, up) -> np.ndarray:
     """sin of the viewing elevation at pixel columns ``u`` × rows ``v`` (pixel coordinates, centres
-    at integers as in DESIGN.md), len(v)×len(u) float32."""
+    at integers as in docs/conventions.md), len(v)×len(u) float32."""
     y = ((np.asarray(v, np.float64) - K.cy) / K.fy).astype(np.float32)   # image y down
     x = ((np.asarray(u, np.float64) - K.cx) / K.fx).astype(np.float32)
     ux, uy, uz = (np.float32(c) for c in (LEVEL_UP if up is None else up))

@@ -19,6 +19,7 @@ for site in sorted((ROOT / ".venv" / "lib").glob("python3*/site-packages")):
 import bpy  # noqa: E402
 
 from fogsim.render.blender.job import RenderJob  # noqa: E402
+from fogsim.render.job_options import RunOptions  # noqa: E402
 from fogsim.render.preset import load_render_preset  # noqa: E402
 
 args = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
@@ -34,7 +35,7 @@ def rss_mib() -> float:
 
 config = load_render_preset("default", frames=frames, resolution="48x32", samples=1, levels="clear",
                             assets=None if lib == "-" else lib)
-job = RenderJob(config, out, resume=False, quiet=True)
+job = RenderJob(config, out, RunOptions(resume=False, quiet=True))
 rows = []
 library_objects = 0
 try:

@@ -39,7 +39,7 @@ for fit, (w, h), (ax, ay), shift in itertools.product(("AUTO", "HORIZONTAL", "VE
     r = scene.render
     r.resolution_x, r.resolution_y, r.resolution_percentage, r.pixel_aspect_x, r.pixel_aspect_y = w, h, 100, ax, ay
     bpy.context.view_layer.update()
-    rec = camera_record(scene, cam)
+    rec = camera_record(scene, cam, (w, h), "test scene")
     K, M = np.array(rec["intrinsics"]["K"]), np.array(rec["world_to_camera"])
     err = 0.0
     for p in points:

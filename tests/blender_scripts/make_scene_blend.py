@@ -11,7 +11,8 @@ keys {frame: location} (animated), data_of (a linked duplicate of that box), col
 collection not in the scene, to be instanced)}; ``collections`` {name: class}; ``instances``
 [{name, collection, location, viewport_off}]; ``points`` [{name, object, points}] a geometry-nodes
 Instance on Points of ``object`` on a mesh of those vertices; ``frames`` [start, end]; ``cameras``
-[{name, type}] more cameras (e.g. "ORTHO", "PANO").
+[{name, type}] more cameras (e.g. "ORTHO", "PANO"); ``resolution_percentage`` (default 100);
+``link`` [{library, object}]: objects linked from another .blend (path relative to OUT's folder).
 """
 import json
 import math
@@ -32,7 +33,7 @@ bpy.ops.wm.read_factory_settings(use_empty=True)
 scene = bpy.context.scene
 scene.render.engine = "CYCLES"
 scene.render.resolution_x, scene.render.resolution_y = spec["resolution"]
-scene.render.resolution_percentage = 100
+scene.render.resolution_percentage = spec.get("resolution_percentage", 100)
 scene.frame_start, scene.frame_end = spec["frames"]
 scene.cycles.samples = 4
 
@@ -132,6 +133,13 @@ for spread in spec.get("points", []):  # geometry nodes: instance an object on e
     obj = bpy.data.objects.new(spread["name"], mesh)
     scene.collection.objects.link(obj)
     obj.modifiers.new("spread", "NODES").node_group = tree
+
+for link in spec.get("link", []):  # objects linked (not appended) from another .blend
+    library = Path(args[1]).resolve().parent / link["library"]
+    with bpy.data.libraries.load(str(library), link=True, relative=True) as (src, dst):
+        dst.objects = [link["object"]]
+    for obj in dst.objects:
+        scene.collection.objects.link(obj)
 
 scene.frame_set(spec["frames"][0])
 bpy.ops.wm.save_as_mainfile(filepath=str(Path(args[1]).resolve()))

@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 
 from fogsim.camera import Intrinsics  # noqa: E402
 from fogsim.render.blender import build, cycles  # noqa: E402
+from fogsim.render.blender.scratch import clear  # noqa: E402
 from fogsim.scene.assets import sample_asset  # noqa: E402
 from fogsim.scene.lights import apply_night  # noqa: E402
 from fogsim.scene.pose import camera_to_world, transform, world_to_camera  # noqa: E402
@@ -62,7 +63,7 @@ for name, desc in (("day", day), ("night", night), ("dark", dark)):
     n_lights = sum(o.type == "LIGHT" for o in built.objects)
     smooth = sum(sum(p.use_smooth for p in m.polygons) for m in built.meshes)
     passes[name] = (cycles.render(scene), n_lights)
-    build.clear(built)
+    clear(built)
 
 
 def pixel(x, y, z=0.0):

@@ -17,6 +17,7 @@ import numpy as np  # noqa: E402
 from fogsim.camera import Intrinsics, planar_to_ray  # noqa: E402
 from fogsim.render.blender import build  # noqa: E402
 from fogsim.render.blender import cycles as render  # noqa: E402
+from fogsim.render.blender.scratch import clear  # noqa: E402
 from fogsim.scene.pose import camera_to_world, transform, world_to_camera  # noqa: E402
 
 out = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else sys.argv[1]
@@ -35,7 +36,7 @@ scene = bpy.data.scenes.new("plane_test")
 render.configure(scene, {"samples": 2, "denoise": False}, seed=1)
 built = build.build(desc, scene)
 p = render.render(scene)
-build.clear(built)
+clear(built)
 ray = planar_to_ray(p.depth, K)
 wall = p.mask == 7
 v, u = np.nonzero(wall)

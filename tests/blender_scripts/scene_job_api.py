@@ -13,6 +13,7 @@ sys.path.insert(0, str(ROOT))
 import bpy  # noqa: E402
 
 from fogsim.render.blender.scene_mode import open_blend, scene_job  # noqa: E402
+from fogsim.render.job_options import RunOptions, SceneOptions  # noqa: E402
 from fogsim.render.loop import FrameLoop  # noqa: E402
 
 blend, out, result = sys.argv[1:4]
@@ -34,7 +35,8 @@ def state() -> dict:
 
 
 before = state()
-job = scene_job(scene, out, frame_range="1:3:2", levels="clear,0.06", samples=1, quiet=True, fog="volumetric")
+job = scene_job(scene, out, SceneOptions(frame_range="1:3:2", levels="clear,0.06", samples=1, fog="volumetric"),
+                RunOptions(quiet=True))
 try:
     loop = FrameLoop(job)
     loop.run()

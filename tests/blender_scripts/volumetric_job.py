@@ -16,12 +16,13 @@ for site in sorted((ROOT / ".venv" / "lib").glob("python3*/site-packages")):
 import bpy  # noqa: E402
 
 from fogsim.render.blender.job import RenderJob  # noqa: E402
+from fogsim.render.job_options import RunOptions  # noqa: E402
 from fogsim.render.preset import load_render_preset  # noqa: E402
 
 args = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
 out, preset = args[0], args[1]
 config = load_render_preset(preset, frames=1)
-job = RenderJob(config, out, resume=False)
+job = RenderJob(config, out, RunOptions(resume=False))
 
 
 def settings():

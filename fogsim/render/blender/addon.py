@@ -16,12 +16,30 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from fogsim.render.blender.panel_options import config as _config
+from fogsim.render.blender.panel_options import run_options
 from fogsim.render.blender.panel_options import scene_job as _scene_job
+from fogsim.render.scene_classes import PROPERTY
 from fogsim.scene.classes import LABELLED
-from fogsim.schema.presets import WORLD_HDRIS
+from fogsim.schema.presets import SKIES, WORLD_HDRIS
+from fogsim.schema.vocabulary import FOG_KINDS, FOG_MEDIA
 
 _state = {"built": None, "job": None, "loop": None, "timer": None, "cancel": False, "preview": None}
-CLASS_PROPERTY = "fogsim_class"  # the custom property scene mode reads an object's class from
+#: the panel's words for the vocabulary's (a word without its label fails at import: the enums are the vocabulary)
+FOG_LABELS = {"koschmieder": ("Koschmieder", "Post-process on the clear render (fast)"),
+              "scatter": ("Scatter", "Post-process with forward scattering, elevation airlight and glow (fast)"),
+              "volumetric": ("Volumetric", "One Cycles render per fog level with a participating medium (slow)")}
+MEDIUM_LABELS = {"full": ("Full", "Pure scattering, white, Henyey-Greenstein g"),
+                 "hybrid": ("Hybrid", "Half absorption + emission, half scattering: cheaper, lamps still glow"),
+                 "ea": ("Emission-absorption", "Camera-only emission-absorption: Koschmieder in linear light")}
+SKY_LABELS = {"procedural": ("Procedural", "Blender's physical sky texture and a sun lamp"),
+              "hdri": ("HDRI", "A world HDRI (Blender's own or your .exr/.hdr), turned at random per frame; "
+                               "no sun lamp"),
+              "overcast": ("Overcast", "CIE standard overcast sky, no sun: soft shadows")}
+
+
+def _enum(words, labels: dict, preset: str) -> list:
+    """An EnumProperty's items: "Preset's" first, then one per word of the vocabulary."""
+    return [("PRESET", "Preset's", preset)] + [(w, *labels[w]) for w in words]
 _PRESET_ITEMS: list = []  # Blender needs Python to keep dynamic enum items alive
 
 
@@ -45,11 +63,8 @@ class FogsimSettings(bpy.types.PropertyGroup):
                                                                            "(empty = the scene's own range)")
     class_map: StringProperty(name="Class map", default="", subtype="FILE_PATH",
                               description="JSON file (or inline JSON) mapping object-name patterns to classes")
-    sky: EnumProperty(name="Sky", default="PRESET", items=[
-        ("PRESET", "Preset's", "The preset's lighting (procedural unless it says HDRI or overcast)"),
-        ("procedural", "Procedural", "Blender's physical sky texture and a sun lamp"),
-        ("hdri", "HDRI", "A world HDRI (Blender's own or your .exr/.hdr), turned at random per frame; no sun lamp"),
-        ("overcast", "Overcast", "CIE standard overcast sky, no sun: soft shadows")])
+    sky: EnumProperty(name="Sky", default="PRESET", items=_enum(
+        SKIES + ("overcast",), SKY_LABELS, "The preset's lighting (procedural unless it says HDRI or overcast)"))
     hdri: EnumProperty(name="HDRI", default="city", items=[(n, n.capitalize(), f"Blender's world HDRI {n!r}")
                                                           for n in WORLD_HDRIS]
                        + [("FILE", "File…", "Your own .exr or .hdr file")])
@@ -65,16 +80,10 @@ class FogsimSettings(bpy.types.PropertyGroup):
     samples: IntProperty(name="Samples", default=0, min=0, description="Cycles samples override (0 = preset)")
     output: StringProperty(name="Output", default="//fogsim_dataset", subtype="DIR_PATH")
     use_gpu: BoolProperty(name="GPU", default=False, description="Render on the GPU when one exists")
-    fog_model: EnumProperty(name="Fog", default="PRESET", items=[
-        ("PRESET", "Preset's", "The preset's fog_model.kind (Koschmieder unless it says otherwise)"),
-        ("koschmieder", "Koschmieder", "Post-process on the clear render (fast)"),
-        ("scatter", "Scatter", "Post-process with forward scattering, elevation airlight and glow (fast)"),
-        ("volumetric", "Volumetric", "One Cycles render per fog level with a participating medium (slow)")])
-    fog_medium: EnumProperty(name="Medium", default="PRESET", items=[
-        ("PRESET", "Preset's", "The preset's fog_model.volumetric.medium (full unless it says otherwise)"),
-        ("full", "Full", "Pure scattering, white, Henyey-Greenstein g"),
-        ("hybrid", "Hybrid", "Half absorption + emission, half scattering: cheaper, lamps still glow"),
-        ("ea", "Emission-absorption", "Camera-only emission-absorption: Koschmieder in linear light")])
+    fog_model: EnumProperty(name="Fog", default="PRESET", items=_enum(
+        FOG_KINDS, FOG_LABELS, "The preset's fog_model.kind (Koschmieder unless it says otherwise)"))
+    fog_medium: EnumProperty(name="Medium", default="PRESET", items=_enum(
+        FOG_MEDIA, MEDIUM_LABELS, "The preset's fog_model.volumetric.medium (full unless it says otherwise)"))
     levels_kind: EnumProperty(name="Levels", default="PRESET", items=[
         ("PRESET", "Preset's", "The preset's fog levels (the paper's five unless it says otherwise)"),
         ("beta", "β list", "Comma-separated extinction coefficients β in 1/m (\"clear\" or 0 = no fog)"),
@@ -150,10 +159,10 @@ class FOGSIM_OT_clear_scene(bpy.types.Operator):
 
 
 def _clear_built():
-    from fogsim.render.blender import build
+    from fogsim.render.blender.scratch import clear
 
     if _state["built"] is not None:
-        build.clear(_state["built"])
+        clear(_state["built"])
         _state["built"] = None
 
 
@@ -181,7 +190,7 @@ class FOGSIM_OT_render_dataset(bpy.types.Operator):
                                           "press Clear scene first, then render the current scene")
                 job = _scene_job(s, context.scene)
             else:
-                job = RenderJob(_config(s, frames=s.frames), bpy.path.abspath(s.output), gpu=s.use_gpu)
+                job = RenderJob(_config(s, frames=s.frames), bpy.path.abspath(s.output), run_options(s))
         except Exception as exc:
             return _fail(self, s, _problem(exc))
         for note in getattr(job, "notes", ()):
@@ -287,9 +296,9 @@ class FOGSIM_OT_assign_class(bpy.types.Operator):
             return _fail(self, s, "no object selected: select the objects to label first")
         for obj in objects:
             if s.assign_class == "NONE":
-                obj.pop(CLASS_PROPERTY, None)
+                obj.pop(PROPERTY, None)
             else:
-                obj[CLASS_PROPERTY] = s.assign_class
+                obj[PROPERTY] = s.assign_class
         what = "background" if s.assign_class == "NONE" else s.assign_class
         s.status = f"{len(objects)} object{'s' * (len(objects) != 1)} → {what}"
         return {"FINISHED"}

@@ -23,7 +23,9 @@ from pathlib import Path
 import bpy
 
 from fogsim.render.blender import build, cycles
+from fogsim.render.blender.scratch import clear
 from fogsim.render.frame import describe_frame, scene_meshes
+from fogsim.render.job_options import RunOptions
 from fogsim.runs import frame_seed
 
 STAGES = ("scene", "bpy_build", "render", "ground_truth", "fog", "write")
@@ -50,7 +52,7 @@ def _timed_render(config, index: int, quality: dict, factory: bool = False) -> f
     t0 = time.perf_counter()
     cycles.render(scene)
     seconds = time.perf_counter() - t0
-    build.clear(built)
+    clear(built)
     bpy.data.scenes.remove(scene)
     return seconds
 
@@ -93,7 +95,7 @@ def run(args) -> int:
 
     out = args.out or tempfile.mkdtemp(prefix="fogsim_bench_")
     config = load_render_preset(args.preset, frames=args.frames, resolution=args.resolution)
-    job = RenderJob(config, out, resume=False)
+    job = RenderJob(config, out, RunOptions(resume=False))
     times, rss = [], []
     for i in range(args.frames):
         meta = job.step()
@@ -176,7 +178,7 @@ def run_fog(args) -> int:
                                             resolution_scale=args.fast_scale),
                 "hybrid-seed2": _fog_variant(base, medium="hybrid", denoise=True, samples=fog_samples,
                                              noise_seed=1)}
-    jobs = {name: RenderJob(cfg, root / name, resume=False) for name, cfg in variants.items()}
+    jobs = {name: RenderJob(cfg, root / name, RunOptions(resume=False)) for name, cfg in variants.items()}
     n_fog = sum(lv.beta > 0 for lv in base.levels)
     times = {name: [] for name in variants}
     fog_times = {name: [] for name in variants}

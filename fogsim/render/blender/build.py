@@ -1,12 +1,12 @@
 """Turn a fogsim scene description into Blender objects, and remove them again.
 
-Everything created is recorded in a :class:`Built` so :func:`clear` can delete exactly it
-(meshes, materials, objects, lights, camera, world): long batch runs keep flat memory.
+Everything created is recorded in a :class:`Built` (a :class:`~fogsim.render.blender.scratch.Scratch`)
+so :func:`fogsim.render.blender.scratch.clear` can delete exactly it (meshes, materials, objects,
+lights, camera, world): long batch runs keep flat memory.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import bpy
 import mathutils
@@ -16,6 +16,7 @@ from fogsim.camera import Intrinsics
 from fogsim.render.blender.compat import set_mesh_polygons
 from fogsim.render.blender.lights import add_lights
 from fogsim.render.blender.materials import make_material
+from fogsim.render.blender.scratch import Scratch
 from fogsim.render.blender.sky import make_world
 from fogsim.scene.geometry import material_key, world_parts
 from fogsim.scene.pose import blender_camera_matrix, blender_lens
@@ -23,13 +24,8 @@ from fogsim.scene.pose import blender_camera_matrix, blender_lens
 COLLECTION = "fogsim_scene"
 
 
-@dataclass
-class Built:
-    collection: object = None
-    objects: list = field(default_factory=list)
-    meshes: list = field(default_factory=list)
-    materials: dict = field(default_factory=dict)
-    others: list = field(default_factory=list)  # (bpy.data collection name, datablock)
+class Built(Scratch):
+    """What :func:`build` created for one frame (removed by :func:`fogsim.render.blender.scratch.clear`)."""
 
 
 def _mesh(name: str, parts, slots: list[str]) -> bpy.types.Mesh:
@@ -133,17 +129,3 @@ def build(desc: dict, scene=None, meshes: dict | None = None, library=None) -> B
         built.objects.append(bobj)
         built.meshes.append(mesh)
     return built
-
-
-def clear(built: Built) -> None:
-    """Delete everything :func:`build` created."""
-    for obj in built.objects:
-        bpy.data.objects.remove(obj, do_unlink=True)
-    for mesh in built.meshes:
-        bpy.data.meshes.remove(mesh)
-    for mat in built.materials.values():
-        bpy.data.materials.remove(mat)
-    for kind, block in built.others:
-        getattr(bpy.data, kind).remove(block)
-    if built.collection is not None:
-        bpy.data.collections.remove(built.collection)

@@ -150,7 +150,7 @@ def _fog_material(settings: dict) -> tuple[object, list, str]:
 
 def build_domain(built, scene, settings: dict) -> FogDomain:
     """Create the fog layer around ``scene.camera`` and record it in ``built`` (so
-    :func:`fogsim.render.blender.build.clear` removes it). β starts at 0: call :func:`set_density`."""
+    :func:`fogsim.render.blender.scratch.clear` removes it). β starts at 0: call :func:`set_density`."""
     if scene.world is not None and scene.world.use_nodes:
         out = next((n for n in scene.world.node_tree.nodes if n.type == "OUTPUT_WORLD"), None)
         if out is not None and out.inputs["Volume"].is_linked:

@@ -31,7 +31,9 @@ from fogsim.render.blender.compat import has_mie_phase
 from fogsim.render.blender.cycles import configure, render, render_combined
 from fogsim.render.blender.library import load_library
 from fogsim.render.blender.motion import motion_blur
+from fogsim.render.blender.scratch import clear
 from fogsim.render.frame import DescribedFrame, FogRenders, FramePasses, check_scene, commit_frame, frame_name
+from fogsim.render.job_options import RunOptions
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
 from fogsim.render.preset import RenderConfig, frame_volumetric, volumetric_settings
 from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
@@ -64,27 +66,44 @@ def _legacy_parameters(old: dict) -> dict | None:
     return params
 
 
-class RenderJob:
-    """The frames of one shard still to render, and the means to render them.
+def refuse_mie(fog: dict | None, source: str) -> None:
+    """The Mie phase function is Blender 4.3+: refused (naming the preset) on an older Blender."""
+    if fog is not None and fog["phase"] == "MIE" and not has_mie_phase():
+        raise InputError(source, f"fog_model.volumetric.phase \"MIE\" needs Blender 4.3 or later "
+                                 f"(this is {bpy.app.version_string}); use \"HG\" with g = 0.85")
 
-    ``gpu``: render on a GPU when one is found (:mod:`fogsim.render.blender.device`); ``quiet``:
-    Blender's own output shows errors only (:mod:`fogsim.render.blender.output`).
+
+class RenderJob:
+    """The frames of one shard still to render, and the means to render them: the procedural
+    streets of a preset. :meth:`claim` is the set-up every job shares (scene mode's
+    :class:`~fogsim.render.blender.scene_mode.SceneJob` too), :meth:`finish` the end.
+
+    ``run``: the shard, resume, GPU (:mod:`fogsim.render.blender.device`) and quiet (Blender's own
+    output shows errors only, :mod:`fogsim.render.blender.output`) — :class:`~fogsim.render.job_options.RunOptions`.
     """
 
-    def __init__(self, config: RenderConfig, out: str | Path, shard: tuple[int, int] = (0, 1),
-                 resume: bool = True, gpu: bool = False, quiet: bool = False):
-        self.config, self.layout, self.gpu, self.quiet = config, DatasetLayout(out), gpu, quiet
-        self.fog = volumetric_settings(config)  # None: Koschmieder fog (post-process)
-        if self.fog is not None and self.fog["phase"] == "MIE" and not has_mie_phase():
-            raise InputError(config.source, f"fog_model.volumetric.phase \"MIE\" needs Blender 4.3 or later "
-                                            f"(this is {bpy.app.version_string}); use \"HG\" with g = 0.85")
-        i, n = shard
-        mine = [k for k in range(config.frames) if k % n == i]
+    def __init__(self, config: RenderConfig, out: str | Path, run: RunOptions = RunOptions()):
+        self.config, self.run, self.gpu, self.quiet = config, run, run.gpu, run.quiet
         # the user's models, imported once for the whole run (a refused one is a setup error, exit 2)
-        self.assets = load_library(config.assets, quiet) if config.assets else None
+        self.assets = load_library(config.assets, run.quiet) if config.assets else None
         self.library = self.assets.library if self.assets else None
-        if mine:  # a preset the layout cannot use must not claim the folder (setup error, exit 2)
-            check_scene(config, mine[0], self.library)
+        # a preset the layout cannot use must not claim the folder (setup error, exit 2)
+        self.claim(out, lambda first: check_scene(config, first, self.library))
+        self.scene = bpy.data.scenes.get(SCENE_NAME) or bpy.data.scenes.new(SCENE_NAME)
+
+    def claim(self, out: str | Path, check_first) -> None:
+        """The set-up of every job, in this order, so that a refusal leaves ``out`` untouched: the
+        volumetric fog's settings (the Mie phase refused on an old Blender), this shard's frames,
+        ``check_first(index)`` on the first of them (whole-run problems: exit 2 before anything is
+        written), then the claim of ``OUT/render_run.json``, the clean-up of a killed run's leftovers
+        and the frames still to do (``todo``)."""
+        config = self.config
+        self.layout = DatasetLayout(out)
+        self.fog = volumetric_settings(config)  # None: post-process fog (Koschmieder, scatter)
+        refuse_mie(self.fog, config.source)
+        mine = self.run.frames(config.frames)
+        if len(mine):
+            check_first(mine[0])
         Path(out).mkdir(parents=True, exist_ok=True)
         claim_output(Path(out) / RUN_FILE, dataset_parameters(config),
                      {"blender": bpy.app.version_string, "config": config.to_dict()},
@@ -92,10 +111,9 @@ class RenderJob:
         self.mine = {frame_name(k) for k in mine}
         remove_stale_parts(self.layout.root)  # a killed run's unfinished writes (dead writers only)
         remove_render_tmp(self.layout, self.mine)  # and its Cycles EXRs of this shard's frames
-        self.todo = [k for k in mine if not (resume and self.layout.frame_done(frame_name(k)))]
+        self.todo = [k for k in mine if not (self.run.resume and self.layout.frame_done(frame_name(k)))]
         self.skipped = len(mine) - len(self.todo)
         self.done: list[dict] = []
-        self.scene = bpy.data.scenes.get(SCENE_NAME) or bpy.data.scenes.new(SCENE_NAME)
 
     def step(self) -> dict:
         """Render and commit the next frame; returns its meta record."""
@@ -130,7 +148,7 @@ class RenderJob:
                 scene_build.set_camera_pose(self.scene, w2c)
                 right = render(self.scene, tmp / f"{name}.right.exr", self.quiet).rgb_linear
         finally:
-            scene_build.clear(built)
+            clear(built)
         t3 = time.perf_counter()
         info["blender"] = bpy.app.version_string
         timings = {"scene": t1 - t0, "bpy_build": t2 - t1, "render": t3 - t2}

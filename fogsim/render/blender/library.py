@@ -10,7 +10,7 @@ meshes) is removed at once. The triangles go to the pure side
 (:mod:`fogsim.scene.library`: normalised to the asset frame, size-checked, sampled by the
 layout, and used for silhouettes). A frame then instances a model as one Blender object per
 part sharing those meshes and materials, all with the scene object's pass index (one instance
-in the mask); :func:`fogsim.render.blender.build.clear` removes the objects, never the meshes,
+in the mask); :func:`fogsim.render.blender.scratch.clear` removes the objects, never the meshes,
 so memory stays flat however many frames a run renders.
 """
 from __future__ import annotations

@@ -5,7 +5,7 @@ module only makes the Blender datablocks. Lights have no geometry and are hidden
 rays, so the Depth and Object Index passes — hence depth, masks and labels — are exactly those
 of the same scene by day; the lenses the camera sees are emissive faces of the pole or vehicle
 they belong to (same pass index). Everything made is recorded in the :class:`Built` so
-:func:`fogsim.render.blender.build.clear` removes it.
+:func:`fogsim.render.blender.scratch.clear` removes it.
 """
 from __future__ import annotations
 

@@ -66,21 +66,36 @@ def hdri(s) -> str:
     return str(path.resolve())
 
 
-def scene_job(s, scene):
-    """*Source: current scene*: a scene-mode job over ``scene`` with the panel's options (refusals
-    are InputErrors raised before the output folder is touched)."""
+def run_options(s):
+    """How the panel's job runs (:class:`~fogsim.render.job_options.RunOptions`): resumed, GPU as
+    asked, Blender's output quiet (the panel shows progress)."""
+    from fogsim.render.job_options import RunOptions
+
+    return RunOptions(gpu=s.use_gpu, quiet=True)
+
+
+def scene_options(s):
+    """*Source: current scene*'s :class:`~fogsim.render.job_options.SceneOptions` (the CLI's ``--scene``
+    flags, from the panel)."""
     from fogsim.fog.levels import parse_levels
-    from fogsim.render.blender.scene_mode import scene_job as make_job
+    from fogsim.render.job_options import SceneOptions
     from fogsim.render.scene_classes import load_class_map
 
     text = s.class_map.strip()
     class_map = load_class_map(text if text.startswith("{") or not text else bpy.path.abspath(text))
     levels = {"beta": s.levels, "visibility": None}.get(s.levels_kind)  # None: the paper's five
     if s.levels_kind == "visibility":
-        levels = parse_levels(visibility=s.levels or "-")  # FogLevel objects: their keys are vis<V>m
+        levels = tuple(parse_levels(visibility=s.levels or "-"))  # FogLevel objects: their keys are vis<V>m
     volumetric = s.fog_model == "volumetric"
-    return make_job(scene, bpy.path.abspath(s.output), camera=s.camera or None, frame_range=s.frame_range or None,
-                    class_map=class_map, levels=levels, samples=s.samples or None,
-                    resolution=s.resolution or None, seed=s.seed, gpu=s.use_gpu, quiet=True,
-                    fog=None if s.fog_model == "PRESET" else s.fog_model,
-                    fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None)
+    return SceneOptions(camera=s.camera or None, frame_range=s.frame_range or None, class_map=class_map,
+                        levels=levels, samples=s.samples or None, resolution=s.resolution or None, seed=s.seed,
+                        fog=None if s.fog_model == "PRESET" else s.fog_model,
+                        fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None)
+
+
+def scene_job(s, scene):
+    """*Source: current scene*: a scene-mode job over ``scene`` with the panel's options (refusals
+    are InputErrors raised before the output folder is touched)."""
+    from fogsim.render.blender.scene_mode import scene_job as make_job
+
+    return make_job(scene, bpy.path.abspath(s.output), scene_options(s), run_options(s))

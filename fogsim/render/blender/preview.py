@@ -15,6 +15,7 @@ import bpy
 import numpy as np
 
 from fogsim.render.frame import frame_name
+from fogsim.render.job_options import RunOptions
 from fogsim.render.preset import RenderConfig
 from fogsim.render.preview import FogPreview, preview_levels, read_preview
 
@@ -29,7 +30,7 @@ def render_preview(config: RenderConfig, index: int, beta: float, gpu: bool = Fa
 
     one = replace(config, levels=preview_levels(beta), frames=index + 1)
     with tempfile.TemporaryDirectory(prefix="fogsim_preview_") as tmp:
-        job = RenderJob(one, tmp, shard=(index, index + 1), resume=False, gpu=gpu, quiet=True)
+        job = RenderJob(one, tmp, RunOptions(shard=(index, index + 1), resume=False, gpu=gpu, quiet=True))
         progress(0.1)
         try:
             job.step()

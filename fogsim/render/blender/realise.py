@@ -4,7 +4,8 @@
 parents, its collections) and its render visibility; :func:`render_visibility` makes the viewport
 depsgraph see what a render sees; :func:`realise` turns every visible geometry instance at the
 current frame into a realised mesh object in the render scene (pass index = fogsim id), with
-:func:`clear` to remove them. The rules are in :mod:`fogsim.render.blender.scene_mode`'s docstring.
+:func:`fogsim.render.blender.scratch.clear` to remove them. The rules are in
+:mod:`fogsim.render.blender.scene_mode`'s docstring.
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ import numpy as np
 
 from fogsim.errors import InputError
 from fogsim.render.blender.library import mesh_triangles
+from fogsim.render.blender.scratch import Scratch
 from fogsim.render.scene_classes import PROPERTY, ClassMap
 from fogsim.scene.classes import is_labelled
 
@@ -176,15 +178,12 @@ def render_visibility(scene):
 
 # ----------------------------------------------------------------------------- one frame
 @dataclass
-class Realised:
-    """One frame's render scene content: what to remove afterwards, and the ground truth."""
+class Realised(Scratch):
+    """One frame's render scene content: what to remove afterwards (the :class:`Scratch` fields: the
+    realised objects, their meshes, the fog domain's datablocks in ``others``), and the ground truth."""
 
-    collection: object
-    objects: list = field(default_factory=list)
-    meshes: list = field(default_factory=list)
     labelled: dict = field(default_factory=dict)   # id → {"class", "key", "kind", "blender_objects"}
     parts: dict = field(default_factory=dict)      # id → [(world vertices, triangles, "")]
-    others: list = field(default_factory=list)     # (bpy.data collection name, datablock): the fog domain's
     background: int = 0                            # unlabelled geometry instances rendered
     skipped: Counter = field(default_factory=Counter)  # object types not rendered
 
@@ -202,7 +201,7 @@ def realise(user_scene, render_scene, classes: SceneClasses, camera) -> Realised
     object (pass index = fogsim id of a labelled object, 0 for background), lights as lights,
     and ``camera`` placed, all in a fresh collection of ``render_scene``."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    out = Realised(bpy.data.collections.new("fogsim_realised"))
+    out = Realised(collection=bpy.data.collections.new("fogsim_realised"))
     render_scene.collection.children.link(out.collection)
     ids: dict[tuple, int] = {}
     meshes: dict[tuple, tuple] = {}
@@ -260,14 +259,3 @@ def realise(user_scene, render_scene, classes: SceneClasses, camera) -> Realised
     out.objects.append(cam)
     render_scene.camera = cam
     return out
-
-
-def clear(realised: Realised) -> None:
-    """Remove what :func:`realise` created (objects, meshes, the collection)."""
-    for obj in realised.objects:
-        bpy.data.objects.remove(obj, do_unlink=True)
-    for mesh in realised.meshes:
-        bpy.data.meshes.remove(mesh)
-    for kind, block in realised.others:
-        getattr(bpy.data, kind).remove(block)
-    bpy.data.collections.remove(realised.collection)

@@ -4,8 +4,8 @@
     blender -b FILE.blend -P scripts/render_batch.py -- --scene current --out OUT
 
 The add-on's *Source: current scene* calls :func:`scene_job` (``scene_job(bpy.context.scene, out,
-…)``) and steps the job it returns with :class:`fogsim.render.loop.FrameLoop`, as it does a
-:class:`~fogsim.render.blender.job.RenderJob`; :meth:`SceneJob.close` puts the scene back.
+SceneOptions(…), RunOptions(…))``) and steps the job it returns with :class:`fogsim.render.loop.FrameLoop`, as
+it does a :class:`~fogsim.render.blender.job.RenderJob`; :meth:`SceneJob.close` puts the scene back.
 
 Per frame the user's scene is set to that frame and its evaluated depsgraph walked
 (:mod:`fogsim.render.blender.realise`): every visible geometry *instance* (plain objects, linked
@@ -32,6 +32,7 @@ within a frame).
 """
 from __future__ import annotations
 
+import math
 import time
 from collections import Counter
 from pathlib import Path
@@ -39,24 +40,22 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from fogsim.dataset.layout import DatasetLayout
-from fogsim.dataset.writer import finalize
-from fogsim.deps import package_versions
 from fogsim.errors import InputError
-from fogsim.fileio import remove_stale_parts
 from fogsim.fog.levels import parse_levels
-from fogsim.render.blender.compat import has_denoiser, has_mie_phase, set_multilayer_exr
+from fogsim.render.blender.compat import has_denoiser, set_multilayer_exr
 from fogsim.render.blender.cycles import render
 from fogsim.render.blender.device import use_device
-from fogsim.render.blender.job import RUN_FILE, RenderJob, dataset_parameters
+from fogsim.render.blender.job import RenderJob
 from fogsim.render.blender.output import blender_output
-from fogsim.render.blender.realise import SceneClasses, clear, realise, render_visibility
+from fogsim.render.blender.realise import SceneClasses, realise, render_visibility
+from fogsim.render.blender.scratch import clear
 from fogsim.render.fog_settings import fog_overrides
 from fogsim.render.frame import DescribedFrame, commit_frame, frame_name
+from fogsim.render.job_options import RunOptions, SceneOptions, check_frames, parse_frame_range
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
-from fogsim.render.preset import RenderConfig, check_size, frame_volumetric, parse_resolution, volumetric_settings
-from fogsim.render.scene_classes import PROPERTY, ClassMap
-from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
+from fogsim.render.preset import RenderConfig, check_size, frame_volumetric, parse_resolution
+from fogsim.render.scene_classes import PROPERTY
+from fogsim.runs import frame_seed
 from fogsim.scene.pose import blender_intrinsics, opencv_world_to_camera
 
 RENDER_SCENE = "fogsim_scene_mode"
@@ -81,18 +80,16 @@ def open_scene(arg: str, quiet: bool = False):
     return bpy.context.scene if arg == "current" else open_blend(arg, quiet)
 
 
-def parse_frame_range(text: str | None, scene) -> tuple[int, int, int]:
-    """``--frame-range S:E[:STEP]`` (inclusive, as Blender's) or the scene's own range."""
-    if not text:
-        return scene.frame_start, scene.frame_end, max(1, scene.frame_step)
+def frame_range(text: str | None, scene, source: str) -> tuple[int, int, int]:
+    """``--frame-range S:E[:STEP]`` (inclusive, as Blender's; :func:`fogsim.render.job_options.parse_frame_range`)
+    or the scene's own range, which is checked as the flag is (an InputError naming the .blend)."""
+    if text:
+        return parse_frame_range(text)
+    start, end, step = scene.frame_start, scene.frame_end, max(1, scene.frame_step)
     try:
-        parts = [int(v) for v in text.split(":")]
-        start, end, step = (parts + [1])[:3] if len(parts) in (2, 3) else (None, None, None)
-    except ValueError:
-        start = None
-    if start is None or step < 1 or end < start:
-        raise ValueError(f"--frame-range must look like START:END or START:END:STEP with END ≥ START and "
-                         f"STEP ≥ 1, got {text!r}")
+        check_frames(start, end, f"scene {scene.name!r}'s frame range")
+    except ValueError as exc:
+        raise InputError(source, str(exc)) from None
     return start, end, step
 
 
@@ -113,6 +110,28 @@ def scene_camera(scene, name: str | None, source: str):
         raise InputError(source, f"camera {cam.name!r} is {kind}; fogsim needs a perspective camera "
                                  "(depth, boxes and fog assume a pinhole)")
     return cam
+
+
+def check_libraries(source: str) -> None:
+    """Refuse a scene that links from a library file that is missing (Blender leaves its objects out
+    without an error: the refusal would otherwise be "no labelled object")."""
+    for lib in bpy.data.libraries:
+        path = Path(bpy.path.abspath(lib.filepath))
+        if not path.is_file():
+            raise InputError(source, f"links data from {lib.filepath!r}, which is missing ({path}): Blender "
+                                     "leaves its objects out; restore the library or make the data local")
+
+
+def render_size(scene, source: str) -> tuple[int, int]:
+    """The scene's render size in pixels (resolution × percentage), refused (naming the .blend and the
+    setting) when it makes no image."""
+    r = scene.render
+    w, h = int(r.resolution_x * r.resolution_percentage / 100), int(r.resolution_y * r.resolution_percentage / 100)
+    if w < 1 or h < 1:
+        raise InputError(source, f"scene {scene.name!r} renders {w}×{h} pixels (resolution {r.resolution_x}×"
+                                 f"{r.resolution_y} at {r.resolution_percentage} %); set the resolution or pass "
+                                 "--resolution WxH")
+    return w, h
 
 
 def _render_scene(user_scene, resolution):
@@ -161,20 +180,34 @@ def configure_scene(scene, samples: int | None, seed: int, gpu: bool) -> tuple[d
             "max_bounces": cy.max_bounces, "seed": cy.seed}, notes
 
 
-def camera_record(scene, camera_obj) -> dict:
-    """K (Blender's definition: focal, sensor size and fit, shift, pixel aspect, resolution) and
-    the OpenCV pose of the evaluated camera at the scene's current frame."""
+def camera_record(scene, camera_obj, size: tuple[int, int], source: str) -> dict:
+    """K (Blender's definition: focal, sensor size and fit, shift, pixel aspect, at the render ``size``
+    (w, h) in pixels) and the OpenCV pose of the evaluated camera at the scene's current frame; a camera that makes no
+    image (a focal length, sensor or pixel aspect that is not a positive number, a pose that is not
+    finite) is an InputError naming ``source``, the camera and the frame."""
+    from fogsim.camera import Intrinsics
+
     depsgraph = bpy.context.evaluated_depsgraph_get()
     ev = camera_obj.evaluated_get(depsgraph)
     cam, r = ev.data, scene.render
-    w = int(r.resolution_x * r.resolution_percentage / 100)
-    h = int(r.resolution_y * r.resolution_percentage / 100)
+    where = f"camera {camera_obj.name!r} at frame {scene.frame_current}"
+    lens = {"focal length (mm)": cam.lens, "sensor width (mm)": cam.sensor_width,
+            "sensor height (mm)": cam.sensor_height, "pixel aspect x": r.pixel_aspect_x,
+            "pixel aspect y": r.pixel_aspect_y}
+    bad = {k: v for k, v in lens.items() if not (math.isfinite(v) and v > 0)}
+    if bad or not (math.isfinite(cam.shift_x) and math.isfinite(cam.shift_y)):
+        raise InputError(source, f"{where}: unusable lens ({', '.join(f'{k} {v}' for k, v in bad.items()) or 'shift'})")
+    matrix = np.array(ev.matrix_world)
+    if not np.isfinite(matrix).all():
+        raise InputError(source, f"{where}: its position or rotation is not finite (NaN or inf in its world matrix)")
+    w, h = size
     K = blender_intrinsics(cam.lens, cam.sensor_width, cam.sensor_height, cam.sensor_fit, cam.shift_x,
                            cam.shift_y, w, h, r.pixel_aspect_x, r.pixel_aspect_y)
-    from fogsim.camera import Intrinsics
-
-    return {"intrinsics": Intrinsics.from_dict(K).to_dict(),
-            "world_to_camera": opencv_world_to_camera(np.array(ev.matrix_world)).tolist(),
+    try:
+        K = Intrinsics.from_dict(K).to_dict()
+    except (InputError, ValueError) as exc:
+        raise InputError(source, f"{where}: {exc}") from None
+    return {"intrinsics": K, "world_to_camera": opencv_world_to_camera(matrix).tolist(),
             "blender": {"object": camera_obj.name, "lens_mm": cam.lens, "sensor_mm": [cam.sensor_width,
                         cam.sensor_height], "sensor_fit": cam.sensor_fit, "shift": [cam.shift_x, cam.shift_y],
                         "pixel_aspect": [r.pixel_aspect_x, r.pixel_aspect_y],
@@ -183,74 +216,57 @@ def camera_record(scene, camera_obj) -> dict:
 
 # ----------------------------------------------------------------------------- the job
 class SceneJob(RenderJob):
-    """The frames of one shard of a scene-mode dataset (the same ``todo`` / ``step`` / ``finish``
-    / ``close`` as :class:`~fogsim.render.blender.job.RenderJob`, whose volumetric fog renders it
-    shares). Build it with :func:`scene_job`."""
+    """The frames of one shard of a scene-mode dataset: :class:`~fogsim.render.blender.job.RenderJob`'s
+    set-up (:meth:`~fogsim.render.blender.job.RenderJob.claim`), ``todo`` / ``step`` / ``finish`` /
+    ``close``, and its volumetric fog renders, over a user's scene. ``options``: what to render
+    (:class:`~fogsim.render.job_options.SceneOptions`); ``run``: the shard, resume, GPU, quiet."""
 
-    def __init__(self, scene, out, *, source: str, camera: str | None = None, frame_range: str | None = None,
-                 class_map: ClassMap = ClassMap(), levels: str | list | None = None, samples: int | None = None,
-                 resolution: str | None = None, seed: int = 0, shard=(0, 1), resume: bool = True,
-                 gpu: bool = False, quiet: bool = False, max_pixels: int | None = None,
-                 fog: str | None = None, fog_medium: str | None = None, fog_model: dict | None = None):
-        self.user_scene, self.quiet, self.gpu, self.samples = scene, quiet, gpu, samples
+    def __init__(self, scene, out, options: SceneOptions = SceneOptions(), run: RunOptions = RunOptions()):
+        self.user_scene, self.options, self.run = scene, options, run
+        self.gpu, self.quiet, self.samples = run.gpu, run.quiet, options.samples
         self.frame_before = scene.frame_current
-        self.render_scene = self.scene = None
+        self.render_scene = self.scene = self.assets = None
         try:
-            self._setup(out, source, camera, frame_range, class_map, levels, resolution, seed, shard, resume,
-                        max_pixels, fog_overrides(dict(fog_model or {}), fog, fog_medium))
+            self._setup(out)
         except BaseException:  # a refusal leaves the user's scene as it was
             self.close()
             raise
 
-    def _setup(self, out, source, camera, frame_range, class_map, levels, resolution, seed, shard, resume,
-               max_pixels, fog_model) -> None:
+    def _setup(self, out) -> None:
         from fogsim.render.preset import MAX_PIXELS
 
-        self.layout = DatasetLayout(out)
-        self.camera = scene_camera(self.user_scene, camera, source)
-        scene, samples = self.user_scene, self.samples
-        start, end, step = parse_frame_range(frame_range, scene)
+        o, scene = self.options, self.user_scene
+        source = o.source or bpy.data.filepath or f"scene {scene.name!r}"
+        check_libraries(source)
+        self.camera = scene_camera(scene, o.camera, source)
+        start, end, step = frame_range(o.frame_range, scene, source)
         self.frames = range(start, end + 1, step)  # Blender frame numbers, by dataset frame index
-        res = parse_resolution(resolution) if resolution else None
-        w = res[0] if res else int(scene.render.resolution_x * scene.render.resolution_percentage / 100)
-        h = res[1] if res else int(scene.render.resolution_y * scene.render.resolution_percentage / 100)
-        if why := check_size(w, h, max_pixels or MAX_PIXELS):
+        res = parse_resolution(o.resolution) if o.resolution else None
+        w, h = res if res else render_size(scene, source)
+        if why := check_size(w, h, o.max_pixels or MAX_PIXELS):
             raise InputError(source, f"resolution {why}")
-        self.classes = SceneClasses(scene, class_map)
+        self.classes = SceneClasses(scene, o.class_map)
         self.config = RenderConfig(
             name="scene", source=source,
             style={"scene_mode": {"file": bpy.data.filepath or None, "scene": scene.name, "camera": self.camera.name,
                                   "frame_range": [self.frames.start, self.frames.stop - 1, self.frames.step],
-                                  "class_map": class_map.to_dict()}},
+                                  "class_map": o.class_map.to_dict()}},
             camera={"object": self.camera.name}, resolution=(w, h),
-            quality={"samples": samples} if samples else {},  # {}: the scene's own Cycles settings
-            levels=_levels(levels), fog_model=fog_model,
-            frames=len(self.frames), seed=seed)
-        self.fog = volumetric_settings(self.config)  # None: Koschmieder fog (post-process)
+            quality={"samples": o.samples} if o.samples else {},  # {}: the scene's own Cycles settings
+            levels=_levels(o.levels),
+            fog_model=fog_overrides(dict(o.fog_model or {}), o.fog, o.fog_medium, o.fog_scale),
+            frames=len(self.frames), seed=o.seed)
+        self.claim(out, lambda first: setattr(self, "summary", self._check(first, source)))
         if self.fog is not None and self.fog["samples"] is None:  # the scene's own samples, not a preset's
-            self.fog = {**self.fog, "samples": samples or scene.cycles.samples}
-        if self.fog is not None and self.fog["phase"] == "MIE" and not has_mie_phase():
-            raise InputError(source, f"fog_model.volumetric.phase \"MIE\" needs Blender 4.3 or later "
-                                     f"(this is {bpy.app.version_string}); use \"HG\" with g = 0.85")
-        i, n = shard
-        mine = [k for k in range(len(self.frames)) if k % n == i]
-        self.summary = self._check(mine[0] if mine else 0, source)  # refusals before anything is written
-        Path(out).mkdir(parents=True, exist_ok=True)
-        claim_output(Path(out) / RUN_FILE, dataset_parameters(self.config),
-                     {"blender": bpy.app.version_string, "config": self.config.to_dict()}, what="dataset")
-        self.mine = {frame_name(k) for k in mine}
-        remove_stale_parts(self.layout.root)
-        remove_render_tmp(self.layout, self.mine)
-        self.todo = [k for k in mine if not (resume and self.layout.frame_done(frame_name(k)))]
-        self.skipped = len(mine) - len(self.todo)
-        self.done: list[dict] = []
+            self.fog = {**self.fog, "samples": o.samples or scene.cycles.samples}
         self.render_scene = self.scene = _render_scene(scene, res)  # self.scene: RenderJob's fog renders
-        self.notes = configure_scene(self.render_scene, samples, 0, self.gpu)[1]
+        self.notes = configure_scene(self.render_scene, o.samples, 0, self.gpu)[1]
 
     def _check(self, index: int, source: str) -> str:
         """Realise frame ``index`` once: a scene with no labelled visible object is refused; returns
         the per-class count of labelled objects and instances."""
         self.user_scene.frame_set(self.frames[index])
+        camera_record(self.user_scene, self.camera, self.config.resolution, source)  # lens and pose make an image
         probe = bpy.data.scenes.new("fogsim_probe")
         try:
             with render_visibility(self.user_scene):
@@ -286,7 +302,7 @@ class SceneJob(RenderJob):
                 "source": {**self.config.style["scene_mode"], "blender_frame": frame_no},
                 "background_instances": got.background}
         try:
-            desc["camera"] = camera_record(self.render_scene, self.camera)
+            desc["camera"] = camera_record(self.render_scene, self.camera, self.config.resolution, self.config.source)
             passes = render(self.render_scene, render_tmp_dir(self.layout) / f"{name}.left.exr", self.quiet)
             t2 = time.perf_counter()
             if self.fog is not None:  # one Combined-only render per β > 0 with the fog layer, same seed
@@ -307,15 +323,6 @@ class SceneJob(RenderJob):
         self.done.append(meta)
         return meta
 
-    def finish(self) -> None:
-        """Write the dataset-level files (COCO, YAMLs, manifest, contact sheet) over all done frames."""
-        frames = self.layout.done_frames()
-        manifest = {"preset": self.config.to_dict(), "seed": self.config.seed,
-                    "frame_seeds": {f: frame_seed(self.config.seed, int(f)) for f in frames},
-                    "frame_seed_rule": FRAME_SEED_RULE, "blender": bpy.app.version_string,
-                    "versions": package_versions()}
-        finalize(self.layout, self.config.levels, manifest, self.config.train_fraction, seed=self.config.seed)
-
     def close(self) -> None:
         """Remove the render scene and temporary renders; the user's scene back at its frame."""
         if hasattr(self, "mine"):
@@ -333,14 +340,10 @@ def _levels(levels) -> tuple:
     return tuple(levels)
 
 
-def scene_job(scene, out, **options) -> SceneJob:
+def scene_job(scene, out, options: SceneOptions = SceneOptions(), run: RunOptions = RunOptions()) -> SceneJob:
     """The add-on's *Source: current scene* (and the CLI's ``--scene``): a :class:`SceneJob` over
-    ``scene`` writing the dataset to ``out``. ``options``: ``source`` (what error messages name;
-    default the .blend path), ``camera``, ``frame_range`` ("S:E[:STEP]"), ``class_map``
-    (:class:`~fogsim.render.scene_classes.ClassMap`), ``levels`` (a ``--levels`` string or a list of
-    :class:`~fogsim.fog.levels.FogLevel`, e.g. from visibilities), ``samples``, ``resolution``
-    ("WxH"), ``seed``, ``shard``, ``resume``, ``gpu``, ``quiet``, ``fog`` ("koschmieder" | "volumetric"),
-    ``fog_medium``, ``fog_model`` (a preset's ``fog_model`` block). Every refusal (no labelled object,
-    missing / orthographic / panoramic camera …) is an InputError raised before ``out`` is touched."""
-    options.setdefault("source", bpy.data.filepath or f"scene {scene.name!r}")
-    return SceneJob(scene, out, **options)
+    ``scene`` writing the dataset to ``out`` (:class:`~fogsim.render.job_options.SceneOptions`: what,
+    checked first; :class:`~fogsim.render.job_options.RunOptions`: how). Every refusal (no labelled
+    object, a missing linked library, a missing / orthographic / panoramic camera, a camera or render
+    size that makes no image …) is an InputError raised before ``out`` is touched."""
+    return SceneJob(scene, out, options.check(), run)
