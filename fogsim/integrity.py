@@ -8,62 +8,31 @@ chunk with every chunk's CRC right; what the decoder says while decoding counts 
 from __future__ import annotations
 
 import io
-import os
 import re
-import sys
-import tempfile
 import zlib
 from contextlib import contextmanager, redirect_stderr, redirect_stdout
+
+from fogsim.console import captured_fds
 
 
 @contextmanager
 def native_output():
     """Capture what native libraries (libjpeg, libpng, OpenEXR) print to file descriptors 1
-    and 2 while the block runs, instead of letting it reach the user's terminal.
+    and 2 — and what extensions print through ``sys.stdout`` (pybind11's py::print) — while the
+    block runs, instead of letting it reach the user's terminal (:func:`fogsim.console.captured_fds`).
 
     Yields a list that holds the captured text (one string) once the block has ended. The
     callers turn what matters in it into an :class:`InputError`; the rest is dropped. Not
     for use from several threads at once (the descriptors are process-wide); fogsim decodes
-    in one thread per process. Without a usable temporary file nothing is captured.
+    in one thread per process. Without file descriptors to redirect nothing is captured.
     """
     said: list[str] = []
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (AttributeError, OSError, ValueError):
-            pass
-    _flush_c_stdio()  # nothing written before the block may land in it
+    python_level = io.StringIO()
     try:
-        tmp = tempfile.TemporaryFile()
-        saved = [os.dup(1), os.dup(2)]
-    except OSError:
-        yield said
-        return
-    python_level = io.StringIO()  # extensions may print through sys.stdout (pybind11's py::print)
-    try:
-        os.dup2(tmp.fileno(), 1)
-        os.dup2(tmp.fileno(), 2)
-        with redirect_stdout(python_level), redirect_stderr(python_level):
+        with captured_fds() as lines, redirect_stdout(python_level), redirect_stderr(python_level):
             yield said
     finally:
-        _flush_c_stdio()  # what C's stdio buffered (stdout to a pipe or file is) belongs here
-        os.dup2(saved[0], 1)
-        os.dup2(saved[1], 2)
-        for fd in saved:
-            os.close(fd)
-        tmp.seek(0)
-        said.append(tmp.read().decode("utf-8", "replace") + python_level.getvalue())
-        tmp.close()
-
-
-def _flush_c_stdio() -> None:
-    """fflush(NULL): write out every C stdio buffer (C++ iostreams write through it)."""
-    try:
-        import ctypes
-
-        ctypes.CDLL(None).fflush(None)
-    except (OSError, AttributeError, TypeError):  # no C library to ask (unusual platforms)
-        pass
+        said.append("\n".join(lines["stdout"] + lines["stderr"]) + python_level.getvalue())
 
 
 def first_line(text: str, strip: str = "") -> str:

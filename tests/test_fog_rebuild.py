@@ -18,7 +18,8 @@ from fogsim.fileio import read_depth_file, read_rgb_exr, read_uint16_map
 from fogsim.fog.model import transmission
 from fogsim.fog.physics import interior_mask
 from fogsim.render.fog_rebuild import fit_fog_terms, low_size, rebuild
-from fogsim.render.preset import load_render_preset, volumetric_settings
+from fogsim.render.fog_settings import volumetric_settings
+from fogsim.render.preset import load_render_preset
 from test_blender import SCRIPTS, run, runner
 from test_volumetric import EA_PRESET, bin_bias, koschmieder_linear
 

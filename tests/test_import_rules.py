@@ -63,9 +63,13 @@ LAYERS = (
     ("document schemas", {"fogsim.schema"}),
     ("run bookkeeping", {"fogsim.runs"}),
     ("files, dependencies, camera, pictures", {"fogsim.fileio", "fogsim.deps", "fogsim.camera", "fogsim.viz"}),
-    ("basics", {"fogsim.errors", "fogsim._version", "fogsim.colour", "fogsim.boxes", "fogsim.integrity",
-                "fogsim.console"}),
+    ("basics", {"fogsim.errors", "fogsim._version", "fogsim.colour", "fogsim.boxes", "fogsim.integrity"}),
+    ("terminal output", {"fogsim.console"}),  # below integrity: its output capture is the one there is
 )
+
+#: Rules inside one package: its modules outside the inner package may not import it (the inner
+#: package is a floor above them). ``render/`` is renderer-agnostic; only ``render/blender/`` is Blender.
+INNER_LAYERS = (("fogsim.render", "fogsim.render.blender"),)
 
 
 @dataclass(frozen=True)
@@ -135,7 +139,7 @@ def _internal(name: str) -> str | None:
 
 class _Visitor(ast.NodeVisitor):
     def __init__(self, module: str, lines: list[str]):
-        self.module, self.lines, self.depth, self.edges = module, lines, 0, []
+        self.module, self.lines, self.depth, self.edges, self.dynamic = module, lines, 0, [], []
 
     def _function(self, node):
         self.depth += 1
@@ -156,9 +160,11 @@ class _Visitor(ast.NodeVisitor):
         # importlib.import_module("x") / __import__("x") / fogsim.deps.require("x", extra): an import too
         f = node.func
         name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else None
-        if (name in ("import_module", "__import__", "require") and node.args and isinstance(node.args[0], ast.Constant)
-                and isinstance(node.args[0].value, str)):
-            self._add(node, [node.args[0].value])
+        if name in ("import_module", "__import__", "require") and node.args:
+            if isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str):
+                self._add(node, [node.args[0].value])
+            else:  # a computed name: no rule could see where it points
+                self.dynamic.append(f"{self.module} line {node.lineno}: {self.lines[node.lineno - 1].strip()}")
         self.generic_visit(node)
 
     def visit_ImportFrom(self, node: ast.ImportFrom):
@@ -168,14 +174,20 @@ class _Visitor(ast.NodeVisitor):
         self._add(node, subs + ([base] if len(subs) < len(node.names) else []))
 
 
-def imports_of(module: str) -> list[Edge]:
-    source = MODULES[module].read_text(encoding="utf-8")
+def scan(module: str, source: str | None = None) -> _Visitor:
+    source = MODULES[module].read_text(encoding="utf-8") if source is None else source
     visitor = _Visitor(module, source.splitlines())
-    visitor.visit(ast.parse(source, filename=str(MODULES[module])))
-    return visitor.edges
+    visitor.visit(ast.parse(source, filename=str(MODULES.get(module, module))))
+    return visitor
+
+
+def imports_of(module: str) -> list[Edge]:
+    return scan(module).edges
 
 
 EDGES = {m: imports_of(m) for m in MODULES}
+#: the one module that may import by a computed name: fogsim.deps.require's own import_module
+DYNAMIC_IMPORTER = "fogsim.deps"
 
 
 def graph_successors(module: str) -> list[tuple[str, Edge]]:
@@ -270,6 +282,10 @@ def layer_violations(graph: Graph) -> list[str]:
         here = layer_unit(module)
         for target, edge in targets:
             there = layer_unit(target)
+            for package, inner in INNER_LAYERS:
+                if _within(module, package) and not _within(module, inner) and _within(target, inner):
+                    bad.append(f"{edge}\n      {module} is in {package} outside {inner}, the floor above it "
+                               f"(INNER_LAYERS)")
             if here is None or there is None or here[1] == there[1] or there[0] > here[0]:
                 continue  # unplaced modules are reported by their own test
             how = "a sibling package of the same layer" if there[0] == here[0] else "a higher layer"
@@ -351,6 +367,16 @@ def test_dynamic_imports_by_literal_name_count():
                                                              ("torch.nn", 4, True), ("ultralytics", 6, True)]
 
 
+def test_imports_by_a_computed_name_are_refused():
+    """A name the scanner cannot read (``import_module(TABLE[name])``) would hide an import from every rule."""
+    src = "import importlib\nNAMES = {}\ndef f(n):\n    return importlib.import_module(NAMES[n])\n"
+    assert scan("fogsim.errors", src).dynamic == ["fogsim.errors line 4: return importlib.import_module(NAMES[n])"]
+    bad = [d for m in MODULES if m != DYNAMIC_IMPORTER for d in scan(m).dynamic]
+    if bad:
+        pytest.fail(_report("imports by a computed name (write the import out, as a lazy import):", bad),
+                    pytrace=False)
+
+
 def test_relative_imports_resolve():
     tree = ast.parse("from . import model\nfrom .levels import FogLevel\nfrom .. import camera\n"
                      "from ..depth.fill import fill_holes\n")
@@ -411,6 +437,54 @@ def test_no_private_name_crosses_modules():
                     pytrace=False)
 
 
+def defined_names(source: str) -> set[str]:
+    """The names a module defines at its top level (functions, classes, assignments; inside a
+    top-level ``if`` / ``try`` too), not those it imports."""
+    names: set[str] = set()
+
+    def take(nodes):
+        for node in nodes:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                names.add(node.name)
+            elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+                for target in node.targets if isinstance(node, ast.Assign) else [node.target]:
+                    names.update(n.id for n in ast.walk(target) if isinstance(n, ast.Name))
+            elif isinstance(node, (ast.If, ast.Try)):
+                take(node.body + node.orelse + getattr(node, "finalbody", [])
+                     + [n for h in getattr(node, "handlers", []) for n in h.body])
+    take(ast.parse(source).body)
+    return names
+
+
+DEFINED = {m: defined_names(p.read_text(encoding="utf-8")) for m, p in MODULES.items()}
+
+
+def second_doors(module: str, source: str | None = None) -> list[str]:
+    """``from fogsim.x import Name`` where x is a module (not a package face) that does not define
+    Name but only imports it: the name has a first door, its defining module."""
+    source = MODULES[module].read_text(encoding="utf-8") if source is None else source
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        base = resolve_from(module, node)
+        if base not in MODULES or _is_package(base):
+            continue  # package __init__ faces may re-export
+        for a in node.names:
+            if f"{base}.{a.name}" not in MODULES and a.name not in DEFINED[base] and a.name != "*":
+                out.append(f"{module} line {node.lineno}: {base}.{a.name} (not defined there)")
+    return out
+
+
+def test_a_name_is_imported_from_the_module_that_defines_it():
+    assert second_doors("fogsim.errors", "from fogsim.fog.scatter import Intrinsics, scatter\n") == [
+        "fogsim.errors line 1: fogsim.fog.scatter.Intrinsics (not defined there)"]  # it works
+    bad = [item for m in MODULES for item in second_doors(m)]
+    if bad:
+        pytest.fail(_report("names imported through a module that only re-exports them (import from where "
+                            "they are defined):", bad), pytrace=False)
+
+
 def test_the_layer_and_circle_checks_catch_what_they_forbid():
     """Guards the two rules above against passing vacuously, on made-up imports."""
     def edge(module, target, line=1):
@@ -430,6 +504,18 @@ def test_the_layer_and_circle_checks_catch_what_they_forbid():
             "fogsim.errors": [("fogsim.fileio", edge("fogsim.errors", "fogsim.fileio", 5))],
             "fogsim.fileio": [("fogsim.camera", edge("fogsim.fileio", "fogsim.camera", 7))],
             "fogsim.colour": [("fogsim.errors", edge("fogsim.colour", "fogsim.errors"))]}
+    # a lazy import of render.blender from render/ (outside it), and an upward import_module literal
+    lazy = scan("fogsim.render.frame", MODULES["fogsim.render.frame"].read_text()
+                + "\n\ndef _x():\n    from fogsim.render.blender import build\n")
+    upward = scan("fogsim.fog.model",
+                  "import importlib\ndef f():\n    importlib.import_module('fogsim.render.frame')\n")
+    made = {"fogsim.render.frame": [(_internal(e.target), e) for e in lazy.edges if _within(e.target, "fogsim")],
+            "fogsim.fog.model": [(_internal(e.target), e) for e in upward.edges if _within(e.target, "fogsim")]}
+    found = layer_violations(made)
+    assert any("INNER_LAYERS" in b and "fogsim.render.blender" in b for b in found), found
+    assert any("fogsim.fog.model" in b and "a higher layer" in b and "import_module" in b for b in found), found
+    assert not layer_violations({"fogsim.render.blender.job": [("fogsim.render.blender.build",
+                                                                edge("fogsim.render.blender.job", "x"))]})
     circles = import_circles(loop)
     assert len(circles) == 1 and sorted(m for m, _ in circles[0]) == ["fogsim.camera", "fogsim.errors", "fogsim.fileio"]
     assert import_circles({k: v for k, v in loop.items() if k != "fogsim.fileio"}) == []

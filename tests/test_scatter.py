@@ -18,14 +18,16 @@ from fogsim.fog.scatter import (
     KOSCHMIEDER,
     ScatterFogger,
     direct_planes,
-    elevation_sine,
     exposure_gain,
     load_params,
     load_params_file,
     median_luminance,
-    reduce_points,
     scatter,
     shipped_params_path,
+)
+from fogsim.fog.scatter_optics import (
+    elevation_sine,
+    reduce_points,
     smooth_elevation_sine,
     splat,
     up_from_world_to_camera,

@@ -20,7 +20,8 @@ from fogsim.errors import InputError
 from fogsim.fileio import read_depth_file, read_image, read_rgb_exr, read_uint16_map
 from fogsim.fog.model import koschmieder
 from fogsim.fog.physics import far_luminance, interior_mask
-from fogsim.render.preset import frame_volumetric, load_render_preset, volumetric_settings
+from fogsim.render.fog_settings import frame_volumetric, volumetric_settings
+from fogsim.render.preset import load_render_preset
 from fogsim.render.volumetric import auto_exposure
 from test_blender import KINDS, ROOT, SCRIPTS, dataset_digest, run, runner
 

@@ -12,17 +12,19 @@ library that raises :class:`~fogsim.errors.MissingDependency` with the install l
 """
 from __future__ import annotations
 
-import importlib
-
 from fogsim.augment.spec import Draw, FogSpec, apply_fog, random_fog
 
-_LAZY = {"Fog": "fogsim.augment.albu", "fog_batch": "fogsim.augment.torch_fog",
-         "draw_batch": "fogsim.augment.torch_fog", "FogV2": "fogsim.augment.torch_fog"}
-
-__all__ = ["Draw", "FogSpec", "apply_fog", "random_fog", *_LAZY]
+__all__ = ["Draw", "FogSpec", "apply_fog", "random_fog", "Fog", "fog_batch", "draw_batch", "FogV2"]
 
 
 def __getattr__(name: str):
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
+    """The optional front ends, imported on first use (each import written out: the layer test reads it)."""
+    if name == "Fog":
+        from fogsim.augment.albu import Fog
+
+        return Fog
+    if name in ("fog_batch", "draw_batch", "FogV2"):
+        from fogsim.augment import torch_fog
+
+        return getattr(torch_fog, name)
     raise AttributeError(f"module 'fogsim.augment' has no attribute {name!r}")

@@ -134,7 +134,7 @@ def load_frame(out: Path, frame: str) -> dict:
     """One frame of the runs under ``out`` as :meth:`Comparison.add_frame` keyword arguments
     (``name``, ``clear_linear``, ``distance`` (ray), ``mask``, ``renders``, ``classes``, ``camera``,
     ``up``, ``night``), plus ``meta`` (the clear run's) and ``same_labels``."""
-    from fogsim.fog.scatter import up_from_world_to_camera
+    from fogsim.fog.scatter_optics import up_from_world_to_camera
 
     clear, fog0, fog1 = (DatasetLayout(out / name) for name in RUNS)
     meta = read_meta(clear, frame)

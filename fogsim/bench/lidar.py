@@ -19,8 +19,8 @@ import cv2
 import numpy as np
 
 from fogsim.bench.timing import median_ms
-from fogsim.camera import planar_to_ray
-from fogsim.depth.complete import DEFAULT_METHOD, complete, holdout_split, pixel_index, sparse_image
+from fogsim.camera import pixel_index, planar_to_ray, sparse_image
+from fogsim.depth.complete import DEFAULT_METHOD, complete, holdout_split
 from fogsim.depth.metrics import depth_metrics
 
 TOP_ROWS, TOP_ROW_PX, ROW_STEP_PX, COL_STEP_PX = 64, 576.0, 11.0, 4.9

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import argparse
 
-from fogsim.render.fog_settings import FOG_MEDIA
+from fogsim.schema.vocabulary import FOG_MEDIA
 
 
 def add_parsers(sub) -> None:

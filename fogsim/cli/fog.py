@@ -5,12 +5,13 @@ import argparse
 import sys
 from pathlib import Path
 
-from fogsim.dataset.writer import TRAIN_FRACTION, check_train_fraction
+from fogsim.dataset.writer import check_train_fraction
 from fogsim.errors import EXIT_FAILED, EXIT_OK, InputError
 from fogsim.fileio import MAX_PIXELS
 from fogsim.fog.labelled import SPLIT_BY
 from fogsim.fog.model import airlight_rgb, check_heterogeneity
 from fogsim.readers.base import DEPTH_ENCODINGS
+from fogsim.schema.presets import TRAIN_FRACTION
 from fogsim.schema.vocabulary import KERNELS, POST_PROCESS_KINDS, SPACES
 
 

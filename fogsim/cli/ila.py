@@ -131,7 +131,8 @@ def _ila_fill(args) -> int:
     from fogsim.depth.ila import ila_fill
     from fogsim.fileio import read_image, write_image
     from fogsim.fog.fill import fill_holes, register_fill
-    from fogsim.readers.cityscapes import cityscapes_samples, read_cityscapes_depth
+    from fogsim.readers.cityscapes import cityscapes_samples
+    from fogsim.readers.cityscapes_files import read_cityscapes_depth
 
     fill = ila_fill(args.checkpoint)  # loads and checks the checkpoint before anything is written
     samples = cityscapes_samples(args.data, args.split)

@@ -21,10 +21,10 @@ import time
 from pathlib import Path
 
 from fogsim.camera import CITYSCAPES_BASELINE_M
-from fogsim.dataset.writer import TRAIN_FRACTION
 from fogsim.errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE, InputError, MissingDependency, run_command
-from fogsim.render.fog_settings import FOG_KINDS, FOG_MEDIA
-from fogsim.render.preset import MAX_PIXELS
+from fogsim.fileio import MAX_PIXELS
+from fogsim.schema.presets import TRAIN_FRACTION
+from fogsim.schema.vocabulary import FOG_KINDS, FOG_MEDIA
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

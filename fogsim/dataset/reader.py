@@ -15,7 +15,7 @@ from fogsim.camera import Intrinsics, StereoCamera, planar_to_ray
 from fogsim.dataset.layout import PARTS, DatasetLayout
 from fogsim.errors import InputError
 from fogsim.fileio import read_depth_file, read_image, read_json
-from fogsim.readers.cityscapes import read_cityscapes_depth
+from fogsim.readers.cityscapes_files import read_cityscapes_depth
 from fogsim.schema.base import check, load_json
 from fogsim.schema.documents import CocoFile, DatasetManifest, FrameMeta
 

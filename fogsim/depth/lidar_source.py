@@ -30,8 +30,8 @@ from typing import Callable
 
 import numpy as np
 
-from fogsim.camera import Intrinsics
-from fogsim.depth.complete import DEFAULT_METHOD, METHODS, SKY_RULES, complete, holdout_split, pixel_index, sparse_image
+from fogsim.camera import Intrinsics, pixel_index, sparse_image
+from fogsim.depth.complete import DEFAULT_METHOD, METHODS, SKY_RULES, complete, holdout_split
 from fogsim.errors import InputError
 from fogsim.schema.base import load_npz
 from fogsim.schema.documents import Holdout as HoldoutFile

@@ -124,7 +124,7 @@ def score_holdout(pred, holdout_root, pred_kind: str = "planar", suffix: str = "
                   png_scale: float | None = None, intrinsics: Intrinsics | None = None) -> dict:
     """Score the prediction folder ``pred`` against every held-out point under ``holdout_root``
     (ray distance; a planar prediction is converted at the points)."""
-    from fogsim.depth.complete import pixel_index
+    from fogsim.camera import pixel_index
     from fogsim.depth.lidar_source import read_holdout
 
     _check_kind(pred_kind)

@@ -38,7 +38,7 @@ from fogsim._version import __version__
 from fogsim.camera import Intrinsics
 from fogsim.dataset.layout import DatasetLayout, frame_from_key
 from fogsim.dataset.reader import frame_records
-from fogsim.dataset.writer import TRAIN_FRACTION, check_train_fraction, finalize, write_frame_labels
+from fogsim.dataset.writer import check_train_fraction, finalize, write_frame_labels
 from fogsim.errors import InputError
 from fogsim.fileio import (
     MAX_PIXELS,
@@ -60,6 +60,7 @@ from fogsim.readers.base import Sample
 from fogsim.runs import claim_output, sample_seed
 from fogsim.schema.base import load_json
 from fogsim.schema.documents import FogFrameMeta, FogRunFile
+from fogsim.schema.presets import TRAIN_FRACTION
 from fogsim.schema.vocabulary import model_word
 
 RUN_FILE = "fogsim_run.json"

@@ -73,19 +73,17 @@ from fogsim.colour import (
     srgb_luminance,
     srgb_to_linear,
 )
-from fogsim.fog.model import SPACES, airlight_rgb, check_beta, check_distance
+from fogsim.fog.model import airlight_rgb, check_beta, check_distance
 from fogsim.fog.scatter_optics import (
-    elevation_sine,
     focal_px,
-    gaussian_by_boxes,
     psf_sigma_rad,
     reduce_points,
     smooth_elevation_sine,
     splat,
-    up_from_world_to_camera,
 )
 from fogsim.schema.base import load_json
 from fogsim.schema.scatter import ScatterParameters, ScatterParamsFile
+from fogsim.schema.vocabulary import SPACES
 
 #: the shipped parameter file (fitted by ``fogsim fit-fog``)
 PARAMS_FILE = "scatter_params.json"
@@ -455,6 +453,5 @@ def scatter(image: np.ndarray, distance: np.ndarray, beta: float, airlight=255.0
     return ScatterFogger(image, distance, airlight, space, params, intrinsics, up)(beta)
 
 
-__all__ = ["KOSCHMIEDER", "PARAMS_FILE", "ScatterFogger", "ScatterParams", "elevation_sine",
-           "gaussian_by_boxes", "load_params", "load_params_file", "psf_sigma_rad", "reduce_points", "scatter",
-           "shipped_params_path", "smooth_elevation_sine", "splat", "up_from_world_to_camera"]
+__all__ = ["KOSCHMIEDER", "PARAMS_FILE", "ScatterFogger", "ScatterParams", "load_params", "load_params_file",
+           "scatter", "shipped_params_path"]

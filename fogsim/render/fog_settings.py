@@ -17,19 +17,10 @@ from __future__ import annotations
 
 from fogsim.fog.engine import FogSettings
 from fogsim.schema.base import check
-from fogsim.schema.presets import (
-    DAY_SKY_STRENGTH,
-    FOG_EXPOSURES,
-    FOG_KINDS,
-    FOG_MEDIA,
-    MAX_FOG_EXTENT_M,
-    MAX_SAMPLES,
-    FogModel,
-    Volumetric,
-)
+from fogsim.schema.presets import DAY_SKY_STRENGTH, MAX_FOG_EXTENT_M, FogModel, Volumetric
 
-__all__ = ["FOG_EXPOSURES", "FOG_KINDS", "FOG_MEDIA", "MAX_FOG_EXTENT_M", "MAX_SAMPLES", "VOLUMETRIC_DEFAULTS",
-           "fog_model", "fog_overrides", "fog_settings", "frame_volumetric", "volumetric_settings"]
+__all__ = ["VOLUMETRIC_DEFAULTS", "fog_model", "fog_overrides", "fog_settings", "frame_volumetric",
+           "volumetric_settings"]
 
 #: Defaults of ``fog_model.volumetric`` (declared in :class:`fogsim.schema.presets.Volumetric`).
 VOLUMETRIC_DEFAULTS = Volumetric().model_dump()

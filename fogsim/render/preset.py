@@ -27,25 +27,17 @@ from fogsim.fileio import MAX_PIXELS, pixel_limit_problem
 from fogsim.fog.levels import FogLevel, parse_levels
 from fogsim.presets import preset_path
 from fogsim.render.fog_settings import (
-    FOG_EXPOSURES,
-    FOG_KINDS,
-    FOG_MEDIA,
-    MAX_FOG_EXTENT_M,
-    MAX_SAMPLES,
-    VOLUMETRIC_DEFAULTS,
     fog_overrides,
     fog_settings,
-    frame_volumetric,
-    volumetric_settings,
 )
 from fogsim.scene.library import assets_dir, library_files
 from fogsim.schema.base import Closed, check, int_in, load_json, number_in
 from fogsim.schema.presets import (
     ASSET_CLASSES,
+    MAX_SAMPLES,
     MAX_SIDE,
     MIN_SIDE,
     TRAIN_FRACTION,
-    VEHICLES,
     Assets,
     Camera,
     DatasetPreset,
@@ -55,11 +47,10 @@ from fogsim.schema.presets import (
     Style,
     check_lighting,
 )
+from fogsim.schema.vocabulary import FOG_KINDS, FOG_MEDIA
 
-__all__ = ["MAX_PIXELS", "MAX_SIDE", "MIN_SIDE", "MAX_SAMPLES", "VEHICLES", "RenderConfig", "Overrides",
-           "check_overrides", "check_lighting", "check_size", "parse_resolution", "load_render_preset",
-           "fog_settings", "volumetric_settings", "frame_volumetric", "FOG_KINDS", "FOG_MEDIA", "FOG_EXPOSURES",
-           "MAX_FOG_EXTENT_M", "VOLUMETRIC_DEFAULTS", "COMPONENTS"]
+__all__ = ["RenderConfig", "Overrides", "check_overrides", "check_size", "parse_resolution", "load_render_preset",
+           "COMPONENTS"]
 
 #: The component models by preset key, and the bundled folder of each.
 COMPONENTS = {"style": ("styles", Style), "camera": ("cameras", Camera), "quality": ("quality", Quality)}

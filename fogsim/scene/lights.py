@@ -34,9 +34,9 @@ import math
 import numpy as np
 
 from fogsim.schema.base import check
-from fogsim.schema.presets import NIGHT_KEYS, TIMES_OF_DAY, Lighting
+from fogsim.schema.presets import NIGHT_KEYS, Lighting
 
-__all__ = ["NIGHT", "TIMES_OF_DAY", "apply_night", "night_settings", "street_lamps", "vehicle_lights"]
+__all__ = ["NIGHT", "apply_night", "night_settings", "street_lamps", "vehicle_lights"]
 VEHICLE_CLASSES = ("car", "van", "truck", "bus")
 
 #: night defaults (declared in :class:`fogsim.schema.presets.Lighting`): sky and moon strength,

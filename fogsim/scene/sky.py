@@ -28,7 +28,7 @@ import numpy as np
 from fogsim.schema.base import check
 from fogsim.schema.presets import DAY_SKY_STRENGTH, SKY_KEYS, WORLD_HDRIS, Lighting
 
-__all__ = ["OVERCAST_COLOR", "WORLD_HDRIS", "apply_sky", "hdri_file", "has_sky_keys", "sky_of"]
+__all__ = ["OVERCAST_COLOR", "apply_sky", "hdri_file", "has_sky_keys", "sky_of"]
 
 #: linear RGB of the overcast sky (a slightly cool grey-white) and of the ground under it
 OVERCAST_COLOR = [0.92, 0.95, 1.0]

@@ -40,7 +40,6 @@ from pydantic import (
     Discriminator,
     Field,
     Strict,
-    Tag,
     ValidationError,
     model_validator,
 )
@@ -173,7 +172,7 @@ def is_list(v: Any) -> bool:
     return isinstance(v, (list, tuple))
 
 
-__all__ += ["Tag", "is_object", "is_list"]
+__all__ += ["is_object", "is_list"]
 
 
 # ----------------------------------------------------------------------------- models

@@ -21,14 +21,13 @@ from __future__ import annotations
 import re
 from typing import Annotated, Literal
 
-from pydantic import AfterValidator, BeforeValidator, Field, StringConstraints, model_validator
+from pydantic import AfterValidator, BeforeValidator, Field, StringConstraints, Tag, model_validator
 
 from fogsim.schema.base import (
     Bool,
     Closed,
     NonNegInt,
     Number,
-    Tag,
     Text,
     by_type,
     int_in,

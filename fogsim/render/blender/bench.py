@@ -73,7 +73,7 @@ def sky_render_seconds(job, index: int, lighting: dict) -> float:
     """Cycles seconds of frame ``index``'s scene under ``lighting`` (fogsim's render settings)."""
     from dataclasses import replace
 
-    from fogsim.render.preset import check_lighting
+    from fogsim.schema.presets import check_lighting
 
     config = replace(job.config, lighting=check_lighting(lighting))
     return _timed_render(config, index, config.quality)
@@ -141,7 +141,7 @@ def _fog_variant(config, **volumetric):
     """``config`` with volumetric fog (``volumetric`` merged into fog_model.volumetric)."""
     from dataclasses import replace
 
-    from fogsim.render.preset import volumetric_settings
+    from fogsim.render.fog_settings import volumetric_settings
 
     spec = {**config.fog_model.get("volumetric", {}), **volumetric}
     cfg = replace(config, fog_model={**config.fog_model, "kind": "volumetric", "volumetric": spec})

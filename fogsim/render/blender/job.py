@@ -32,10 +32,11 @@ from fogsim.render.blender.cycles import configure, render, render_combined
 from fogsim.render.blender.library import load_library
 from fogsim.render.blender.motion import motion_blur
 from fogsim.render.blender.scratch import clear
+from fogsim.render.fog_settings import frame_volumetric, volumetric_settings
 from fogsim.render.frame import DescribedFrame, FogRenders, FramePasses, check_scene, commit_frame, frame_name
 from fogsim.render.job_options import RunOptions
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
-from fogsim.render.preset import RenderConfig, frame_volumetric, volumetric_settings
+from fogsim.render.preset import RenderConfig
 from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
 from fogsim.scene.motion import frame_motion
 

@@ -36,7 +36,7 @@ def config(s, frames: int | None = None):
 
 def lighting(s, preset_lighting: dict) -> dict | None:
     """The checked ``lighting`` of the panel's *Time of day* and *Sky* (None: the preset's)."""
-    from fogsim.render.preset import check_lighting
+    from fogsim.schema.presets import check_lighting
 
     if s.sky == "PRESET":
         return None if s.time_of_day == "PRESET" else check_lighting({"time_of_day": s.time_of_day})

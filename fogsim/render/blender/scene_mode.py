@@ -49,11 +49,11 @@ from fogsim.render.blender.job import RenderJob
 from fogsim.render.blender.output import blender_output
 from fogsim.render.blender.realise import SceneClasses, realise, render_visibility
 from fogsim.render.blender.scratch import clear
-from fogsim.render.fog_settings import fog_overrides
+from fogsim.render.fog_settings import fog_overrides, frame_volumetric
 from fogsim.render.frame import DescribedFrame, commit_frame, frame_name
 from fogsim.render.job_options import RunOptions, SceneOptions, check_frames, parse_frame_range
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
-from fogsim.render.preset import RenderConfig, check_size, frame_volumetric, parse_resolution
+from fogsim.render.preset import RenderConfig, check_size, parse_resolution
 from fogsim.render.scene_classes import PROPERTY
 from fogsim.runs import frame_seed
 from fogsim.scene.pose import blender_intrinsics, opencv_world_to_camera
@@ -233,7 +233,7 @@ class SceneJob(RenderJob):
             raise
 
     def _setup(self, out) -> None:
-        from fogsim.render.preset import MAX_PIXELS
+        from fogsim.fileio import MAX_PIXELS
 
         o, scene = self.options, self.user_scene
         source = o.source or bpy.data.filepath or f"scene {scene.name!r}"
