@@ -87,6 +87,7 @@ def add_parsers(sub) -> None:
     lfog.add_argument("--repeat", type=int, default=5, help="interleaved repeats (medians)")
     lfog.add_argument("--loop-points", type=int, default=4000,
                       help="points of the subsample the per-point loop runs on (scaled to the whole scan)")
+    lfog.add_argument("--bev", metavar="FILE.png", help="also write bird's-eye views of the scan at each level")
     _quiet_option(lfog)
     lfog.set_defaults(run=lambda args: _lidar_fog(args))
 
@@ -231,4 +232,4 @@ def _lidar_fog(args) -> int:
     from fogsim.bench.lidar_fog import run
 
     _positive(repeat=args.repeat, loop_points=args.loop_points)
-    return run(args.repeat, args.loop_points)
+    return run(args.repeat, args.loop_points, bev=args.bev)

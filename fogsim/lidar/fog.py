@@ -195,14 +195,16 @@ class LidarFogger:
         if clutter is None:
             reported_hard, clutter = hard, None
         # the reported points, in input order, and what fog did to each
-        idx = np.flatnonzero(reported_hard if clutter is None else reported_hard | clutter)
-        rh = reported_hard[idx]
-        t2i, ri, zi = t2[idx], r[idx], z[idx]
-        norm_out, raw_out = self.scale.from_linear(self.linear[idx] * t2i)
-        kept = rh & (self.normalised[idx] - norm_out < self.spec.kept_tolerance)
+        reported = reported_hard if clutter is None else reported_hard | clutter
+        idx = np.flatnonzero(reported)
+        pick = slice(None) if len(idx) == n else idx  # every point reported: views, no gathers
+        rh = reported_hard[pick]
+        t2i, ri, zi = t2[pick], r[pick], z[pick]
+        norm_out, raw_out = self.scale.from_linear(self.linear[pick] * t2i)
+        kept = rh & (self.normalised[pick] - norm_out < self.spec.kept_tolerance)
         oc = np.where(rh, np.where(kept, KEPT, ATTENUATED), CLUTTER).astype(np.int8)
         with np.errstate(divide="ignore", invalid="ignore"):
-            qi, q0 = qh[idx], self.clear_signal[idx]
+            qi, q0 = qh[pick], self.clear_signal[pick]
             sigma = s.range_noise_at_threshold_m * np.sqrt(np.maximum(1.0 / (qi * qi) - 1.0 / (q0 * q0), 0.0))
         new_r = np.where(kept, ri, np.maximum(ri + sigma * zi, MIN_REPORTED_M))
         if clutter is not None and not rh.all():
@@ -213,23 +215,25 @@ class LidarFogger:
             rho_app = qcc * s.reference_reflectivity * (rfc / s.max_range_m) ** 2 / s.overlap(rfc)
             norm_out[c], raw_out[c] = self.scale.from_linear(np.broadcast_to(s.intensity_of(rho_app, rfc), c.shape))
         outcome = np.full(n, LOST, np.int8)
-        outcome[idx] = oc
-        return self._assemble(idx, oc, new_r, norm_out, raw_out, outcome, self.parameters(beta, e))
+        outcome[pick] = oc
+        return self._assemble(idx, pick, oc, new_r, norm_out, raw_out, outcome, self.parameters(beta, e))
 
-    def _assemble(self, idx, oc, new_r, norm_out, raw_out, outcome, parameters: dict) -> FoggedScan:
+    def _assemble(self, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameters: dict) -> FoggedScan:
         """The fogged cloud of the reported rows ``idx`` (outcomes ``oc``): kept rows bit for bit (their
         factor R'/R is exactly 1), the others moved along their ray and given their new intensity."""
         scan = self.scan
-        xyz = np.take(self._xyz, idx, axis=0)
-        factor = new_r / self.range_m[idx]
+        xyz = self._xyz.copy() if isinstance(pick, slice) else np.take(self._xyz, idx, axis=0)
+        factor = new_r / self.range_m[pick]
         for k in range(3):  # column by column: numpy broadcasts over a last axis of 3 slowly
             xyz[:, k] *= factor
         moved = oc != KEPT
-        inten = np.where(moved, norm_out, scan.intensity[idx])
-        raw = np.where(moved, raw_out, scan.raw_intensity[idx])
-        cloud = PointCloud(xyz.astype(np.float32), inten, raw, scan.scale, np.take(scan.index, idx), scan.source,
-                           None if scan.ring is None else scan.ring[idx],
-                           None if scan.return_index is None else scan.return_index[idx])
+        inten = np.where(moved, norm_out, scan.intensity[pick])
+        raw = np.where(moved, raw_out, scan.raw_intensity[pick])
+
+        def take(a):
+            return None if a is None else a[idx]
+        cloud = PointCloud(xyz.astype(np.float32), inten, raw, scan.scale, take(scan.index), scan.source,
+                           take(scan.ring), take(scan.return_index))
         index = np.full(len(outcome), -1, np.int64)
         index[idx] = np.arange(len(idx))
         return FoggedScan(cloud, outcome, index, parameters)
