@@ -351,3 +351,22 @@ def test_the_benchmark_runs(capsys):
     assert main(["bench", "lidar-fog", "--repeat", "1", "--loop-points", "100"]) == 0
     out = capsys.readouterr().out
     assert "per-point loop" in out and out.strip().splitlines()[-1].startswith("bench lidar-fog: 4 levels of 120000")
+
+
+def test_the_outcome_file_beside_a_fogged_scan(scans, tmp_path):
+    from fogsim.errors import InputError
+    from fogsim.lidar.outcome_file import read_outcomes, write_outcomes
+
+    out = fogged(scans["kitti"], 0.12, model="attenuation")
+    path = tmp_path / "000000.outcomes.npz"
+    write_outcomes(path, out)
+    outcome, index = read_outcomes(path)
+    assert np.array_equal(outcome, out.outcome) and np.array_equal(index, out.output_index)
+    assert (outcome == LOST).any()
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, outcome=out.outcome, output_index=np.where(out.output_index < 0, 0, out.output_index))
+    with pytest.raises(InputError, match="output rows must be −1"):
+        read_outcomes(bad)
+    (tmp_path / "cut.npz").write_bytes(path.read_bytes()[:40])
+    with pytest.raises(InputError, match="cut.npz"):
+        read_outcomes(tmp_path / "cut.npz")

@@ -2,9 +2,10 @@
 
 Conventions (every module of :mod:`fogsim.lidar` keeps them):
 
-* ``xyz``: N×3 float32, metres, in the **sensor frame**: x forward, y left, z up (KITTI's Velodyne
-  frame, nuScenes', STF's, Waymo's lidar frame), the origin at the sensor's optical centre, so
-  ``range_m`` = ‖xyz‖ is the distance the pulse travelled one way.
+* ``xyz``: N×3 float32, metres, in the **sensor frame** as the source stores it: x forward, y left,
+  z up for KITTI's Velodyne, STF and Waymo's lidar frame (nuScenes' lidar frame has x right, y
+  forward: its sensor's mount turns it, :attr:`fogsim.lidar.sensors.LidarSensor.mount_pose`); the
+  origin at the sensor's optical centre, so ``range_m`` = ‖xyz‖ is the distance the pulse travelled one way.
 * ``intensity``: N float32 normalised to [0, 1] by the source's scale (:mod:`fogsim.lidar.scales`:
   ``0-1`` KITTI, ``0-255`` nuScenes / STF, ``tanh`` Waymo); ``raw_intensity``: the values as the file
   stores them (kept, so writing a scan back is bit-identical); ``scale`` names the scale.

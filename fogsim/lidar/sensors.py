@@ -56,7 +56,8 @@ def _rotation_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class LidarSensor:
-    """A spinning LiDAR (the fields of :class:`~fogsim.schema.lidar.LidarSensorSpec`; units there).
+    """A spinning LiDAR (the fields of :class:`~fogsim.schema.lidar.LidarSensorSpec`; units and defaults
+    there, and only there: build it with :meth:`from_dict`, :meth:`preset` or :func:`load_sensor`).
     ``inclinations_deg`` is None for a sensor whose beams come from the data's calibration until
     :meth:`with_inclinations` gives them."""
 
@@ -77,9 +78,9 @@ class LidarSensor:
     reflectivity_per_intensity: float
     intensity_range_exponent: float
     intensity_reference_range_m: float
-    mount_xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    description: str = ""
+    mount_xyz_m: tuple[float, float, float]
+    mount_rpy_deg: tuple[float, float, float]
+    description: str
 
     # ------------------------------------------------------------------ construction
     @classmethod

@@ -13,14 +13,15 @@ scales: :mod:`fogsim.lidar.points`, :mod:`fogsim.lidar.scales`.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal
+from typing import Annotated, ClassVar, Literal
 
-from pydantic import Field, model_validator
+from pydantic import ConfigDict, Field, model_validator
 
 from fogsim.schema.base import (
     Closed,
     NonNegInt,
     Number,
+    Open,
     Tag,
     Text,
     by_type,
@@ -31,6 +32,7 @@ from fogsim.schema.base import (
     pair,
     word,
 )
+from fogsim.schema.documents import Vector
 
 #: the intensity scales (their conversions: fogsim.lidar.scales)
 SCALES = ("0-1", "0-255", "tanh")
@@ -125,5 +127,18 @@ class LidarFogSpec(Closed):
     kept_tolerance: number_in(0, 1) = KEPT_TOLERANCE
 
 
+class LidarOutcomes(Open):
+    """``<frame>.outcomes.npz`` beside a fogged scan (:mod:`fogsim.lidar.outcome_file`): per input point
+    its ``outcome`` (0 kept, 1 attenuated, 2 lost, 3 clutter) and ``output_index`` (its row in the
+    fogged scan, −1 when lost), of equal length."""
+
+    document: ClassVar[str] = "LiDAR outcome file"
+
+    model_config = ConfigDict(arbitrary_types_allowed=True, extra="ignore", frozen=True)
+
+    outcome: Vector
+    output_index: Vector
+
+
 __all__ = ["BACKSCATTER_PER_VISIBILITY", "BACKSCATTER_RULES", "KEPT_TOLERANCE", "LIDAR_FOG_MODELS", "LidarFogSpec",
-           "LidarSensorSpec", "Mount", "RETURN_MODES", "SCALES"]
+           "LidarOutcomes", "LidarSensorSpec", "Mount", "RETURN_MODES", "SCALES"]
