@@ -58,6 +58,7 @@ LAYERS = (
     ("fog engine and depth", {"fogsim.fog", "fogsim.depth"}),
     ("dataset format", {"fogsim.dataset"}),
     ("dataset readers and scenes", {"fogsim.readers", "fogsim.scene"}),
+    ("LiDAR point clouds and their fog", {"fogsim.lidar"}),
     ("bundled presets", {"fogsim.presets"}),
     ("camera model after the fog", {"fogsim.sensor"}),
     ("document schemas", {"fogsim.schema"}),

@@ -1,4 +1,5 @@
-"""``fogsim bench fog | augment | render | render-fog | fog-physics | ila | lidar``: the speed and accuracy benchmarks.
+"""``fogsim bench fog | augment | render | render-fog | fog-physics | ila | lidar | lidar-fog``: the speed and
+accuracy benchmarks.
 
 Each prints its figures beside a baseline measured in the same run (ratios of medians:
 these machines are noisy); none of them is a test, and CI times nothing.
@@ -80,6 +81,15 @@ def add_parsers(sub) -> None:
     lidar.add_argument("--waymo", help="a Waymo .tfrecord to also time decoding + projection of its first frame")
     _quiet_option(lidar)
     lidar.set_defaults(run=lambda args: _lidar(args))
+
+    lfog = bsub.add_parser("lidar-fog", help="LiDAR fog speed: a 120 k-point HDL-64-like scan at the paper's four "
+                           "levels, one core, against the per-point loop of the same model")
+    lfog.add_argument("--repeat", type=int, default=5, help="interleaved repeats (medians)")
+    lfog.add_argument("--loop-points", type=int, default=4000,
+                      help="points of the subsample the per-point loop runs on (scaled to the whole scan)")
+    lfog.add_argument("--bev", metavar="FILE.png", help="also write bird's-eye views of the scan at each level")
+    _quiet_option(lfog)
+    lfog.set_defaults(run=lambda args: _lidar_fog(args))
 
     fp = bsub.add_parser("fog-physics", help="Koschmieder against Cycles path-traced fog on the same frames: "
                          "per-pixel error per distance bin, per-object contrast (renders with fogsim render "
@@ -216,3 +226,10 @@ def _lidar(args) -> int:
 
     _positive(repeat=args.repeat)
     return run(args.repeat, args.waymo)
+
+
+def _lidar_fog(args) -> int:
+    from fogsim.bench.lidar_fog import run
+
+    _positive(repeat=args.repeat, loop_points=args.loop_points)
+    return run(args.repeat, args.loop_points, bev=args.bev)

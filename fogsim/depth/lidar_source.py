@@ -190,6 +190,16 @@ def waymo_points_source(sample) -> PointsSource:
     return partial(lidar_points_for_sample(sample), sample.meta.get("camera", "FRONT"))
 
 
+def meta_points_source(sample) -> PointsSource:
+    """The points source a reader put in ``sample.meta["lidar_points"]`` (KITTI and STF:
+    :class:`fogsim.readers.kitti.samples.KittiPoints`): pass it as ``points_source`` to :func:`lidar_samples`
+    (with ``has_lidar=None``: every KITTI frame has its scan)."""
+    source = sample.meta.get("lidar_points")
+    if source is None:
+        raise InputError(sample.source, "this sample has no LiDAR points source (meta['lidar_points'])")
+    return source
+
+
 def waymo_has_lidar(sample) -> bool:
     """Whether a Waymo sample's frame has LiDAR data (:func:`fogsim.readers.waymo.lidar.frame_has_lidar`)."""
     from fogsim.readers.waymo.lidar import frame_has_lidar, lidar_points_for_sample

@@ -1,0 +1,76 @@
+"""Each fog level as a KITTI object tree that mmdetection3d and OpenPCDet read as they are:
+
+    OUT/kitti/<level>/training/{image_2,velodyne,calib,label_2}/<id>.{png,bin,txt,txt}
+    OUT/kitti/<level>/ImageSets/{train,val}.txt
+
+(``part=None`` writes the four folders straight under ``kitti/<level>/``). ``velodyne`` holds the
+level's scan as KITTI stores it (4 × float32 little-endian: x, y, z, reflectance 0–1; a 0–255 source
+such as STF goes through its normalised intensity), ``calib`` the frame's calibration with every KITTI
+key (:func:`fogsim.readers.kitti.calib.format_kitti_calib`; STF's missing Tr_imu_to_velo as identity),
+``label_2`` the frame's labels as 15-field lines (:func:`fogsim.readers.kitti.labels.format_label_line`,
+one line per label line read: the per-class copies of a DontCare region are written once), ``image_2`` the
+level's image as PNG. Every file is written atomically (temporary file + rename), so a killed run leaves
+no half-written frame; a frame is complete when its four files exist (:func:`frame_complete`).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from fogsim.fileio import atomic_write_bytes, encode_image
+from fogsim.lidar.formats import encode_points
+from fogsim.lidar.points import PointCloud
+from fogsim.readers.kitti.calib import KittiCalib, format_kitti_calib
+from fogsim.readers.kitti.labels import format_label_line
+
+__all__ = ["KITTI_DIR", "KittiTree", "kitti_label_text"]
+
+KITTI_DIR = "kitti"
+FOLDERS = {"image_2": ".png", "velodyne": ".bin", "calib": ".txt", "label_2": ".txt"}
+
+
+def kitti_label_text(records: list[dict]) -> str:
+    """The ``label_2`` text of a frame's records: one line per label line (records carrying the same
+    ``line`` number — a DontCare region's per-class copies — are written once), in order."""
+    seen, lines = set(), []
+    for rec in records:
+        key = rec.get("line")
+        if key is not None:
+            if key in seen:
+                continue
+            seen.add(key)
+        lines.append(format_label_line(rec))
+    return "".join(line + "\n" for line in lines)
+
+
+class KittiTree:
+    """One fog level's KITTI tree under ``OUT/kitti/<level>`` (the module docstring)."""
+
+    def __init__(self, out: str | os.PathLike, level: str, part: str | None = "training"):
+        self.root = Path(out) / KITTI_DIR / level
+        self.base = self.root / part if part else self.root
+
+    def path(self, folder: str, frame_id: str) -> Path:
+        return self.base / folder / f"{frame_id}{FOLDERS[folder]}"
+
+    def frame_complete(self, frame_id: str) -> bool:
+        """Whether all four files of the frame exist (resume skips it)."""
+        return all(self.path(f, frame_id).is_file() for f in FOLDERS)
+
+    def write_frame(self, frame_id: str, image: np.ndarray | bytes, cloud: PointCloud, calib: KittiCalib,
+                    records: list[dict]) -> None:
+        """Write one frame: ``image`` an RGB array (encoded as PNG) or PNG bytes, ``cloud`` the level's
+        scan in the LiDAR frame, ``calib`` its calibration, ``records`` its label records. The label and
+        calibration go first and the image last, so an image means a written frame."""
+        atomic_write_bytes(self.path("label_2", frame_id), kitti_label_text(records).encode("utf-8"))
+        atomic_write_bytes(self.path("calib", frame_id), format_kitti_calib(calib).encode("utf-8"))
+        atomic_write_bytes(self.path("velodyne", frame_id), encode_points(cloud, "kitti"))
+        data = image if isinstance(image, (bytes, bytearray)) else encode_image(image, ".png")
+        atomic_write_bytes(self.path("image_2", frame_id), bytes(data))
+
+    def write_image_sets(self, splits: dict[str, list[str]]) -> None:
+        """``ImageSets/<name>.txt`` (one id per line) for each split, e.g. {"train": [...], "val": [...]}."""
+        for name, ids in splits.items():
+            atomic_write_bytes(self.root / "ImageSets" / f"{name}.txt", "".join(f"{i}\n" for i in ids).encode())

@@ -1,0 +1,17 @@
+"""LiDAR scans as a first-class record, and what fog does to them.
+
+Modules, bottom up: :mod:`.scales` (intensity scales), :mod:`.points` (:class:`PointCloud`),
+:mod:`.formats` (KITTI / nuScenes / STF ``.bin``, PLY, ``.npy``), :mod:`.sensors` (:class:`LidarSensor`,
+the bundled presets), :mod:`.soft_target` (the fog's own echo), :mod:`.fog` (:class:`LidarFogger`,
+the outcomes), :mod:`.outcome_file` (the outcomes beside a fogged scan), :mod:`.reference` (the
+per-point transcription), :mod:`.boxes` (points in 3D boxes),
+:mod:`.objects` (per-object counts and the cross-sensor table), :mod:`.pictures` (bird's-eye views).
+Conventions: :mod:`.points`; the model and its equations: :mod:`.fog` and ``docs/lidar-fog.md``.
+"""
+from fogsim.lidar.fog import OUTCOMES, FoggedScan, LidarFogger, fog_scan
+from fogsim.lidar.formats import FORMATS, read_points, write_points
+from fogsim.lidar.points import PointCloud
+from fogsim.lidar.sensors import LidarSensor, load_sensor, sensor_names
+
+__all__ = ["FORMATS", "OUTCOMES", "FoggedScan", "LidarFogger", "LidarSensor", "PointCloud", "fog_scan", "load_sensor",
+           "read_points", "sensor_names", "write_points"]

@@ -1,0 +1,57 @@
+"""Oriented 3D boxes in the LiDAR frame and the points inside them (pure geometry, numpy).
+
+A :class:`Box3D` is a centre (m), three unit axes (the columns of ``axes``: the box's length, width and
+height directions in the LiDAR frame) and the half extents along them. A point p is inside when
+|(p − centre)·axisₖ| ≤ halfₖ for k = 1, 2, 3 (the faces count as inside). :meth:`Box3D.from_yaw`
+builds the usual ground-aligned box (yaw about z, z up); KITTI's camera-frame label boxes are
+converted by :func:`fogsim.readers.kitti.boxes.label_box` through the frame's calibration.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Box3D", "points_in_box", "points_in_boxes"]
+
+
+@dataclass(frozen=True, eq=False)
+class Box3D:
+    """``centre`` (3,), ``axes`` 3×3 (columns: unit length, width, height directions), ``half`` (3,) metres."""
+
+    centre: np.ndarray
+    axes: np.ndarray
+    half: np.ndarray
+
+    @classmethod
+    def from_yaw(cls, centre, length: float, width: float, height: float, yaw: float) -> "Box3D":
+        """A box on the ground plane: length along (cos yaw, sin yaw, 0), height along z."""
+        c, s = math.cos(yaw), math.sin(yaw)
+        axes = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return cls(np.asarray(centre, np.float64), axes, 0.5 * np.array([length, width, height], np.float64))
+
+    def contains(self, xyz: np.ndarray) -> np.ndarray:
+        """Boolean mask of the points (N×3) inside the box."""
+        local = (np.asarray(xyz, np.float64) - self.centre) @ self.axes
+        return (np.abs(local) <= self.half).all(axis=1)
+
+    def corners(self) -> np.ndarray:
+        """8×3 corner points (for pictures)."""
+        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], np.float64)
+        return self.centre + (signs * self.half) @ self.axes.T
+
+
+def points_in_box(xyz: np.ndarray, box: Box3D) -> int:
+    """How many of the points (N×3) lie in ``box``."""
+    return int(box.contains(xyz).sum())
+
+
+def points_in_boxes(xyz: np.ndarray, boxes: list[Box3D]) -> np.ndarray:
+    """Points inside each box (M int64), the points pre-filtered by each box's bounding sphere."""
+    xyz = np.asarray(xyz, np.float64)
+    out = np.zeros(len(boxes), np.int64)
+    for k, box in enumerate(boxes):
+        near = np.einsum("ij,ij->i", xyz - box.centre, xyz - box.centre) <= float(box.half @ box.half)
+        out[k] = int(box.contains(xyz[near]).sum())
+    return out

@@ -1,0 +1,106 @@
+"""What fog does to each object, seen by each sensor: the LiDAR points in every object's 3D box per fog
+level, and the cross-sensor table (per level and distance bin: the share of objects the LiDAR still sees
+beside the share the camera still sees).
+
+* LiDAR: an object is **seen** at a level when its box (LiDAR frame, :class:`~fogsim.lidar.boxes.Box3D`)
+  holds at least ``min_points`` (default :data:`MIN_POINTS` = 5) of that level's reported points —
+  kept and attenuated returns; clutter lies near the sensor, a lost point nowhere. Records carry the
+  counts as ``record["lidar_points"] = {level key: count}`` (:func:`attach_lidar_points`).
+* Camera: ``record["visibility"][level]["visible"]`` as :func:`fogsim.fog.visibility.attach_visibility`
+  sets it (contrast ≥ 5 %); an object whose visibility is unknown (None) is left out of the camera share.
+* The table counts the kept records (not ignore regions) with a known ``distance_m`` and a box, by bins of
+  that distance (metres, ``[low, high)``; default :data:`DISTANCE_BINS`).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fogsim.lidar.boxes import Box3D, points_in_boxes
+from fogsim.lidar.points import PointCloud
+
+__all__ = ["DISTANCE_BINS", "MIN_POINTS", "attach_lidar_points", "cross_sensor_table", "distances_and_points",
+           "object_points", "seen_by_lidar", "table_markdown"]
+
+MIN_POINTS = 5
+DISTANCE_BINS = (0.0, 10.0, 20.0, 40.0, 80.0, math.inf)
+
+
+def object_points(levels: dict[str, PointCloud], boxes: list[Box3D | None]) -> list[dict[str, int] | None]:
+    """Per box, ``{level key: points of that level's cloud inside it}`` (None for a None box)."""
+    real = [k for k, b in enumerate(boxes) if b is not None]
+    counts = {key: points_in_boxes(cloud.xyz, [boxes[k] for k in real]) for key, cloud in levels.items()}
+    out: list[dict[str, int] | None] = [None] * len(boxes)
+    for j, k in enumerate(real):
+        out[k] = {key: int(c[j]) for key, c in counts.items()}
+    return out
+
+
+def attach_lidar_points(records: list[dict], levels: dict[str, PointCloud], boxes: list[Box3D | None]) -> list[dict]:
+    """Set ``record["lidar_points"]`` for every record with a box (in place; returns the records)."""
+    for rec, counts in zip(records, object_points(levels, boxes)):
+        if counts is not None:
+            rec["lidar_points"] = counts
+    return records
+
+
+def _bin_label(lo: float, hi: float) -> str:
+    return f"{lo:g}–{hi:g} m" if math.isfinite(hi) else f"≥ {lo:g} m"
+
+
+def cross_sensor_table(records: list[dict], levels: list[str], bins=DISTANCE_BINS,
+                       min_points: int = MIN_POINTS) -> list[dict]:
+    """One row per level and distance bin: ``objects`` (counted), ``lidar_seen`` / ``lidar_share``
+    (≥ ``min_points`` in the box), ``camera_objects`` (visibility known), ``camera_seen`` /
+    ``camera_share``; shares are None for an empty bin."""
+    edges = [float(b) for b in bins]
+    if len(edges) < 2 or any(b <= a for a, b in zip(edges, edges[1:])):
+        raise ValueError(f"distance bins must be increasing edges, got {bins}")
+    usable = [r for r in records if r.get("kept", True) and r.get("distance_m") is not None and "lidar_points" in r]
+    rows = []
+    for level in levels:
+        for lo, hi in zip(edges, edges[1:]):
+            inside = [r for r in usable if lo <= r["distance_m"] < hi]
+            lidar = [r["lidar_points"].get(level) for r in inside]
+            lidar = [c for c in lidar if c is not None]
+            seen = sum(c >= min_points for c in lidar)
+            cam = [((r.get("visibility") or {}).get(level) or {}).get("visible") for r in inside]
+            cam = [v for v in cam if v is not None]
+            rows.append({"level": level, "bin": [lo, hi], "bin_label": _bin_label(lo, hi), "objects": len(lidar),
+                         "lidar_seen": int(seen), "lidar_share": seen / len(lidar) if lidar else None,
+                         "camera_objects": len(cam), "camera_seen": int(sum(cam)),
+                         "camera_share": sum(cam) / len(cam) if cam else None, "min_points": min_points})
+    return rows
+
+
+def table_markdown(rows: list[dict]) -> str:
+    """The table as Markdown: a row per level, per bin a "LiDAR % / camera %" cell (— for an empty bin)."""
+    bins = list(dict.fromkeys(r["bin_label"] for r in rows))
+    levels = list(dict.fromkeys(r["level"] for r in rows))
+
+    def pct(v):
+        return "—" if v is None else f"{100 * v:.0f} %"
+    head = "| level | " + " | ".join(f"{b} (LiDAR / camera)" for b in bins) + " |"
+    lines = [head, "|" + "---|" * (len(bins) + 1)]
+    for level in levels:
+        cells = [f"{pct(r['lidar_share'])} / {pct(r['camera_share'])} (n={r['objects']})"
+                 for r in rows if r["level"] == level]
+        lines.append(f"| {level} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def seen_by_lidar(record: dict, level: str, min_points: int = MIN_POINTS) -> bool | None:
+    """Whether the LiDAR still sees the object at ``level`` (None: no count for it)."""
+    c = (record.get("lidar_points") or {}).get(level)
+    return None if c is None else bool(c >= min_points)
+
+
+def distances_and_points(records: list[dict], level: str) -> tuple[np.ndarray, np.ndarray]:
+    """(distance_m, points in box) of the records with both, for one level (pictures)."""
+    pairs = [(r["distance_m"], r["lidar_points"][level]) for r in records
+             if r.get("kept", True) and r.get("distance_m") is not None and level in (r.get("lidar_points") or {})]
+    if not pairs:
+        return np.zeros(0), np.zeros(0, np.int64)
+    d, n = zip(*pairs)
+    return np.asarray(d, np.float64), np.asarray(n, np.int64)

@@ -1,0 +1,208 @@
+"""LiDAR sensors: the bundled presets (``fogsim/presets/lidar/*.json``) and custom blocks, as one record.
+
+:class:`LidarSensor` is built from a checked :class:`fogsim.schema.lidar.LidarSensorSpec` (defaults
+there and nowhere else): ``LidarSensor.from_dict({...})``, ``LidarSensor.preset("hdl64e")`` or
+:func:`load_sensor` (a bundled name, a JSON file, a dict, or a sensor). Bundled: ``hdl64e`` (KITTI),
+``hdl64-s3d`` (Seeing Through Fog), ``hdl32e`` (nuScenes), ``waymo-top`` (inclinations from each frame's
+calibration: :meth:`LidarSensor.with_inclinations`).
+
+The radiometry every fog model shares (normalised by the detection threshold, so the sensor's
+unknown constants cancel):
+
+* overlap ξ(R) = min(1, (R / R_o)²) with R_o = ``overlap_full_m`` (ξ = 1 when R_o = 0): the share of
+  the beam the receiver sees, growing as the beam enters its field of view (bistatic optics);
+* the clear-air signal of a hard target of reflectivity ρ at range R, relative to the threshold:
+  q(ρ, R) = (ρ / ρ_ref) · (R_max / R)² · ξ(R) — the LiDAR equation's ρ·ξ/R² over its value for the
+  reference target at the maximum range, so q ≥ 1 is detected (the **calibration** of the threshold:
+  ``max_range_m`` is where a target of ``reference_reflectivity`` falls to it);
+* the reflectivity a reported intensity implies: ρ = s · I_linear · (R / R_ref)^k
+  (``reflectivity_per_intensity``, ``intensity_range_exponent``, ``intensity_reference_range_m``), and
+  its inverse for a return the fog makes (:meth:`LidarSensor.intensity_of`).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from fogsim.errors import InputError
+from fogsim.presets import presets_dir
+from fogsim.schema.base import check, load_json
+from fogsim.schema.lidar import LidarSensorSpec
+
+__all__ = ["LIGHT_SPEED", "LidarSensor", "load_sensor", "sensor_names"]
+
+#: metres per second (the pulse's length in range is c·τ_H)
+LIGHT_SPEED = 299_792_458.0
+SENSOR_DIR = "lidar"
+
+
+def sensor_names() -> list[str]:
+    """The bundled sensors, sorted."""
+    return sorted(p.stem for p in (presets_dir() / SENSOR_DIR).glob("*.json"))
+
+
+def _rotation_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
+                              math.cos(yaw), math.sin(yaw))
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+@dataclass(frozen=True)
+class LidarSensor:
+    """A spinning LiDAR (the fields of :class:`~fogsim.schema.lidar.LidarSensorSpec`; units and defaults
+    there, and only there: build it with :meth:`from_dict`, :meth:`preset` or :func:`load_sensor`).
+    ``inclinations_deg`` is None for a sensor whose beams come from the data's calibration until
+    :meth:`with_inclinations` gives them."""
+
+    name: str
+    beams: int
+    inclinations_deg: tuple[float, ...] | None
+    horizontal_fov_deg: float
+    steps_per_sweep: int
+    min_range_m: float
+    max_range_m: float
+    reference_reflectivity: float
+    pulse_half_power_ns: float
+    overlap_full_m: float
+    range_noise_m: float
+    range_noise_at_threshold_m: float
+    return_mode: str
+    intensity_scale: str
+    reflectivity_per_intensity: float
+    intensity_range_exponent: float
+    intensity_reference_range_m: float
+    mount_xyz_m: tuple[float, float, float]
+    mount_rpy_deg: tuple[float, float, float]
+    description: str
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_dict(cls, d: dict, source: str | os.PathLike | None = None) -> "LidarSensor":
+        """The sensor of a preset or custom block, checked (one line naming ``source``, or a
+        ValueError without one); the defaults are :class:`LidarSensorSpec`'s."""
+        return cls.from_spec(check(d, LidarSensorSpec, source, prefix="" if source else "lidar sensor"))
+
+    @classmethod
+    def from_spec(cls, spec: LidarSensorSpec) -> "LidarSensor":
+        if spec.vertical_fov_deg is not None:
+            lo, hi = spec.vertical_fov_deg
+            incl = tuple(np.linspace(hi, lo, spec.beams).tolist()) if spec.beams > 1 else ((lo + hi) / 2,)
+        elif spec.inclinations_deg == "calibration":
+            incl = None
+        else:
+            incl = tuple(float(v) for v in spec.inclinations_deg)
+        steps = spec.steps_per_sweep or max(1, round(spec.horizontal_fov_deg / spec.horizontal_resolution_deg))
+        return cls(name=spec.name or "custom", beams=spec.beams, inclinations_deg=incl,
+                   horizontal_fov_deg=spec.horizontal_fov_deg, steps_per_sweep=int(steps),
+                   min_range_m=spec.min_range_m, max_range_m=spec.max_range_m,
+                   reference_reflectivity=spec.reference_reflectivity, pulse_half_power_ns=spec.pulse_half_power_ns,
+                   overlap_full_m=spec.overlap_full_m, range_noise_m=spec.range_noise_m,
+                   range_noise_at_threshold_m=spec.range_noise_at_threshold_m, return_mode=spec.return_mode,
+                   intensity_scale=spec.intensity_scale, reflectivity_per_intensity=spec.reflectivity_per_intensity,
+                   intensity_range_exponent=spec.intensity_range_exponent,
+                   intensity_reference_range_m=spec.intensity_reference_range_m,
+                   mount_xyz_m=tuple(spec.mount.xyz_m), mount_rpy_deg=tuple(spec.mount.rpy_deg),
+                   description=spec.description or "")
+
+    @classmethod
+    def preset(cls, name: str) -> "LidarSensor":
+        """A bundled sensor by name (:func:`sensor_names`); an unknown name is a ValueError listing them."""
+        path = presets_dir() / SENSOR_DIR / f"{name}.json"
+        if not isinstance(name, str) or "/" in name or "\\" in name or not path.is_file():
+            raise ValueError(f"unknown LiDAR sensor {name!r} (bundled: {', '.join(sensor_names())})")
+        return cls.from_spec(load_json(path, LidarSensorSpec))
+
+    def with_inclinations(self, inclinations_rad) -> "LidarSensor":
+        """The sensor with its beams' inclinations given (radians, one per beam, any order), e.g. a
+        Waymo frame's ``beam_inclinations``."""
+        incl = np.degrees(np.asarray(inclinations_rad, np.float64).reshape(-1))
+        if incl.size != self.beams or not np.isfinite(incl).all():
+            raise ValueError(f"{self.name} has {self.beams} beams; got {incl.size} inclinations")
+        return replace(self, inclinations_deg=tuple(incl.tolist()))
+
+    def to_dict(self) -> dict:
+        """The sensor as a record (what a fog sidecar stores)."""
+        d = asdict(self)
+        d["inclinations_deg"] = None if self.inclinations_deg is None else list(self.inclinations_deg)
+        return d
+
+    # ------------------------------------------------------------------ geometry
+    @property
+    def inclinations_rad(self) -> np.ndarray:
+        """The beams' inclinations in radians (float64, as stored); a ValueError until they are known."""
+        if self.inclinations_deg is None:
+            raise ValueError(f"{self.name}: the beam inclinations come from the data's calibration "
+                             "(LidarSensor.with_inclinations)")
+        return np.radians(np.asarray(self.inclinations_deg, np.float64))
+
+    @property
+    def horizontal_resolution_deg(self) -> float:
+        return self.horizontal_fov_deg / self.steps_per_sweep
+
+    @property
+    def mount_pose(self) -> np.ndarray:
+        """4×4 sensor → ego transform (p_ego = R·p + t, R = Rz(yaw)·Ry(pitch)·Rx(roll))."""
+        m = np.eye(4)
+        m[:3, :3] = _rotation_rpy(*np.radians(self.mount_rpy_deg))
+        m[:3, 3] = self.mount_xyz_m
+        return m
+
+    @property
+    def pulse_length_m(self) -> float:
+        """L = c·τ_H: the range over which the sin² pulse (duration 2τ_H) spreads a soft target's echo."""
+        return LIGHT_SPEED * self.pulse_half_power_ns * 1e-9
+
+    # ------------------------------------------------------------------ radiometry
+    def overlap(self, r) -> np.ndarray:
+        """ξ(R) = min(1, (R / R_o)²) (float64; 1 everywhere when ``overlap_full_m`` = 0)."""
+        r = np.asarray(r, np.float64)
+        if self.overlap_full_m <= 0:
+            return np.ones_like(r)
+        return np.minimum(1.0, (r / self.overlap_full_m) ** 2)
+
+    def clear_signal(self, reflectivity, r) -> np.ndarray:
+        """q(ρ, R) = (ρ/ρ_ref)·(R_max/R)²·ξ(R): a hard target's clear-air signal over the threshold."""
+        r = np.asarray(r, np.float64)
+        with np.errstate(divide="ignore"):
+            return (np.asarray(reflectivity, np.float64) / self.reference_reflectivity
+                    * (self.max_range_m / r) ** 2 * self.overlap(r))
+
+    def reflectivity_of(self, linear_intensity, r) -> np.ndarray:
+        """ρ = s·I_linear·(R / R_ref)^k: the reflectivity a reported (linear) intensity implies."""
+        rho = self.reflectivity_per_intensity * np.asarray(linear_intensity, np.float64)
+        if self.intensity_range_exponent:
+            rho = rho * (np.asarray(r, np.float64) / self.intensity_reference_range_m) ** self.intensity_range_exponent
+        return rho
+
+    def intensity_of(self, reflectivity, r) -> np.ndarray:
+        """The linear intensity the sensor reports for a return of (apparent) reflectivity ρ at R."""
+        lin = np.asarray(reflectivity, np.float64) / self.reflectivity_per_intensity
+        if self.intensity_range_exponent:
+            lin = lin * (np.asarray(r, np.float64) / self.intensity_reference_range_m) ** -self.intensity_range_exponent
+        return lin
+
+
+def load_sensor(sensor: "LidarSensor | str | os.PathLike | dict") -> LidarSensor:
+    """A sensor from a :class:`LidarSensor`, a bundled name, a ``.json`` file (a custom block; an
+    :class:`InputError` naming it when malformed) or a dict (a ValueError when malformed)."""
+    if isinstance(sensor, LidarSensor):
+        return sensor
+    if isinstance(sensor, dict):
+        return LidarSensor.from_dict(sensor)
+    path = Path(sensor)
+    if path.suffix == ".json" or path.is_file():
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise InputError(path, "file not found") from None
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise InputError(path, f"not a readable JSON file ({exc})") from None
+        return LidarSensor.from_dict(doc, path)
+    return LidarSensor.preset(str(sensor))

@@ -1,0 +1,207 @@
+"""KITTI object detection and Seeing Through Fog as fogsim :class:`~fogsim.readers.base.Sample` lists:
+image 2 (or STF's left camera), its labels, its intrinsics, and the LiDAR scan as a picklable points
+source projected into the image.
+
+KITTI: ``ROOT/training/{image_2,velodyne,calib,label_2}/NNNNNN.{png,bin,txt,txt}`` (``testing/`` has no
+``label_2``); the split is every image (``split=None``), a list in ``ROOT/ImageSets/<name>.txt``
+(``train``, ``val``, ``test``, ``trainval``: one id per line) or any such file (a path).
+
+STF: ``ROOT/cam_stereo_left_lut/*.png`` (the 8-bit images it was labelled on),
+``ROOT/lidar_hdl64_strongest/*.bin`` or ``ROOT/lidar_hdl64_last/*.bin`` (``returns``),
+``ROOT/gt_labels/cam_left_labels_TMP/*.txt``; ids ``YYYY-MM-DD_hh-mm-ss_NNNNN``; split files as in the
+repository's ``splits/*.txt`` (``YYYY-MM-DD_hh-mm-ss,NNNNN`` per line) or one id per line. Its
+calibration is not in the download: ``calib`` is a KITTI-form file for every frame (the repository's
+``tools/ProjectionTools/Sweden2KittiCalib/kitti_stereo_velodynehdl_calib.txt``), or the folder of its
+ROS files (``tools/DatasetViewer/calibs``: :func:`~.calib.stf_calib_from_tf`), or None when
+``ROOT/calib/<id>.txt`` exist (converted trees).
+
+Every frame of the split must have all its files: a missing one is one :class:`InputError` naming it
+(and how many frames miss files). Depth: ``Sample.depth`` is None here and ``meta["lidar_points"]`` the
+:class:`KittiPoints` source; :func:`fogsim.depth.lidar_source.lidar_samples` with
+``points_source=fogsim.depth.lidar_source.meta_points_source`` makes it the LiDAR-completed depth (the
+readers may not import the depth layer above them).
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from fogsim.errors import InputError
+from fogsim.lidar.formats import read_points
+from fogsim.lidar.points import PointCloud
+from fogsim.readers.base import Sample
+from fogsim.readers.cityscapes_labels import png_size
+from fogsim.readers.files import ImageFile
+from fogsim.readers.kitti.calib import KittiCalib, read_kitti_calib, stf_calib_from_tf
+from fogsim.readers.kitti.labels import KittiLabels
+
+__all__ = ["KITTI_SPLITS", "KittiPoints", "kitti_samples", "read_split", "stf_samples"]
+
+KITTI_SPLITS = ("train", "val", "test", "trainval")
+STF_RETURNS = ("strongest", "last")
+
+
+@dataclass(frozen=True)
+class KittiPoints:
+    """Picklable points source of one frame: ``KittiPoints(scan, calib)() → (uv N×2 float64 pixel-edge
+    coordinates in image 2, ray N float32 metres from camera 2's centre)`` for the points in front of the
+    camera (the image bounds are :class:`fogsim.depth.lidar_source.LidarDepth`'s to apply). ``fmt``:
+    ``kitti`` (4 floats) or ``stf`` (5); ``calib``: a file (or a :class:`KittiCalib`)."""
+
+    scan: str
+    calib: "str | KittiCalib"
+    fmt: str = "kitti"
+
+    def calibration(self) -> KittiCalib:
+        if isinstance(self.calib, KittiCalib):
+            return self.calib
+        return read_kitti_calib(self.calib, require_imu=self.fmt == "kitti")
+
+    def cloud(self) -> PointCloud:
+        """The scan as a :class:`PointCloud` (the LiDAR frame)."""
+        return read_points(self.scan, self.fmt)
+
+    def __call__(self) -> tuple[np.ndarray, np.ndarray]:
+        uv, depth, ray = self.calibration().project_velo(self.cloud().xyz)
+        front = depth > 0
+        return uv[front], ray[front].astype(np.float32)
+
+
+def read_split(path: str | os.PathLike, variant: str = "kitti") -> list[str]:
+    """The frame ids of a split file (blank lines skipped; STF's ``date,frame`` → ``date_frame``)."""
+    path = Path(path)
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        raise InputError(path, "split file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, f"not a readable split file ({exc})") from None
+    ids = []
+    for n, line in enumerate(lines, 1):
+        item = line.strip()
+        if not item:
+            continue
+        if variant == "stf" and "," in item:
+            item = "_".join(p.strip() for p in item.split(","))
+        if "/" in item or "\\" in item or item.startswith(".") or " " in item:
+            raise InputError(path, f"line {n}: {line.strip()[:40]!r} is not a frame id")
+        ids.append(item)
+    if not ids:
+        raise InputError(path, "split file lists no frames")
+    return ids
+
+
+def _missing(root: Path, frames: dict[str, dict[str, Path]]) -> None:
+    """One InputError naming the first missing file, if any frame lacks one."""
+    lacking = [(fid, what, p) for fid, files in frames.items() for what, p in files.items() if not p.is_file()]
+    if lacking:
+        fid, what, p = lacking[0]
+        others = len({f for f, _, _ in lacking}) - 1
+        more = f" ({others} more frame{'s' if others != 1 else ''} miss files)" if others else ""
+        raise InputError(root, f"frame {fid}: no {what} {p.relative_to(root).as_posix()}: the image, scan, "
+                               f"calibration and label sets do not match{more}")
+
+
+def _size(image: Path) -> tuple[int, int]:
+    size = png_size(image)
+    if size is None:
+        raise InputError(image, "not a PNG image (KITTI and STF images are PNG)")
+    return size
+
+
+def kitti_samples(root: str | os.PathLike, split: str | os.PathLike | None = None, labels: bool | None = None,
+                  part: str = "training") -> list[Sample]:
+    """The samples of a KITTI object tree (the module docstring). ``labels``: None → when ``label_2``
+    exists; True requires it; False never reads it."""
+    root = Path(root)
+    base = root / part if (root / part / "image_2").is_dir() else root
+    if not (base / "image_2").is_dir():
+        raise InputError(root, f"not a KITTI object tree (expected {part}/image_2/ under it)")
+    if labels is None:
+        labels = (base / "label_2").is_dir()
+    if split is None:
+        ids = sorted(p.stem for p in (base / "image_2").glob("*.png"))
+        if not ids:
+            raise InputError(base / "image_2", "holds no .png images")
+    elif isinstance(split, str) and split in KITTI_SPLITS:
+        listing = root / "ImageSets" / f"{split}.txt"
+        if not listing.is_file():
+            raise InputError(root, f"no split list ImageSets/{split}.txt (give a split file instead)")
+        ids = read_split(listing)
+    else:
+        ids = read_split(split)
+    frames = {}
+    for fid in ids:
+        files = {"image": base / "image_2" / f"{fid}.png", "scan": base / "velodyne" / f"{fid}.bin",
+                 "calibration": base / "calib" / f"{fid}.txt"}
+        if labels:
+            files["label file"] = base / "label_2" / f"{fid}.txt"
+        frames[fid] = files
+    _missing(root, frames)
+    samples = []
+    for fid, files in frames.items():
+        w, h = _size(files["image"])
+        calib = read_kitti_calib(files["calibration"])
+        points = KittiPoints(str(files["scan"]), str(files["calibration"]))
+        meta = {"dataset": "kitti", "frame": fid, "scan": str(files["scan"]), "calib": str(files["calibration"]),
+                "lidar_points": points, "lidar_format": "kitti", "lidar_sensor": "hdl64e"}
+        reader = KittiLabels(str(files["label file"]), str(files["calibration"]), w, h) if labels else None
+        samples.append(Sample(f"{base.name}/image_2/{fid}", str(files["image"]), ImageFile(str(files["image"])),
+                              None, calib.intrinsics(w, h), meta, reader))
+    return samples
+
+
+def _stf_calibration(calib, root: Path) -> "KittiCalib | None":
+    if calib is None:
+        if (root / "calib").is_dir():
+            return None  # per frame
+        raise InputError(root, "Seeing Through Fog has no calibration in its download: pass calib= a KITTI-form "
+                               "file (the repository's kitti_stereo_velodynehdl_calib.txt) or its "
+                               "tools/DatasetViewer/calibs folder")
+    calib = Path(calib)
+    if calib.is_dir():
+        return stf_calib_from_tf(calib)
+    return read_kitti_calib(calib, require_imu=False)
+
+
+def stf_samples(root: str | os.PathLike, split: str | os.PathLike | None = None, returns: str = "strongest",
+                calib: str | os.PathLike | None = None, labels: bool | None = None) -> list[Sample]:
+    """The samples of a Seeing Through Fog tree (the module docstring); ``returns``: ``strongest`` or
+    ``last`` (which scan folder; ``meta["return_mode"]`` says it to the fog model)."""
+    root = Path(root)
+    if returns not in STF_RETURNS:
+        raise ValueError(f"STF returns are {' or '.join(STF_RETURNS)}, not {returns!r}")
+    images = root / "cam_stereo_left_lut"
+    if not images.is_dir():
+        raise InputError(root, "not a Seeing Through Fog tree (expected cam_stereo_left_lut/ under it)")
+    label_dir = root / "gt_labels" / "cam_left_labels_TMP"
+    if labels is None:
+        labels = label_dir.is_dir()
+    shared = _stf_calibration(calib, root)
+    ids = sorted(p.stem for p in images.glob("*.png")) if split is None else read_split(split, "stf")
+    if not ids:
+        raise InputError(images, "holds no .png images")
+    frames = {}
+    for fid in ids:
+        files = {"image": images / f"{fid}.png", "scan": root / f"lidar_hdl64_{returns}" / f"{fid}.bin"}
+        if shared is None:
+            files["calibration"] = root / "calib" / f"{fid}.txt"
+        if labels:
+            files["label file"] = label_dir / f"{fid}.txt"
+        frames[fid] = files
+    _missing(root, frames)
+    samples = []
+    for fid, files in frames.items():
+        w, h = _size(files["image"])
+        cal = shared if shared is not None else read_kitti_calib(files["calibration"], require_imu=False)
+        cal_ref = shared if shared is not None else str(files["calibration"])
+        meta = {"dataset": "stf", "frame": fid, "scan": str(files["scan"]), "calib": cal.source,
+                "lidar_points": KittiPoints(str(files["scan"]), cal_ref, "stf"), "lidar_format": "stf",
+                "lidar_sensor": "hdl64-s3d", "return_mode": returns}
+        reader = KittiLabels(str(files["label file"]), cal_ref, w, h, "stf") if labels else None
+        samples.append(Sample(f"cam_stereo_left_lut/{fid}", str(files["image"]), ImageFile(str(files["image"])),
+                              None, cal.intrinsics(w, h), meta, reader))
+    return samples

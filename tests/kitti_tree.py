@@ -1,0 +1,150 @@
+"""A small KITTI object tree (and an STF tree) written from the formats' specs, with geometry known here.
+
+The LiDAR looks along +x; its frame maps to the rectified camera by the usual axis swap (camera x =
+−y_velo, y = −z_velo, z = x_velo) plus a small offset, R0_rect a small rotation. Each frame's scan holds a
+wall 30 m ahead and a car: a box of points (its surface sampled on a grid) whose centre, size and yaw are
+chosen in the LiDAR frame and written as the KITTI label (camera frame, bottom centre, rotation_y).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+WIDTH, HEIGHT = 160, 48
+FX = 100.0
+# velo → camera: camera x = −y, y = −z, z = x, then a 5 cm offset
+TR = np.array([[0.0, -1.0, 0.0, 0.02], [0.0, 0.0, -1.0, -0.08], [1.0, 0.0, 0.0, -0.27]])
+R0 = np.array([[0.9999, -0.0099, 0.0074], [0.0099, 0.9999, -0.0043], [-0.0074, 0.0044, 0.9999]])
+R0 = np.linalg.qr(R0)[0] * np.sign(np.diag(np.linalg.qr(R0)[1]))  # an exact rotation near R0
+P2 = np.array([[FX, 0.0, 79.5, FX * 0.06], [0.0, FX, 23.5, 0.0], [0.0, 0.0, 1.0, 0.0]])
+P_OTHER = np.array([[FX, 0.0, 79.5, 0.0], [0.0, FX, 23.5, 0.0], [0.0, 0.0, 1.0, 0.0]])
+IMU = np.array([[1.0, 0, 0, -0.8], [0, 1.0, 0, 0.3], [0, 0, 1.0, -0.9]])
+
+
+@dataclass(frozen=True)
+class Car:
+    """A car in the LiDAR frame: bottom-centre (x, y, z), size l w h, yaw about z."""
+
+    x: float
+    y: float
+    z: float
+    length: float = 4.0
+    width: float = 1.8
+    height: float = 1.5
+    yaw: float = 0.3
+
+    def surface(self, step: float = 0.25) -> np.ndarray:
+        """Points on the box's faces (LiDAR frame), strictly inside it by a millimetre."""
+        half = np.array([self.length, self.width, self.height]) / 2 - 1e-3
+        g = [np.arange(-h, h + 1e-9, step) for h in half]
+        pts = []
+        for axis in range(3):
+            others = [k for k in range(3) if k != axis]
+            a, b = np.meshgrid(g[others[0]], g[others[1]], indexing="ij")
+            for sign in (-1, 1):
+                p = np.zeros((a.size, 3))
+                p[:, others[0]], p[:, others[1]], p[:, axis] = a.ravel(), b.ravel(), sign * half[axis]
+                pts.append(p)
+        local = np.concatenate(pts)
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+        return local @ rot.T + [self.x, self.y, self.z + self.height / 2]
+
+
+def velo_to_rect(p: np.ndarray) -> np.ndarray:
+    tr = np.vstack([TR, [0, 0, 0, 1]])
+    r0 = np.eye(4)
+    r0[:3, :3] = R0
+    h = np.hstack([np.atleast_2d(p), np.ones((len(np.atleast_2d(p)), 1))])
+    return (h @ (r0 @ tr).T)[:, :3]
+
+
+def label_line(car: Car, kind: str = "Car", truncated: float = 0.0, occluded: int = 0, extra: list[str] = ()) -> str:
+    """The KITTI line of ``car``: location = its bottom centre in the rectified frame; rotation_y such that
+    the length axis (cos ry, 0, −sin ry) is the car's heading seen in the camera."""
+    loc = velo_to_rect(np.array([[car.x, car.y, car.z]]))[0]
+    head = velo_to_rect(np.array([[car.x + math.cos(car.yaw), car.y + math.sin(car.yaw), car.z]]))[0] - loc
+    ry = math.atan2(-head[2], head[0])
+    pts = velo_to_rect(car.surface())
+    proj = pts @ P2[:, :3].T + P2[:, 3]
+    uv = proj[:, :2] / proj[:, 2:]
+    left, top = uv.min(0)
+    right, bottom = uv.max(0)
+    alpha = ry - math.atan2(loc[0], loc[2])
+    fields = [kind, f"{truncated:.2f}", str(occluded), f"{alpha:.2f}", f"{left:.2f}", f"{top:.2f}", f"{right:.2f}",
+              f"{bottom:.2f}", f"{car.height:.2f}", f"{car.width:.2f}", f"{car.length:.2f}", f"{loc[0]:.2f}",
+              f"{loc[1]:.2f}", f"{loc[2]:.2f}", f"{ry:.2f}", *extra]
+    return " ".join(fields)
+
+
+def calib_text(tr16: bool = False, imu: bool = True, drop: str | None = None) -> str:
+    rows = {"P0": P_OTHER, "P1": P_OTHER, "P2": P2, "P3": P_OTHER, "R0_rect": R0,
+            "Tr_velo_to_cam": np.vstack([TR, [0, 0, 0, 1]]) if tr16 else TR}
+    if imu:
+        rows["Tr_imu_to_velo"] = IMU
+    return "".join(f"{k}: {' '.join(f'{v:.12e}' for v in m.ravel())}\n" for k, m in rows.items() if k != drop)
+
+
+def scan(car: Car, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """(xyz N×3 float32, reflectance 0–1) of a wall 30 m ahead and the car's surface."""
+    y, z = np.meshgrid(np.linspace(-10, 10, 40), np.linspace(-1.7, 3, 12))
+    wall = np.stack([np.full(y.size, 30.0), y.ravel(), z.ravel()], 1)
+    pts = np.concatenate([wall, car.surface()])
+    return pts.astype(np.float32), np.round(rng.uniform(0.05, 0.6, len(pts)), 2).astype(np.float32)
+
+
+CARS = {"000000": Car(12.0, 1.0, -1.7), "000001": Car(20.0, -2.0, -1.7, yaw=-0.5), "000002": Car(8.0, 0.5, -1.7)}
+
+
+def write_kitti(root: Path, frames=CARS, dontcare: bool = True) -> Path:
+    """``root/training/{image_2,velodyne,calib,label_2}`` + ``ImageSets/{train,val}.txt``; returns root."""
+    rng = np.random.default_rng(0)
+    base = root / "training"
+    for d in ("image_2", "velodyne", "calib", "label_2"):
+        (base / d).mkdir(parents=True, exist_ok=True)
+    for fid, car in frames.items():
+        img = np.full((HEIGHT, WIDTH, 3), 90, np.uint8)
+        cv2.imwrite(str(base / "image_2" / f"{fid}.png"), img)
+        xyz, refl = scan(car, rng)
+        rec = np.empty((len(xyz), 4), "<f4")
+        rec[:, :3], rec[:, 3] = xyz, refl
+        (base / "velodyne" / f"{fid}.bin").write_bytes(rec.tobytes())
+        (base / "calib" / f"{fid}.txt").write_text(calib_text())
+        lines = [label_line(car, truncated=0.1, occluded=1)]
+        if dontcare:
+            lines.append("DontCare -1 -1 -10 100.00 10.00 120.00 30.00 -1 -1 -1 -1000 -1000 -1000 -10")
+        (base / "label_2" / f"{fid}.txt").write_text("\n".join(lines) + "\n")
+    (root / "ImageSets").mkdir(exist_ok=True)
+    ids = sorted(frames)
+    (root / "ImageSets" / "train.txt").write_text("\n".join(ids[:2]) + "\n")
+    (root / "ImageSets" / "val.txt").write_text(ids[2] + "\n")
+    return root
+
+
+STF_IDS = ("2018-02-06_14-25-51_00400", "2018-10-29_16-00-52_02660")
+
+
+def write_stf(root: Path, returns: str = "strongest") -> Path:
+    """An STF tree: cam_stereo_left_lut/*.png, lidar_hdl64_<returns>/*.bin (5 floats, intensity 0–255,
+    ring), gt_labels/cam_left_labels_TMP/*.txt (27 fields), and one KITTI-form calib.txt (no
+    Tr_imu_to_velo, a 16-value Tr_velo_to_cam) beside the tree."""
+    rng = np.random.default_rng(1)
+    for d in ("cam_stereo_left_lut", f"lidar_hdl64_{returns}", "gt_labels/cam_left_labels_TMP"):
+        (root / d).mkdir(parents=True, exist_ok=True)
+    for k, fid in enumerate(STF_IDS):
+        cv2.imwrite(str(root / "cam_stereo_left_lut" / f"{fid}.png"), np.zeros((HEIGHT, WIDTH, 3), np.uint8))
+        car = Car(10.0 + 5 * k, 0.0, -1.7)
+        xyz, refl = scan(car, rng)
+        rec = np.empty((len(xyz), 5), "<f4")
+        rec[:, :3], rec[:, 3], rec[:, 4] = xyz, np.round(refl * 255), np.arange(len(xyz)) % 64
+        (root / f"lidar_hdl64_{returns}" / f"{fid}.bin").write_bytes(rec.tobytes())
+        extra = ["0.0", "0.0", "0.0", "1.0", "0.0", "0.0", "0.0", "1.0", "True", "True", "False", "True"]
+        lines = [label_line(car, "PassengerCar", extra=extra), label_line(Car(25, 4, -1.7), "train", extra=extra)]
+        (root / "gt_labels" / "cam_left_labels_TMP" / f"{fid}.txt").write_text("\n".join(lines) + "\n")
+    calib = root.parent / f"{root.name}_calib.txt"
+    calib.write_text(calib_text(tr16=True, imu=False))
+    return calib
