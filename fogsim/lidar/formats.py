@@ -36,8 +36,8 @@ import numpy as np
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes
 from fogsim.lidar.points import PointCloud
-from fogsim.lidar.scales import SCALES
 from fogsim.lidar.scales import scale as scale_named
+from fogsim.schema.lidar import SCALES
 
 __all__ = ["FORMATS", "FORMAT_SCALE", "detect_format", "read_points", "write_points", "encode_points"]
 

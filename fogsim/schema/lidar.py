@@ -15,14 +15,13 @@ from __future__ import annotations
 import math
 from typing import Annotated, ClassVar, Literal
 
-from pydantic import ConfigDict, Field, model_validator
+from pydantic import ConfigDict, Field, Tag, model_validator
 
 from fogsim.schema.base import (
     Closed,
     NonNegInt,
     Number,
     Open,
-    Tag,
     Text,
     by_type,
     int_in,
