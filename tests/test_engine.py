@@ -186,3 +186,28 @@ def test_a_run_written_in_older_words_resumes(old, folder_dataset, tmp_path, cap
     run["parameters"]["blend_space"] = "linear" if "fog_model" not in old else "srgb"
     run_file.write_text(json.dumps(run))
     assert main(args) == 2  # other parameters are still refused
+
+
+def test_the_lidar_reads_the_same_record():
+    """One fog, two sensors: the record's LiDAR fogger is the LiDAR fog model with the record's spec, and
+    its per-point β is the camera's β times the density field at the point's pixel."""
+    from fogsim.lidar.fog import LidarFogger
+    from fogsim.lidar.points import PointCloud
+
+    rng = np.random.default_rng(4)
+    r = rng.uniform(2, 80, 500)
+    az = rng.uniform(-np.pi, np.pi, 500)
+    xyz = np.stack([r * np.cos(az), r * np.sin(az), np.full(500, -1.0)], 1).astype(np.float32)
+    scan = PointCloud.from_raw(xyz, rng.uniform(0, 1, 500).astype(np.float32), "0-1", "scan.bin")
+    fs = FogSettings(lidar={"model": "attenuation", "extinction_ratio": 1.2})
+    got = fs.lidar_fogger(scan, "hdl64e")(0.06, np.random.default_rng(1))
+    ref = LidarFogger(scan, "hdl64e", {"model": "attenuation", "extinction_ratio": 1.2})(0.06, np.random.default_rng(1))
+    assert np.array_equal(got.outcome, ref.outcome) and got.cloud.same_as(ref.cloud)
+    assert fs.record()["lidar_fog"]["extinction_ratio"] == 1.2 and "lidar_fog" not in FogSettings().record()
+    field = np.ones((10, 20), np.float32)
+    field[2, 3] = 1.3
+    betas = fs.point_betas(0.05, field, np.array([[3.5, 2.5], [3.0, 2.99], [25.0, 2.0], [-1.0, 4.0]]))
+    assert np.allclose(betas, [0.065, 0.065, 0.05, 0.05])  # pixel (row 2, col 3); outside the image: β
+    assert fs.point_betas(0.05, None, None) == 0.05
+    with pytest.raises(ValueError, match="lidar_fog|model"):
+        FogSettings(lidar={"model": "magic"})

@@ -22,9 +22,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fogsim.camera import Intrinsics
+from fogsim.camera import Intrinsics, pixel_index
 from fogsim.fog.model import Fogger, Kernel, airlight_rgb, check_heterogeneity, density_field, estimate_airlight
 from fogsim.fog.scatter import ScatterFogger, ScatterParams, load_params
+from fogsim.lidar.fog import LidarFogger, lidar_fog_spec
+from fogsim.lidar.points import PointCloud
+from fogsim.schema.lidar import LidarFogSpec
 from fogsim.schema.vocabulary import FOG_KINDS, POST_PROCESS_KINDS, SPACES
 
 #: the blend space of each model when the record does not say (scatter: where it was fitted)
@@ -61,6 +64,9 @@ class FogSettings:
     extended form (None: the standard law). ``heterogeneity``: patchy fog (Koschmieder only).
     ``scatter_file``: the scatter model's parameter file (None: the shipped, fitted one);
     ``scatter``: the parameters themselves (a fit's candidate; they win over the file).
+    ``lidar``: the LiDAR's part of the same fog (:class:`~fogsim.schema.lidar.LidarFogSpec`: its
+    model, backscatter, extinction ratio at 905 nm; None = the defaults) — the LiDAR takes the level's
+    β and the heterogeneity's field from this record too (:meth:`lidar_fogger`, :meth:`point_betas`).
     """
 
     kind: str = "koschmieder"
@@ -70,6 +76,7 @@ class FogSettings:
     heterogeneity: Heterogeneity | None = None
     scatter_file: str | None = None
     scatter: ScatterParams | None = None
+    lidar: LidarFogSpec | None = None
 
     def __post_init__(self):
         if self.kind not in FOG_KINDS:
@@ -82,6 +89,8 @@ class FogSettings:
             raise ValueError("scatter parameters need the scatter model")
         if self.kernel is not None and not isinstance(self.kernel, Kernel):
             raise TypeError(f"kernel must be a fogsim.fog.model.Kernel or None, got {type(self.kernel).__name__}")
+        if self.lidar is not None and not isinstance(self.lidar, LidarFogSpec):
+            object.__setattr__(self, "lidar", lidar_fog_spec(self.lidar))  # a dict: checked, one line naming the key
         if self.heterogeneity is not None and not self.heterogeneity.amplitude:
             object.__setattr__(self, "heterogeneity", None)  # amplitude 0 is homogeneous fog
         if not (isinstance(self.airlight, str) and self.airlight == ESTIMATE):
@@ -138,6 +147,20 @@ class FogSettings:
             return ScatterFogger(image, distance, a, self.blend_space, self.params, intrinsics, up)
         return Fogger(image, distance, a, self.blend_space, self.kernel, density)
 
+    def lidar_fogger(self, scan: PointCloud, sensor) -> LidarFogger:
+        """The LiDAR's fogger of one scan in this fog: ``fogger(β, rng)`` with the level's β (the camera's;
+        :meth:`point_betas` for patchy fog) gives the scan the sensor reports and every point's outcome."""
+        return LidarFogger(scan, sensor, self.lidar)
+
+    def point_betas(self, beta: float, density: np.ndarray | None, uv: np.ndarray | None = None):
+        """β along each LiDAR ray, from the camera's β and density field: β × m at the pixel a point's
+        ``uv`` (N×2 pixel-edge coordinates in the camera image) falls in, β for the points outside the
+        image (the field's mean) — the camera and the LiDAR see one patchy fog. Homogeneous fog: β."""
+        if density is None or uv is None or beta == 0:
+            return beta
+        row, col, inside = pixel_index(uv, density.shape[1], density.shape[0])
+        return np.where(inside, beta * density[row, col], beta)
+
     # ------------------------------------------------------------------ what documents say
     def record(self) -> dict:
         """What every document fogsim writes says of the fog: ``model``, ``airlight`` (8-bit units,
@@ -152,6 +175,8 @@ class FogSettings:
         elif self.kind == "scatter":
             out["scatter_params"] = self.params.to_dict()
             out["scatter_params_file"] = self.scatter_file
+        if self.lidar is not None:
+            out["lidar_fog"] = self.lidar.model_dump()
         return out
 
     @property
