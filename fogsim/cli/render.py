@@ -59,6 +59,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                                     "pedestrian, cyclist, traffic_light, traffic_sign) of .glb/.gltf/.obj/.fbx/.blend "
                                     "files, imported once and sampled per frame (replaces the preset's assets "
                                     "classes; its mix, units, forward and out_of_range stay)")
+    p.add_argument("--lidar", metavar="SENSOR",
+                   help="also sweep a LiDAR in every frame and fog its scan per level: a bundled sensor (hdl64e, "
+                        "hdl32e, hdl64-s3d) or a sensor .json (overrides the preset's lidar); writes lidar/<level>/, "
+                        "per-point labels, 3D boxes in meta and COCO, and a KITTI tree per level (kitti/<level>/). "
+                        "Scene mode: an object with the custom property fogsim_lidar is the sensor, else the "
+                        "camera's pose plus KITTI's offset")
     p.add_argument("--train-fraction", type=float, help="share of frames in the train split (default: the "
                    f"preset's, else {TRAIN_FRACTION}; the paper's 8,100/4,800: 0.628); --finalize-only re-splits "
                    "without rendering")
@@ -111,7 +117,8 @@ def cmd_render(args) -> int:
     config = load_render_preset(args.preset, frames=args.frames, seed=args.seed, train_fraction=args.train_fraction,
                                 resolution=args.resolution, samples=args.samples, levels=args.levels,
                                 stereo=True if args.stereo else None, max_pixels=args.max_pixels,
-                                fog=args.fog, fog_medium=args.fog_medium, fog_scale=args.fog_scale, assets=args.assets)
+                                fog=args.fog, fog_medium=args.fog_medium, fog_scale=args.fog_scale, assets=args.assets,
+                                lidar=args.lidar)
     shard = parse_shard(args.shard)
     require_bpy()
     from fogsim.render.blender.job import RUN_FILE, RenderJob
@@ -137,13 +144,13 @@ def _cmd_scene(args) -> int:
         if given is not None:
             raise ValueError(f"{flag} is not available with --scene (scene mode renders the scene's own objects: "
                              "--frame-range, --camera, --class-map, --levels, --samples, --resolution, --seed, "
-                             "--fog, --fog-medium, --fog-scale)")
+                             "--fog, --fog-medium, --fog-scale, --lidar)")
     blend = None if args.scene == "current" else args.scene
     check_output(args.out, {"--scene": blend})
     options = SceneOptions(camera=args.camera, frame_range=args.frame_range, class_map=load_class_map(args.class_map),
                            levels=args.levels, samples=args.samples, resolution=args.resolution, seed=args.seed or 0,
                            max_pixels=args.max_pixels, fog=args.fog, fog_medium=args.fog_medium,
-                           fog_scale=args.fog_scale).check()  # a bad flag is a usage error before Blender starts
+                           fog_scale=args.fog_scale, lidar=args.lidar).check()  # a usage error before Blender
     shard = parse_shard(args.shard)
     require_bpy()
     from fogsim.render.blender.job import RUN_FILE

@@ -106,7 +106,8 @@ class FogSettings:
         airlight = tuple(m.airlight) if isinstance(m.airlight, list) else m.airlight
         space = {"scatter": "linear", "koschmieder": m.space}.get(m.kind)
         return cls(m.kind, airlight, space, kernel if m.kind == "koschmieder" else None,
-                   scatter_file=m.scatter_params if m.kind == "scatter" else None)
+                   scatter_file=m.scatter_params if m.kind == "scatter" else None,
+                   lidar=m.lidar if "lidar" in m.model_fields_set else None)
 
     # ------------------------------------------------------------------ what it resolves to
     @property

@@ -26,6 +26,9 @@ from fogsim.fog.scatter_optics import up_from_world_to_camera
 from fogsim.fog.visibility import attach_visibility
 from fogsim.render.fog_settings import fog_settings
 from fogsim.render.labels import object_records
+from fogsim.render.lidar_frame import lidar_stage, write_lidar
+from fogsim.render.lidar_rig import mounted_pose
+from fogsim.render.lidar_scan import Geometry
 from fogsim.render.preset import RenderConfig
 from fogsim.render.silhouette import silhouette_areas
 from fogsim.runs import frame_seed
@@ -40,10 +43,16 @@ def frame_name(index: int) -> str:
 
 def describe_frame(config: RenderConfig, index: int, library=None) -> dict:
     """The scene description of frame ``index`` (same config, library and index → same scene);
-    ``library``: the run's :class:`fogsim.scene.library.AssetLibrary` (``config.assets`` imported)."""
+    ``library``: the run's :class:`fogsim.scene.library.AssetLibrary` (``config.assets`` imported).
+    With a LiDAR, ``desc["lidar"]`` holds its pose on the ego vehicle (:mod:`fogsim.render.lidar_rig`)."""
     s = frame_seed(config.seed, index)
-    return sample_scene(np.random.default_rng(s), config.style, config.camera, config.resolution, seed=s,
+    desc = sample_scene(np.random.default_rng(s), config.style, config.camera, config.resolution, seed=s,
                         lighting=config.lighting, library=library)
+    if config.lidar_sensor is not None:
+        sensor = config.lidar_sensor
+        desc["lidar"] = {"sensor": sensor.name, "mount": "ego vehicle (the sensor's mount)",
+                         "lidar_to_world": mounted_pose(desc["camera"]["world_to_camera"], sensor.mount_pose).tolist()}
+    return desc
 
 
 def check_scene(config: RenderConfig, index: int = 0, library=None) -> None:
@@ -85,12 +94,14 @@ class FramePasses:
     """What a renderer hands over for one frame (the clear render): ``rgb_linear`` H×W×3 float32
     scene-linear; ``depth`` H×W float32 planar Z in metres, +inf where nothing was hit; ``mask``
     H×W uint16 instance ids (the object pass index, 0 = background); ``right_linear`` the right
-    view of a stereo pair (H×W×3 float32 scene-linear) or None."""
+    view of a stereo pair (H×W×3 float32 scene-linear) or None; ``geometry`` the triangles a LiDAR
+    sweeps (:class:`fogsim.render.lidar_scan.Geometry`; None: from the frame's meshes)."""
 
     rgb_linear: np.ndarray
     depth: np.ndarray
     mask: np.ndarray
     right_linear: np.ndarray | None = None
+    geometry: Geometry | None = None  # what a LiDAR sees (None: the frame's meshes, procedural streets)
 
 
 @dataclass(frozen=True)
@@ -175,6 +186,9 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
     lab = config.label_settings
     records = object_records(mask, ray, desc["objects"], sil, min_pixels=lab.min_pixels,
                              min_visible_fraction=lab.min_visible_fraction)
+    lidar, t_truth = None, time.perf_counter()
+    if config.lidar_sensor is not None:  # the sweep, 3D boxes, fogged scans (records gain box3d, lidar_points)
+        lidar = lidar_stage(config, desc, meshes, records, int(desc["seed"] or 0), passes.geometry)
     t1 = time.perf_counter()
     if fog is None:  # post-process fog (Koschmieder, scatter) from the clear render
         fs = fog_settings(config)
@@ -200,14 +214,18 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
     write_image(layout.mask(name), mask)
     stereo = None if right_linear is None else write_stereo(layout, config, name, K, rgb,
                                                              linear_to_srgb8(right_linear, config.exposure))
+    w2c = desc["camera"]["world_to_camera"]
+    lidar_meta = None if lidar is None else write_lidar(layout, name, lidar, foggy, K, w2c, records, cls)
     t3 = time.perf_counter()
-    timings = dict(timings or {}, ground_truth=t1 - t0, fog=t2 - t1, write=t3 - t2)
+    timings = dict(timings or {}, ground_truth=t_truth - t0, fog=t2 - t1, write=t3 - t2)
+    if lidar is not None:
+        timings["lidar"] = t1 - t_truth  # sweep, boxes and fogged scans (their files: in write)
     meta = {"frame": name, "index": index, "seed": desc["seed"], "width": w, "height": h,
             "camera": desc["camera"], "objects": records,
             "fog": {"levels": [lv.to_dict() for lv in config.levels], **fog_meta},
             "depth": {"file": str(layout.depth(name).relative_to(layout.root)), "kind": "planar Z, metres",
                       "no_hit": "inf"},
-            "stereo": stereo, "sensor": sensor,
+            "stereo": stereo, "sensor": sensor, **({"lidar": lidar_meta} if lidar_meta else {}),
             "render": render_info or {}, "timings_s": {k: round(v, 4) for k, v in timings.items()},
             "scene": desc, "fogsim_version": __version__}
     write_json(layout.meta(name), meta)

@@ -4,7 +4,7 @@
 * :class:`RunOptions` — *how* a job runs, whatever it renders: its shard, resume, GPU, quiet.
 * :class:`SceneOptions` — *what* scene mode renders of a user's scene: camera, frame range, class
   map, fog levels, samples, resolution, seed, the fog model (``--fog``, ``--fog-medium``,
-  ``--fog-scale``) and the pixel bound. :meth:`SceneOptions.check` refuses a bad flag (a
+  ``--fog-scale``), a LiDAR (``--lidar``) and the pixel bound. :meth:`SceneOptions.check` refuses a bad flag (a
   ``ValueError`` naming it) before any ``.blend`` is opened.
 
 Frame numbers are Blender's (inclusive ranges, as its timeline): Blender keeps frames in
@@ -81,6 +81,7 @@ class SceneOptions:
     fog_medium: str | None = None
     fog_scale: float | None = None
     fog_model: dict | None = None
+    lidar: str | None = None  # a LiDAR sensor (bundled name or .json); the scene's fogsim_lidar object places it
 
     def check(self) -> "SceneOptions":
         """Every flag checked (a ValueError naming it); returns self."""
@@ -97,4 +98,12 @@ class SceneOptions:
                 raise ValueError(f"--resolution {why}")
         if isinstance(self.levels, str):
             parse_levels(self.levels)
+        if self.lidar is not None:
+            self.lidar_block()
         return self
+
+    def lidar_block(self) -> dict:
+        """The checked LiDAR sensor block of ``lidar`` ({} without one)."""
+        from fogsim.render.preset import lidar_block
+
+        return lidar_block(self.lidar) if self.lidar is not None else {}

@@ -25,6 +25,7 @@ from fogsim.camera import CITYSCAPES_BASELINE_M
 from fogsim.errors import InputError
 from fogsim.fileio import MAX_PIXELS, pixel_limit_problem
 from fogsim.fog.levels import FogLevel, parse_levels
+from fogsim.lidar.sensors import LidarSensor
 from fogsim.presets import preset_path
 from fogsim.render.fog_settings import (
     fog_overrides,
@@ -32,6 +33,7 @@ from fogsim.render.fog_settings import (
 )
 from fogsim.scene.library import assets_dir, library_files
 from fogsim.schema.base import Closed, check, int_in, load_json, number_in
+from fogsim.schema.lidar import LidarSensorSpec
 from fogsim.schema.presets import (
     ASSET_CLASSES,
     MAX_SAMPLES,
@@ -53,7 +55,8 @@ __all__ = ["RenderConfig", "Overrides", "check_overrides", "check_size", "parse_
            "COMPONENTS"]
 
 #: The component models by preset key, and the bundled folder of each.
-COMPONENTS = {"style": ("styles", Style), "camera": ("cameras", Camera), "quality": ("quality", Quality)}
+COMPONENTS = {"style": ("styles", Style), "camera": ("cameras", Camera), "quality": ("quality", Quality),
+              "lidar": ("lidar", LidarSensorSpec)}
 
 
 @dataclass(frozen=True)
@@ -81,6 +84,7 @@ class RenderConfig:
     lighting: dict = field(default_factory=dict)  # checked "lighting" object; {} = day (see check_lighting)
     sensor: dict = field(default_factory=dict)  # checked "sensor" object; {} = a perfect pinhole (fogsim.sensor)
     assets: dict = field(default_factory=dict)  # the asset library (resolve_assets); {} = procedural only
+    lidar: dict = field(default_factory=dict)  # the checked LiDAR sensor block (bundled or inline); {} = none
 
     # the blocks checked, every default filled in (from the schema): what readers use
     @cached_property
@@ -92,6 +96,11 @@ class RenderConfig:
     def label_settings(self) -> Labels:
         """``labels`` checked, defaults filled in."""
         return check(self.labels, Labels, self.source, prefix="labels")
+
+    @cached_property
+    def lidar_sensor(self) -> LidarSensor | None:
+        """The LiDAR on the ego vehicle (:class:`fogsim.lidar.sensors.LidarSensor`), None without one."""
+        return LidarSensor.from_dict(self.lidar, self.source) if self.lidar else None
 
     @cached_property
     def lighting_settings(self) -> Lighting:
@@ -110,6 +119,8 @@ class RenderConfig:
             d["sensor"] = self.sensor
         if self.assets:  # likewise absent without a library
             d["assets"] = self.assets
+        if self.lidar:  # likewise absent without a LiDAR
+            d["lidar"] = self.lidar
         return d
 
 
@@ -181,7 +192,7 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
                        stereo: bool | None = None, train_fraction: float | None = None,
                        max_pixels: int = MAX_PIXELS, fog: str | None = None,
                        fog_medium: str | None = None, fog_scale: float | None = None,
-                       assets: str | None = None) -> RenderConfig:
+                       assets: str | None = None, lidar: str | None = None) -> RenderConfig:
     """Read a dataset preset, check all of it and apply overrides; every problem of the
     preset names the preset file (and the key), every bad override its flag.
 
@@ -190,7 +201,8 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
     ``fog_model.volumetric.medium`` (and implies ``--fog volumetric``); ``fog_scale``
     (``--fog-scale``): ``fog_model.volumetric.resolution_scale`` (implies ``--fog volumetric``); ``assets``
     (``--assets``): a folder with one sub-folder of models per class, replacing the preset's class
-    entries."""
+    entries; ``lidar`` (``--lidar``): a LiDAR on the ego vehicle, a bundled sensor's name or a sensor
+    ``.json`` file, replacing the preset's ``lidar``."""
     # command-line overrides first: their errors are usage errors, not the preset's
     ov = check_overrides(frames=frames, seed=seed, samples=samples, max_pixels=max_pixels,
                          train_fraction=train_fraction, fog=fog, fog_medium=fog_medium,
@@ -200,12 +212,40 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
         raise ValueError(f"--resolution {why}")
     lv_override = parse_levels(levels) if levels is not None else None
     asset_dirs = assets_dir(assets) if assets is not None else None
+    lidar_override = lidar_block(lidar) if lidar is not None else None
 
     path = preset_path(name_or_path)
     if not path.is_file():
         raise InputError(path, "preset not found")
     cfg = _compose(load_json(path, DatasetPreset), path, ov, res_override, lv_override, stereo)
-    return replace(cfg, assets=resolve_assets(cfg.assets, path, asset_dirs, assets))
+    cfg = replace(cfg, assets=resolve_assets(cfg.assets, path, asset_dirs, assets))
+    cfg = replace(cfg, lidar=lidar_override) if lidar_override is not None else cfg
+    if cfg.lidar and (why := _unrenderable(cfg.lidar_sensor)):
+        raise InputError(cfg.source, f"lidar: {why}")
+    return cfg
+
+
+def _unrenderable(sensor: LidarSensor) -> str | None:
+    """Why a render cannot sweep ``sensor`` (None when it can)."""
+    if sensor.inclinations_deg is None:
+        return (f"LiDAR {sensor.name!r} reads its beams from a dataset's calibration: a render needs a sensor with "
+                "vertical_fov_deg or inclinations_deg (e.g. hdl64e, hdl32e)")
+    return None
+
+
+def lidar_block(spec: str) -> dict:
+    """``--lidar``: a bundled sensor's name (``presets/lidar/``) or a sensor ``.json`` file, as the checked
+    block a RenderConfig holds (a bad name is a ValueError naming the flag; a bad file an InputError naming it)."""
+    if spec.endswith(".json") or Path(spec).is_file():
+        block = load_json(spec, LidarSensorSpec).given()
+    else:
+        try:
+            block = load_json(presets.component_path("lidar", spec, "--lidar"), LidarSensorSpec).given()
+        except InputError as exc:
+            raise ValueError(f"--lidar: {exc.problem}") from None
+    if why := _unrenderable(LidarSensor.from_dict(block)):
+        raise ValueError(f"--lidar {spec}: {why}")
+    return block
 
 
 def resolve_assets(given: dict, preset: Path, dirs: dict | None = None, dirs_source=None) -> dict:
@@ -275,7 +315,7 @@ def _compose(d: DatasetPreset, path: Path, ov: Overrides, res_override, lv_overr
         style=style, camera=camera, resolution=(int(res[0]), int(res[1])), quality=quality, levels=tuple(lv),
         fog_model=fog_model, labels=d.labels.given(), lighting=_hdri_paths(check_lighting(d.lighting.given()), path),
         sensor=d.sensor.given() if d.sensor is not None else {},
-        assets=d.assets.given(),
+        assets=d.assets.given(), lidar=_component("lidar", d.lidar, path) if d.lidar is not None else {},
         exposure=d.exposure, frames=ov.frames if ov.frames is not None else d.frames,
         seed=ov.seed if ov.seed is not None else d.seed, stereo_baseline=baseline,
         train_fraction=ov.train_fraction if ov.train_fraction is not None else d.train_fraction)

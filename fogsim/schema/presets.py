@@ -38,6 +38,7 @@ from fogsim.schema.base import (
     pair,
     word,
 )
+from fogsim.schema.lidar import LidarFogSpec, LidarSensorSpec
 from fogsim.schema.vocabulary import FOG_EXPOSURES, FOG_KINDS, FOG_MEDIA, KERNELS, SPACES
 
 #: What a component name may hold: a name, never a path (no '/', '..', '.json').
@@ -237,6 +238,7 @@ class FogModel(Closed):
     space: Literal[SPACES] = "srgb"  # Koschmieder's blend space (kind "scatter" always blends linear light)
     scatter_params: Text | None = None  # kind "scatter": a fogsim fit-fog parameter file (None: the shipped one)
     volumetric: Volumetric = Volumetric()
+    lidar: LidarFogSpec = LidarFogSpec()  # the LiDAR's part of the same fog (a preset with a "lidar" sensor)
 
     @model_validator(mode="after")
     def _kernel(self):
@@ -424,10 +426,10 @@ class FogPreset(_Meta):
     levels: Annotated[list[FogLevelSpec], Field(min_length=1)]
 
 
-def _style(kind):
+def _style(kind, what: str | None = None):
     return Annotated[Annotated[ComponentName, Tag("<name>")] | Annotated[kind, Tag("<inline>")],
                      by_type({"<name>": lambda v: isinstance(v, str), "<inline>": is_object},
-                             f"a bundled {kind.__name__.lower()} name or an inline JSON object")]
+                             f"a bundled {what or kind.__name__.lower()} name or an inline JSON object")]
 
 
 _BETA = 'a β ≥ 0 (1/m, a number) or "clear"'
@@ -457,6 +459,8 @@ class DatasetPreset(_Meta):
     lighting: Lighting = Lighting()
     sensor: SensorSpec | None = None  # the camera model after the fog; None = a perfect pinhole
     assets: Assets = Assets()  # the user's own models (none: procedural only)
+    #: a LiDAR on the ego vehicle: a bundled sensor's name (presets/lidar/) or a custom block; None = none
+    lidar: _style(LidarSensorSpec, "LiDAR sensor") | None = None
     exposure: number_in(0, lo_open=True) = 1.0
     frames: int_in(1) = 8
     seed: int_in(0) = 0

@@ -93,7 +93,8 @@ def format_label_line(record: dict) -> str:
     box = record["kitti_bbox"]
     h, w, length = record["dimensions_m"]
     x, y, z = record["location_m"]
-    fields = [record.get("kitti_type", record["class"]), num(record["truncation"]), str(int(record["occlusion"])),
+    kind = record["kitti_type"] if "kitti_type" in record else record["class"]
+    fields = [kind, num(record["truncation"]), str(int(record["occlusion"])),
               num(record["alpha"]), *(num(v) for v in box), num(h), num(w), num(length), num(x), num(y), num(z),
               num(record["rotation_y"])]
     return " ".join(fields)

@@ -109,6 +109,13 @@ def mesh_triangles(mesh) -> tuple[np.ndarray, np.ndarray]:
     return v.reshape(-1, 3), f.reshape(-1, 3)
 
 
+def mesh_triangle_materials(mesh) -> np.ndarray:
+    """The material slot index of each of a mesh's triangles (:func:`mesh_triangles`' order), int64."""
+    m = np.empty(len(mesh.loop_triangles), np.int32)
+    mesh.loop_triangles.foreach_get("material_index", m)
+    return m.astype(np.int64)
+
+
 def import_parts(file: str) -> list[tuple[object, np.ndarray]]:
     """Import ``file`` into the current scene, keep its visible geometry as (mesh, matrix) parts
     and remove everything else the import created."""

@@ -18,8 +18,9 @@ import mathutils
 import numpy as np
 
 from fogsim.errors import InputError
-from fogsim.render.blender.library import mesh_triangles
+from fogsim.render.blender.library import mesh_triangle_materials, mesh_triangles
 from fogsim.render.blender.scratch import Scratch
+from fogsim.render.lidar_scan import DEFAULT_REFLECTIVITY, material_reflectivity
 from fogsim.render.scene_classes import PROPERTY, ClassMap
 from fogsim.scene.classes import is_labelled
 
@@ -184,6 +185,7 @@ class Realised(Scratch):
 
     labelled: dict = field(default_factory=dict)   # id → {"class", "key", "kind", "blender_objects"}
     parts: dict = field(default_factory=dict)      # id → [(world vertices, triangles, "")]
+    lidar_parts: list = field(default_factory=list)  # (world vertices, triangles, id or 0, ρ per triangle): lidar=True
     background: int = 0                            # unlabelled geometry instances rendered
     skipped: Counter = field(default_factory=Counter)  # object types not rendered
 
@@ -196,10 +198,53 @@ def _copy_visibility(src, dst, holdout: bool) -> None:
     dst.is_holdout = dst.is_holdout or holdout
 
 
-def realise(user_scene, render_scene, classes: SceneClasses, camera) -> Realised:
+REFLECTIVITY = "fogsim_reflectivity"  # a custom property on a material or an object: its LiDAR reflectivity
+
+
+def _reflectivity(material, obj) -> float:
+    """The LiDAR reflectivity of a surface: ``fogsim_reflectivity`` on the object, else on the material,
+    else its Principled BSDF's base colour and transmission (:func:`fogsim.render.lidar_scan.material_reflectivity`;
+    a textured base colour: the material's viewport colour); no material: the default."""
+    for holder in (obj, material):
+        if holder is not None and REFLECTIVITY in holder:
+            v = holder[REFLECTIVITY]
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not 0 <= float(v) <= 10:
+                raise InputError(f"{type(holder).__name__} {holder.name!r}",
+                                 f"{REFLECTIVITY} must be a number in [0, 10], got {v!r}")
+            return float(v)
+    if material is None:
+        return DEFAULT_REFLECTIVITY
+    bsdf = next((n for n in (material.node_tree.nodes if material.use_nodes and material.node_tree else ())
+                 if n.type == "BSDF_PRINCIPLED"), None)
+    if bsdf is None:
+        return material_reflectivity(material.diffuse_color)
+    base = bsdf.inputs["Base Color"]
+    colour = material.diffuse_color if base.is_linked else base.default_value
+    trans = bsdf.inputs.get("Transmission Weight") or bsdf.inputs.get("Transmission")
+    return material_reflectivity(colour, float(trans.default_value) if trans is not None else 0.0)
+
+
+def _face_reflectivity(src, obj, material_index: np.ndarray) -> np.ndarray:
+    """ρ per triangle of a realised object from the materials of its slots (``obj``'s, linked as rendered)."""
+    rho = np.array([_reflectivity(slot.material, src.original) for slot in obj.material_slots] or
+                   [_reflectivity(None, src.original)], np.float32)
+    return rho[np.clip(material_index, 0, len(rho) - 1)]
+
+
+def _box_frame(inst, key: tuple, depsgraph) -> list:
+    """The world matrix a labelled object's 3D box is oriented by: the labelled object's (a plain object,
+    a labelled parent) or the instancer's (a collection instance), else the instance's own."""
+    obj = bpy.data.objects.get(key[1]) if key[0] == "object" or len(key) == 2 else None
+    matrix = obj.evaluated_get(depsgraph).matrix_world if obj is not None else inst.matrix_world
+    return np.array(matrix, dtype=np.float64).tolist()
+
+
+def realise(user_scene, render_scene, classes: SceneClasses, camera, lidar: bool = False) -> Realised:
     """Every visible geometry instance of ``user_scene`` at its current frame as a realised
     object (pass index = fogsim id of a labelled object, 0 for background), lights as lights,
-    and ``camera`` placed, all in a fresh collection of ``render_scene``."""
+    and ``camera`` placed, all in a fresh collection of ``render_scene``. ``lidar``: also collect every
+    camera-visible triangle with its object's id and reflectivity (``lidar_parts``): what the LiDAR sees
+    is what the masks come from (hidden and camera-invisible objects are left out, holdouts occlude)."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
     out = Realised(collection=bpy.data.collections.new("fogsim_realised"))
     render_scene.collection.children.link(out.collection)
@@ -218,7 +263,7 @@ def realise(user_scene, render_scene, classes: SceneClasses, camera) -> Realised
             if mkey not in meshes:
                 mesh = bpy.data.meshes.new_from_object(src, preserve_all_data_layers=True, depsgraph=depsgraph)
                 out.meshes.append(mesh)
-                meshes[mkey] = (mesh, None)
+                meshes[mkey] = (mesh, None, None)
             mesh = meshes[mkey][0]
             if not len(mesh.polygons):
                 continue
@@ -230,21 +275,27 @@ def realise(user_scene, render_scene, classes: SceneClasses, camera) -> Realised
             holdout = classes.in_holdout(orig) or (inst.is_instance and classes.in_holdout(inst.parent.original))
             _copy_visibility(orig, obj, holdout)
             key, cls = _identity(inst, classes)
-            if cls is not None and is_labelled(cls) and obj.visible_camera and not obj.is_holdout:
+            labelled = cls is not None and is_labelled(cls) and obj.visible_camera and not obj.is_holdout
+            if (labelled or (lidar and obj.visible_camera)) and meshes[mkey][1] is None:
+                meshes[mkey] = (mesh, mesh_triangles(mesh), mesh_triangle_materials(mesh))
+            M = np.array(matrix, dtype=np.float64)
+            oid = 0
+            if labelled:
                 oid = ids.setdefault(key, len(ids) + 1)
                 if oid > 65535:
                     raise InputError(user_scene.name, "more than 65535 labelled objects (uint16 instance ids)")
                 rec = out.labelled.setdefault(oid, {"class": cls, "key": "/".join(map(str, key)),
-                                                    "kind": KINDS[inst.is_instance], "blender_objects": []})
+                                                    "kind": KINDS[inst.is_instance], "blender_objects": [],
+                                                    "transform": _box_frame(inst, key, depsgraph), "forward": "auto"})
                 rec["blender_objects"].append(orig.name)
-                if meshes[mkey][1] is None:
-                    meshes[mkey] = (mesh, mesh_triangles(mesh))
                 v, f = meshes[mkey][1]
-                M = np.array(matrix, dtype=np.float64)
                 out.parts.setdefault(oid, []).append((v @ M[:3, :3].T + M[:3, 3], f, ""))
                 obj.pass_index = oid
             else:
                 out.background += 1
+            if lidar and obj.visible_camera:
+                (v, f), mats = meshes[mkey][1], meshes[mkey][2]
+                out.lidar_parts.append((v @ M[:3, :3].T + M[:3, 3], f, oid, _face_reflectivity(src, obj, mats)))
         else:
             if src.type in NOT_RENDERED:
                 out.skipped[src.type] += 1

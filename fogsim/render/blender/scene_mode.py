@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
 
 import bpy
@@ -53,6 +54,8 @@ from fogsim.render.fog_settings import fog_overrides, frame_volumetric
 from fogsim.render.frame import DescribedFrame, commit_frame, frame_name
 from fogsim.render.job_options import RunOptions, SceneOptions, check_frames, parse_frame_range
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
+from fogsim.render.lidar_rig import KITTI_CAMERA_OFFSET, LIDAR_PROPERTY, camera_offset_pose, object_pose
+from fogsim.render.lidar_scan import Geometry
 from fogsim.render.preset import RenderConfig, check_size, parse_resolution
 from fogsim.render.scene_classes import PROPERTY
 from fogsim.runs import frame_seed
@@ -120,6 +123,16 @@ def check_libraries(source: str) -> None:
         if not path.is_file():
             raise InputError(source, f"links data from {lib.filepath!r}, which is missing ({path}): Blender "
                                      "leaves its objects out; restore the library or make the data local")
+
+
+def lidar_object(scene):
+    """The object of ``scene`` marked as the LiDAR (custom property ``fogsim_lidar``), or None; two are
+    refused (one sensor per dataset)."""
+    marked = [o for o in scene.objects if LIDAR_PROPERTY in o]
+    if len(marked) > 1:
+        raise InputError(f"scene {scene.name!r}", f"{len(marked)} objects carry {LIDAR_PROPERTY} "
+                         f"({', '.join(o.name for o in marked)}): mark one")
+    return marked[0] if marked else None
 
 
 def render_size(scene, source: str) -> tuple[int, int]:
@@ -255,7 +268,8 @@ class SceneJob(RenderJob):
             quality={"samples": o.samples} if o.samples else {},  # {}: the scene's own Cycles settings
             levels=_levels(o.levels),
             fog_model=fog_overrides(dict(o.fog_model or {}), o.fog, o.fog_medium, o.fog_scale),
-            frames=len(self.frames), seed=o.seed)
+            frames=len(self.frames), seed=o.seed, lidar=o.lidar_block())
+        self.lidar_object = lidar_object(scene) if self.config.lidar else None
         self.claim(out, lambda first: setattr(self, "summary", self._check(first, source)))
         if self.fog is not None and self.fog["samples"] is None:  # the scene's own samples, not a preset's
             self.fog = {**self.fog, "samples": o.samples or scene.cycles.samples}
@@ -294,7 +308,7 @@ class SceneJob(RenderJob):
         self.render_scene.frame_current = frame_no  # the shared camera and light data animate with it
         info, _ = configure_scene(self.render_scene, self.samples, frame_seed(self.config.seed, index), self.gpu)
         with render_visibility(self.user_scene):
-            got = realise(self.user_scene, self.render_scene, self.classes, self.camera)
+            got = realise(self.user_scene, self.render_scene, self.classes, self.camera, lidar=bool(self.config.lidar))
         t1 = time.perf_counter()
         name = frame_name(index)
         objects = [{"id": oid, **rec} for oid, rec in got.labelled.items()]
@@ -303,6 +317,8 @@ class SceneJob(RenderJob):
                 "background_instances": got.background}
         try:
             desc["camera"] = camera_record(self.render_scene, self.camera, self.config.resolution, self.config.source)
+            if self.config.lidar:
+                desc["lidar"] = self._lidar_pose(desc["camera"]["world_to_camera"])
             passes = render(self.render_scene, render_tmp_dir(self.layout) / f"{name}.left.exr", self.quiet)
             t2 = time.perf_counter()
             if self.fog is not None:  # one Combined-only render per β > 0 with the fog layer, same seed
@@ -319,9 +335,20 @@ class SceneJob(RenderJob):
             timings["fog_render"] = t3 - t2
             fog_renders = self._fog_images(name, desc, passes, fog, fog_linear, fog_cycles)
         frame = DescribedFrame(index, desc, got.parts)
+        if self.config.lidar:
+            passes = replace(passes, geometry=Geometry.from_parts(got.lidar_parts))
         meta = commit_frame(self.layout, self.config, frame, passes, fog_renders, timings=timings, render_info=info)
         self.done.append(meta)
         return meta
+
+    def _lidar_pose(self, world_to_camera) -> dict:
+        """``desc["lidar"]``: the marked object's pose at this frame, else the camera's plus KITTI's offset."""
+        if self.lidar_object is not None:
+            matrix = self.lidar_object.evaluated_get(bpy.context.evaluated_depsgraph_get()).matrix_world
+            return {"sensor": self.config.lidar_sensor.name, "mount": f"object {self.lidar_object.name!r} "
+                    f"({LIDAR_PROPERTY})", "lidar_to_world": object_pose(np.array(matrix)).tolist()}
+        return {"sensor": self.config.lidar_sensor.name, "mount": f"the camera + {list(KITTI_CAMERA_OFFSET)} m "
+                "(forward, left, up)", "lidar_to_world": camera_offset_pose(world_to_camera).tolist()}
 
     def close(self) -> None:
         """Remove the render scene and temporary renders; the user's scene back at its frame."""

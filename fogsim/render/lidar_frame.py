@@ -1,0 +1,167 @@
+"""A rendered frame's LiDAR: its clear sweep, each fog level's scan in the camera's fog, the objects' 3D
+boxes and points, and the files (pure Python; :func:`fogsim.render.frame.commit_frame` calls it).
+
+Per frame with a LiDAR (preset key ``lidar``, ``fogsim render --lidar SENSOR``):
+
+* the sweep (:func:`fogsim.render.lidar_scan.sweep`) over the frame's geometry from the sensor's pose
+  (``desc["lidar"]["lidar_to_world"]``, :mod:`fogsim.render.lidar_rig`);
+* every labelled object's oriented 3D box (:mod:`fogsim.render.boxes3d`) in its record (``box3d``: world,
+  camera as KITTI writes it, LiDAR frame);
+* each fog level's scan from the LiDAR fog model with that level's β — the camera's, also in volumetric
+  renders, whose medium has that β — through the run's fog record
+  (:meth:`fogsim.fog.engine.FogSettings.lidar_fogger`), range noise seeded by
+  ``numpy.random.default_rng([frame seed, level index, LIDAR_STREAM])``;
+* per object and level the points in its box (``lidar_points``), the cross-sensor table's input.
+
+Files, per level ``L`` and frame ``F`` (written before the frame's meta, which marks the frame done):
+
+* ``lidar/L/F.bin`` — the scan the sensor reports, in its own format (0–1 intensities: KITTI's
+  4 × float32; 0–255: nuScenes' 5 × float32 with the ring), ``lidar/L/F.outcomes.npz`` — every clear-sweep
+  point's outcome and row (:mod:`fogsim.lidar.outcome_file`), ``lidar/L/F.label`` — SemanticKITTI labels,
+  one uint32 per reported point: instance id << 16 | class (:data:`SEMANTIC_CLASSES`; the instance is the
+  object's mask id for labelled objects, 0 for scenery and fog clutter);
+* ``kitti/L/training/{image_2,velodyne,calib,label_2}/F`` — the level as a KITTI object tree
+  (:class:`fogsim.dataset.kitti.KittiTree`): calib P0–P3 = the render's K | 0, R0_rect = I,
+  Tr_velo_to_cam the LiDAR's pose in the camera, Tr_imu_to_velo = I; label_2 the kept objects of the KITTI
+  types (:data:`KITTI_TYPES`) with the mask's 2D box, the 3D box, truncation and an occlusion level from the
+  visible fraction (:func:`occlusion_level`); ignore regions as DontCare.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fogsim.camera import Intrinsics
+from fogsim.dataset.kitti import KittiTree
+from fogsim.dataset.layout import DatasetLayout
+from fogsim.fileio import atomic_write_bytes
+from fogsim.lidar.boxes import Box3D
+from fogsim.lidar.fog import CLUTTER, FoggedScan
+from fogsim.lidar.formats import write_points
+from fogsim.lidar.objects import attach_lidar_points
+from fogsim.lidar.outcome_file import write_outcomes
+from fogsim.lidar.sensors import LidarSensor
+from fogsim.readers.kitti.calib import KittiCalib
+from fogsim.render.boxes3d import box_record, object_box, transformed
+from fogsim.render.lidar_scan import Geometry, RayCaster, SyntheticScan, sweep
+from fogsim.scene.classes import LABELLED, STUFF
+
+#: the LiDAR noise generator of level i: default_rng([frame seed, i, LIDAR_STREAM])
+LIDAR_STREAM = 0x11DA2
+#: SemanticKITTI-style class ids of the .label files (index = id)
+SEMANTIC_CLASSES = ("unlabelled", *LABELLED, *STUFF, "fog")
+SEMANTIC_ID = {name: i for i, name in enumerate(SEMANTIC_CLASSES)}
+#: fogsim classes as KITTI object types (the others have none and get no label line)
+KITTI_TYPES = {"car": "Car", "van": "Van", "truck": "Truck", "bus": "Misc", "pedestrian": "Pedestrian",
+               "cyclist": "Cyclist"}
+#: the scan's file format by the sensor's intensity scale
+SCAN_FORMAT = {"0-1": ("kitti", ".bin"), "0-255": ("nuscenes", ".bin"), "tanh": ("npy", ".npy")}
+
+
+def occlusion_level(visible_fraction: float) -> int:
+    """KITTI's occlusion level from the visible fraction: 0 fully visible (≥ 0.8), 1 partly (≥ 0.4), 2 largely."""
+    return 0 if visible_fraction >= 0.8 else 1 if visible_fraction >= 0.4 else 2
+
+
+@dataclass(frozen=True)
+class LidarFrame:
+    """What one frame's LiDAR produced: the clear ``scan``, ``fogged`` scans by level key, the LiDAR-frame
+    ``boxes`` by object id, the ``pose`` (LiDAR → world) and the ``sensor``."""
+
+    scan: SyntheticScan
+    fogged: dict[str, FoggedScan]
+    boxes: dict[int, Box3D]
+    pose: np.ndarray
+    sensor: LidarSensor
+
+
+def lidar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int,
+                geometry: Geometry | None = None) -> LidarFrame:
+    """The frame's sweep, 3D boxes (into ``records``: ``box3d``, ``lidar_points``) and fogged scans."""
+    from fogsim.render.fog_settings import fog_settings
+
+    sensor = config.lidar_sensor
+    pose = np.asarray(desc["lidar"]["lidar_to_world"], np.float64)
+    geometry = geometry if geometry is not None else Geometry.of_frame(desc, meshes)
+    scan = sweep(RayCaster(geometry), pose, sensor, f"frame {desc.get('seed')}")
+    w2c, w2l = np.asarray(desc["camera"]["world_to_camera"], np.float64), np.linalg.inv(pose)
+    by_id = {o["id"]: o for o in desc["objects"]}
+    boxes: dict[int, Box3D] = {}
+    for rec in records:
+        obj = by_id[rec["id"]]
+        box = object_box(meshes.get(rec["id"], []), obj["transform"], obj.get("forward", "+y"))
+        if box is not None:
+            rec["box3d"] = box_record(box, w2c, w2l)
+            boxes[rec["id"]] = transformed(box, w2l)
+    fogger = fog_settings(config).lidar_fogger(scan.cloud, sensor)
+    fogged = {lv.key: fogger(lv.beta, np.random.default_rng([seed, i, LIDAR_STREAM]))
+              for i, lv in enumerate(config.levels)}
+    attach_lidar_points(records, {k: f.cloud for k, f in fogged.items()}, [boxes.get(r["id"]) for r in records])
+    return LidarFrame(scan, fogged, boxes, pose, sensor)
+
+
+def semantic_labels(scan: SyntheticScan, fogged: FoggedScan, classes: dict[int, str]) -> np.ndarray:
+    """The uint32 label of every point of ``fogged`` (instance << 16 | class; fog clutter: class ``fog``)."""
+    cls = np.array([SEMANTIC_ID.get(classes.get(int(i), ""), 0) for i in range(int(scan.object_id.max(initial=0)) + 1)],
+                   np.uint32)
+    oid = scan.object_id.astype(np.int64)
+    thing = np.isin(oid, [i for i, c in classes.items() if c in LABELLED])
+    clear = ((np.where(thing, oid, 0).astype(np.uint32) << np.uint32(16)) | cls[oid]).astype(np.uint32)
+    out = np.zeros(len(fogged.cloud), np.uint32)
+    rows = np.flatnonzero(fogged.output_index >= 0)
+    out[fogged.output_index[rows]] = np.where(fogged.outcome[rows] == CLUTTER, np.uint32(SEMANTIC_ID["fog"]),
+                                              clear[rows])
+    return out
+
+
+def kitti_calib(K: Intrinsics, lidar_to_camera: np.ndarray, source: str) -> KittiCalib:
+    """The KITTI calibration of a render: P0–P3 = K | 0, R0_rect = I, Tr_velo_to_cam, Tr_imu_to_velo = I."""
+    P = np.hstack([np.array([[K.fx, 0, K.cx], [0, K.fy, K.cy], [0, 0, 1]], np.float64), np.zeros((3, 1))])
+    return KittiCalib((P, P, P, P), np.eye(3), np.asarray(lidar_to_camera, np.float64), np.eye(4), source)
+
+
+def kitti_records(records: list[dict]) -> list[dict]:
+    """The KITTI label records (:func:`fogsim.readers.kitti.labels.format_label_line`'s fields) of a frame's
+    records: kept objects of :data:`KITTI_TYPES` with a 3D box; every ignore region as DontCare."""
+    out = []
+    for r in records:
+        x0, y0, x1, y1 = r["bbox"]
+        box = [float(x0), float(y0), float(x1 - 1), float(y1 - 1)]  # KITTI: inclusive pixel-centre corners
+        if r["kept"] and r["class"] in KITTI_TYPES and "box3d" in r:
+            cam = r["box3d"]["camera"]
+            out.append({"kitti_type": KITTI_TYPES[r["class"]], "truncation": r["truncation"],
+                        "occlusion": occlusion_level(r["visible_fraction"]), "alpha": cam["alpha"],
+                        "kitti_bbox": box, "dimensions_m": cam["dimensions_hwl_m"], "location_m": cam["location_m"],
+                        "rotation_y": cam["rotation_y"]})
+        elif not r["kept"]:
+            out.append({"kitti_type": "DontCare", "truncation": -1, "occlusion": -1, "alpha": -10,
+                        "kitti_bbox": box, "dimensions_m": [-1, -1, -1], "location_m": [-1000, -1000, -1000],
+                        "rotation_y": -10})
+    return out
+
+
+def write_lidar(layout: DatasetLayout, name: str, lidar: LidarFrame, images: dict, K: Intrinsics,
+                w2c: np.ndarray, records: list[dict], classes: dict[int, str]) -> dict:
+    """Write the frame's LiDAR files (the module docstring) and return ``meta["lidar"]``; ``images``:
+    the final image of every level (what ``image_2`` holds)."""
+    fmt, ext = SCAN_FORMAT[lidar.sensor.intensity_scale]
+    l2c = np.asarray(w2c, np.float64) @ lidar.pose
+    calib = kitti_calib(K, l2c, f"frame {name}")
+    labels_2 = kitti_records(records)
+    levels = {}
+    for key, fogged in lidar.fogged.items():
+        base = layout.root / "lidar" / key
+        write_points(base / f"{name}{ext}", fogged.cloud, fmt)
+        write_outcomes(base / f"{name}.outcomes.npz", fogged)
+        atomic_write_bytes(base / f"{name}.label", semantic_labels(lidar.scan, fogged, classes).astype("<u4").tobytes())
+        KittiTree(layout.root, key).write_frame(name, images[key], fogged.cloud, calib, labels_2)
+        levels[key] = {**fogged.record(), "scan": layout.relative(base / f"{name}{ext}"), "format": fmt,
+                       "outcome_file": layout.relative(base / f"{name}.outcomes.npz"),
+                       "labels": layout.relative(base / f"{name}.label")}
+    return {"sensor": lidar.sensor.to_dict(), "lidar_to_world": lidar.pose.tolist(), "lidar_to_camera": l2c.tolist(),
+            "sweep": lidar.scan.record(), "levels": levels, "semantic_classes": list(SEMANTIC_CLASSES),
+            "label_rule": "uint32 = instance << 16 | class (instance: the mask id of a labelled object, else 0)",
+            "noise_seed_rule": "numpy default_rng([frame seed, level index, 0x11DA2])",
+            "frame": "sensor: x forward, y left, z up (m); points in the sensor frame",
+            "timing": "one instant per sweep (no rolling-shutter motion)"}

@@ -1,0 +1,269 @@
+"""Synthetic LiDAR in a render (fogsim.render.lidar_*): the sweep lies on what the camera rendered, the
+labelled points lie in their objects' 3D boxes, the boxes project onto the masks' boxes, each level's scan
+is the LiDAR fog model's, and the KITTI tree reads back by the format's spec.
+
+The pure parts (rays, the caster, the rig, boxes) run everywhere with geometry built here; the render
+tests run real Blender (the bpy module) on a tiny frame.
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fogsim.lidar.boxes import Box3D
+from fogsim.lidar.sensors import LidarSensor
+from fogsim.render.boxes3d import box_record, object_box
+from fogsim.render.lidar_rig import camera_offset_pose, ego_to_world, mounted_pose
+from fogsim.render.lidar_scan import GLASS_REFLECTIVITY, Geometry, RayCaster, sweep, sweep_directions
+from fogsim.scene.pose import camera_to_world, world_to_camera
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+pytest.importorskip("embreex", reason="the LiDAR ray caster needs embreex (the 'blender' extra)")
+
+
+def box_mesh(centre, size, yaw=0.0):
+    import trimesh
+
+    m = trimesh.creation.box(extents=size)
+    c, s = math.cos(yaw), math.sin(yaw)
+    T = np.eye(4)
+    T[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    T[:3, 3] = centre
+    m.apply_transform(T)
+    return np.asarray(m.vertices), np.asarray(m.faces), T
+
+
+def sensor(**kw) -> LidarSensor:
+    return LidarSensor.from_dict({"name": "test", "beams": 16, "vertical_fov_deg": [-15, 15],
+                                  "horizontal_resolution_deg": 1.0, "max_range_m": 100.0, "intensity_scale": "0-1",
+                                  "reflectivity_per_intensity": 1.0, **kw})
+
+
+# ----------------------------------------------------------------------------- pure
+def test_rays_hit_a_wall_at_its_distance_with_the_lidar_equation():
+    """A wall 20 m ahead (x = 20, ρ 0.6): every ray hitting it reports range 20 / cos(angle to the normal),
+    the apparent reflectivity ρ·cos θ; the intensity is the sensor's for that ρ at that range."""
+    v, f, _ = box_mesh([20.5, 0, 0], [1, 80, 80])
+    geo = Geometry.from_parts([(v, f, 7, 0.6)])
+    s = sensor()
+    scan = sweep(RayCaster(geo), np.eye(4), s, "wall")
+    d, beam, _ = sweep_directions(s)
+    with np.errstate(divide="ignore"):
+        t = np.where(d[:, 0] > 0, 20.0 / d[:, 0], np.inf)
+    hits = np.flatnonzero(np.isfinite(t) & (np.abs(t * d[:, 1]) <= 40) & (np.abs(t * d[:, 2]) <= 40))
+    rows = scan.cloud.index
+    np.testing.assert_array_equal(rows, hits)  # exactly the rays that meet the wall (its face at x = 20)
+    assert (scan.object_id == 7).all()
+    cos_t = d[rows, 0]  # the wall's normal is −x: cos θ is the ray's x component
+    np.testing.assert_allclose(scan.cloud.range_m, 20.0 / cos_t, rtol=1e-5)
+    np.testing.assert_allclose(np.cos(np.radians(scan.incidence_deg)), cos_t, atol=1e-4)
+    expected = s.intensity_of(0.6 * cos_t, 20.0 / cos_t)
+    np.testing.assert_allclose(scan.cloud.raw_intensity, np.minimum(expected, 1.0), rtol=1e-5)
+    np.testing.assert_array_equal(scan.cloud.ring, beam[rows])
+
+
+def test_the_threshold_drops_dark_far_and_grazing_returns():
+    """Two walls at 60 m: ρ 0.9 is reported, ρ 0.02 is not (its clear-air signal is below the threshold);
+    exactly as (ρ cos θ/ρ_ref)(R_max/R)² ≥ 1 says."""
+    s = sensor(max_range_m=80.0, reference_reflectivity=0.8)
+    bright = box_mesh([60.5, -20, 0], [1, 40, 80])
+    dark = box_mesh([60.5, 20, 0], [1, 40, 80])
+    geo = Geometry.from_parts([(*bright[:2], 1, 0.9), (*dark[:2], 2, 0.02)])
+    scan = sweep(RayCaster(geo), np.eye(4), s, "walls")
+    assert (scan.object_id == 1).sum() > 100 and not (scan.object_id == 2).any()
+    r = scan.cloud.range_m
+    assert (s.clear_signal(scan.reflectivity * np.cos(np.radians(scan.incidence_deg)), r) >= 1).all()
+
+
+def test_the_rig_puts_the_lidar_on_the_ego_vehicle_and_the_camera_offset():
+    c2w = camera_to_world([3.0, 1.0, 1.6], yaw_deg=30.0, pitch_deg=-4.0)
+    w2c = world_to_camera(c2w)
+    ego = ego_to_world(w2c)
+    assert np.allclose(ego[:3, 3], [3.0, 1.0, 0.0]) and np.allclose(ego[:3, 2], [0, 0, 1])
+    # yaw 30° turns the camera's +y view left: the ego's forward is (−sin 30°, cos 30°, 0)
+    assert np.allclose(ego[:3, 0], [-0.5, math.cos(math.radians(30)), 0], atol=1e-9)
+    kitti = LidarSensor.preset("hdl64e")
+    pose = mounted_pose(w2c, kitti.mount_pose)
+    assert np.allclose(pose[:3, 3], [3.0, 1.0, 1.73])
+    off = camera_offset_pose(w2c)
+    assert np.allclose(off[:3, 3], [3.0, 1.0, 1.6] + (-0.27) * ego[:3, 0] + [0, 0, 0.08])
+
+
+def test_object_boxes_are_tight_and_kitti_in_the_camera():
+    """A 4.5 × 1.8 × 1.5 car (procedural frame: forward +y) turned 20°, 15 m ahead of a level camera."""
+    v, f, T = box_mesh([0, 15, 0.75], [1.8, 4.5, 1.5], math.radians(20))
+    box = object_box([(v, f, "body")], T, "+y")
+    np.testing.assert_allclose(2 * box.half, [4.5, 1.8, 1.5], atol=1e-9)
+    np.testing.assert_allclose(box.centre, [0, 15, 0.75], atol=1e-9)
+    w2c = world_to_camera(camera_to_world([0, 0, 1.5]))
+    rec = box_record(box, w2c, np.linalg.inv(np.eye(4)))
+    cam = rec["camera"]
+    np.testing.assert_allclose(cam["location_m"], [0, 1.5, 15], atol=1e-9)  # bottom centre: 1.5 m below the camera
+    assert cam["dimensions_hwl_m"] == pytest.approx([1.5, 1.8, 4.5])
+    # heading +y turned 20° left (towards −x): in the camera, x right, z forward → rotation_y = −(90° + 20°)
+    assert cam["rotation_y"] == pytest.approx(-math.radians(110)) and cam["alpha"] == pytest.approx(cam["rotation_y"])
+    assert rec["lidar"]["yaw"] == pytest.approx(math.radians(110))
+
+
+def test_glass_returns_little_and_materials_by_luminance():
+    from fogsim.render.lidar_scan import material_reflectivity, slot_reflectivity
+
+    assert slot_reflectivity({"asset": {}}, "glass") == GLASS_REFLECTIVITY
+    assert slot_reflectivity({"asset": {"materials": {"body_paint": {"color": [0.8, 0.8, 0.8]}}}}, "body_paint") \
+        == pytest.approx(0.8, abs=1e-6)
+    assert material_reflectivity([1, 1, 1, 1], transmission=1.0) == GLASS_REFLECTIVITY
+
+
+# ----------------------------------------------------------------------------- real Blender
+def _project(points_world: np.ndarray, K: dict, w2c: np.ndarray):
+    cam = points_world @ w2c[:3, :3].T + w2c[:3, 3]
+    z = cam[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u, v = K["fx"] * cam[:, 0] / z + K["cx"], K["fy"] * cam[:, 1] / z + K["cy"]
+    return u, v, z, np.linalg.norm(cam, axis=1)
+
+
+def check_points_on_depth(out: Path, frame: str, min_points: int = 200) -> dict:
+    """Every LiDAR point the camera also sees (its pixel's neighbourhood shows the same object on one plane)
+    lies on the rendered depth within 2 cm; labelled points lie in their object's box. Returns counts."""
+    from fogsim.fileio import read_depth_file, read_uint16_map
+    from fogsim.lidar.formats import read_points
+
+    meta = json.loads((out / "meta" / f"{frame}.json").read_text())
+    K, w2c = meta["camera"]["intrinsics"], np.asarray(meta["camera"]["world_to_camera"])
+    l2w = np.asarray(meta["lidar"]["lidar_to_world"])
+    cloud = read_points(out / meta["lidar"]["levels"]["clear"]["scan"], meta["lidar"]["levels"]["clear"]["format"])
+    labels = np.fromfile(out / meta["lidar"]["levels"]["clear"]["labels"], "<u4")
+    assert len(labels) == len(cloud)
+    instance = (labels >> 16).astype(np.int64)
+    world = cloud.xyz.astype(np.float64) @ l2w[:3, :3].T + l2w[:3, 3]
+    u, v, z, ray = _project(world, K, w2c)
+    depth, mask = read_depth_file(out / meta["depth"]["file"]), read_uint16_map(out / "masks" / f"{frame}.png")
+    h, w = depth.shape
+    inside = (z > 0.5) & (u >= 1) & (v >= 1) & (u < w - 2) & (v < h - 2)
+    ui, vi = np.floor(u[inside]).astype(int), np.floor(v[inside]).astype(int)
+    idx = np.flatnonzero(inside)
+    errs = []
+    for k, x0, y0 in zip(idx, ui, vi):
+        ids = mask[y0 - 1:y0 + 3, x0 - 1:x0 + 3]
+        if instance[k] == 0 or not (ids == instance[k]).all():
+            continue  # scenery, or the camera sees another object there (occlusion from another viewpoint)
+        inv = 1.0 / depth[y0 - 1:y0 + 3, x0 - 1:x0 + 3].astype(np.float64)
+        if np.abs(np.diff(inv, 2, axis=0)).max() > 1e-5 or np.abs(np.diff(inv, 2, axis=1)).max() > 1e-5:
+            continue  # the 4×4 neighbourhood is not one plane (an edge between two faces)
+        fx, fy = u[k] - x0, v[k] - y0  # 1/Z is bilinear on a plane: interpolate between pixel centres
+        iz = (inv[1, 1] * (1 - fx) * (1 - fy) + inv[1, 2] * fx * (1 - fy) + inv[2, 1] * (1 - fx) * fy
+              + inv[2, 2] * fx * fy)
+        zc = 1.0 / iz
+        xn, yn = (u[k] - K["cx"]) / K["fx"], (v[k] - K["cy"]) / K["fy"]
+        errs.append(abs(zc * math.sqrt(1 + xn * xn + yn * yn) - ray[k]))
+    assert len(errs) >= min_points, len(errs)
+    assert max(errs) <= 0.02, max(errs)
+    # labelled points lie in their object's box (1 cm of tolerance on the faces)
+    boxes = {r["id"]: r["box3d"]["lidar"] for r in meta["objects"] if "box3d" in r}
+    labelled = np.flatnonzero(instance > 0)
+    assert len(labelled) > 50
+    for oid in np.unique(instance[labelled]):
+        b = boxes[int(oid)]
+        box = Box3D.from_yaw(b["centre_m"], *(np.add(b["size_lwh_m"], 0.02)), b["yaw"])
+        assert box.contains(cloud.xyz[instance == oid]).all(), oid
+    return {"on_depth": len(errs), "labelled": len(labelled), "max_error_m": max(errs)}
+
+
+def check_boxes_project_onto_masks(out: Path, frame: str, tolerance_px: float = 3.0) -> int:
+    """For every unoccluded, untruncated object the 3D box's corners project onto the mask's 2D box."""
+    meta = json.loads((out / "meta" / f"{frame}.json").read_text())
+    K = meta["camera"]["intrinsics"]
+    n = 0
+    for r in meta["objects"]:
+        if "box3d" not in r or r["visible_fraction"] < 0.99 or r["truncated"] or r["pixels"] < 40:
+            continue
+        c = r["box3d"]["camera"]
+        h, w, length = c["dimensions_hwl_m"]
+        ry = c["rotation_y"]
+        L = np.array([math.cos(ry), 0, -math.sin(ry)])
+        W = np.array([math.sin(ry), 0, math.cos(ry)])
+        up = np.array([0, -1.0, 0])
+        bottom = np.asarray(c["location_m"])
+        corners = np.array([bottom + sl * L * length / 2 + sw * W * w / 2 + sh * up * h
+                            for sl in (-1, 1) for sw in (-1, 1) for sh in (0, 1)])
+        u = K["fx"] * corners[:, 0] / corners[:, 2] + K["cx"]
+        v = K["fy"] * corners[:, 1] / corners[:, 2] + K["cy"]
+        projected = [u.min() + 0.5, v.min() + 0.5, u.max() + 0.5, v.max() + 0.5]  # pixel centres → edges
+        assert np.abs(np.subtract(projected, r["bbox"])).max() <= tolerance_px, (r["class"], projected, r["bbox"])
+        n += 1
+    return n
+
+
+@pytest.fixture(scope="module")
+def lidar_render(tmp_path_factory):
+    from test_blender import _need_bpy, run
+
+    _need_bpy()
+    out = tmp_path_factory.mktemp("lidar") / "out"
+    res = run([sys.executable, "-m", "fogsim", "render", "--lidar", "hdl64e", "--frames", "2", "--resolution",
+               "240x160", "--samples", "1", "--levels", "clear,0.06", "--seed", "3", "--quiet", "--out", str(out)])
+    assert res.returncode == 0, res.stderr[-3000:]
+    return out
+
+
+@pytest.mark.blender
+@pytest.mark.slow
+def test_a_render_sweeps_what_the_camera_rendered(lidar_render):
+    counts = [check_points_on_depth(lidar_render, f) for f in ("000000", "000001")]
+    assert sum(c["on_depth"] for c in counts) >= 500
+    assert sum(check_boxes_project_onto_masks(lidar_render, f) for f in ("000000", "000001")) >= 1
+
+
+@pytest.mark.blender
+@pytest.mark.slow
+def test_each_level_is_the_fog_models_scan_and_the_kitti_tree_reads_back(lidar_render):
+    from fogsim.lidar.fog import LidarFogger
+    from fogsim.lidar.formats import read_points
+    from fogsim.lidar.outcome_file import read_outcomes
+    from fogsim.readers.kitti import kitti_samples, read_kitti_calib
+    from fogsim.render.lidar_frame import LIDAR_STREAM
+    from test_kitti import spec_read_frame
+
+    out = lidar_render
+    meta = json.loads((out / "meta" / "000000.json").read_text())
+    lv = meta["lidar"]["levels"]
+    clear = read_points(out / lv["clear"]["scan"], "kitti")
+    fogged = read_points(out / lv["beta0.06"]["scan"], "kitti")
+    again = LidarFogger(clear, LidarSensor.from_dict({k: v for k, v in meta["lidar"]["sensor"].items()
+                                                      if k not in ("inclinations_deg", "steps_per_sweep",
+                                                                   "mount_xyz_m", "mount_rpy_deg")}
+                                                     | {"beams": 64, "vertical_fov_deg": [-24.9, 2.0]}))
+    ref = again(0.06, np.random.default_rng([meta["seed"], 1, LIDAR_STREAM]))
+    np.testing.assert_array_equal(fogged.xyz, ref.cloud.xyz)
+    outcome, index = read_outcomes(out / lv["beta0.06"]["outcome_file"])
+    np.testing.assert_array_equal(outcome, ref.outcome)
+    assert lv["beta0.06"]["outcomes"]["clutter"] > 0 and lv["clear"]["outcomes"]["kept"] == len(clear)
+    # every labelled object has its points per level, fewer in fog
+    pts = [r["lidar_points"] for r in meta["objects"] if "lidar_points" in r]
+    assert pts and all(p["beta0.06"] <= p["clear"] for p in pts)
+    # the KITTI tree: the spec reader, and fogsim's own KITTI reader (P2·R0·Tr reproduces the render's K and pose)
+    for level in ("clear", "beta0.06"):
+        points, calib, labels, size = spec_read_frame(out / "kitti" / level, "000000")
+        assert size == (240, 160) and len(points) == len(read_points(out / lv[level]["scan"], "kitti"))
+    cal = read_kitti_calib(out / "kitti" / "clear" / "training" / "calib" / "000000.txt")
+    K = meta["camera"]["intrinsics"]
+    assert cal.intrinsics(240, 160).to_dict()["fx"] == pytest.approx(K["fx"])
+    uv, _, ray = cal.project_velo(clear.xyz)
+    w2c, l2w = np.asarray(meta["camera"]["world_to_camera"]), np.asarray(meta["lidar"]["lidar_to_world"])
+    u, v, _, ray2 = _project(clear.xyz.astype(np.float64) @ l2w[:3, :3].T + l2w[:3, 3], K, w2c)
+    ok = np.isfinite(uv[:, 0])
+    np.testing.assert_allclose(uv[ok], np.stack([u, v], 1)[ok] + 0.5, atol=1e-3)
+    np.testing.assert_allclose(ray[ok], ray2[ok], rtol=1e-6)
+    samples = kitti_samples(out / "kitti" / "clear")
+    objs = samples[0].labels().objects
+    cars = [o for o in objs if o["kept"]]
+    written = [r for r in meta["objects"] if r["kept"] and r["class"] in ("car", "van", "truck", "pedestrian",
+                                                                          "cyclist", "bus") and "box3d" in r]
+    assert len(cars) == len(written)
