@@ -22,7 +22,7 @@ import numpy as np
 
 from fogsim._version import __version__
 from fogsim.errors import InputError
-from fogsim.fileio import create_exclusive
+from fogsim.fileio import create_exclusive, resolve_path
 
 T = TypeVar("T")
 
@@ -40,13 +40,13 @@ def check_output(out: str | os.PathLike, inputs: dict[str, str | os.PathLike | N
     """
     if not str(out).strip():
         raise ValueError("--out must name a folder, got ''")
-    target = Path(out).resolve()
+    target = resolve_path(out, "--out")
     if target.exists() and not target.is_dir():
         raise InputError(out, "--out exists and is not a folder")
     for flag, given in inputs.items():
         if given is None or str(given) == "":
             continue
-        src = Path(given).resolve()
+        src = resolve_path(given, flag)
         inside_out = src == target or target in src.parents
         if src == target or src in target.parents or (inside_out and flag not in allow_inside_out):
             where = ("is" if src == target else "lies inside" if src in target.parents else "contains")

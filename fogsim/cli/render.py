@@ -221,5 +221,7 @@ def finalize_line(summary: dict, frames: int, shard: tuple[int, int]) -> str:
 def main(argv: list[str] | None = None, prog: str = "fogsim render") -> int:
     """Entry of ``scripts/render_batch.py`` (``blender -b -P``): the same command, its own prog name."""
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    from fogsim.fileio import with_checked_paths
+
     add_arguments(p)
-    return run_command(cmd_render, p.parse_args(argv), prog="fogsim")
+    return run_command(with_checked_paths(cmd_render), p.parse_args(argv), prog="fogsim")

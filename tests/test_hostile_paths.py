@@ -1,0 +1,100 @@
+"""Hostile paths and documents before any schema sees them (issue 31, class 1: U1).
+
+One guard where every path enters (:func:`fogsim.fileio.check_path_arguments`, run by the front
+doors before any command) and one where every JSON text enters (:func:`fogsim.fileio.parse_json`,
+behind ``read_json``, the schema's ``load_json`` and both ``--class-map`` readers): a symlink loop
+given to any flag, a document nested 100,000 deep or one larger than the bound is one line naming
+the path, exit 2, no traceback, nothing written, the inputs untouched (:func:`conftest.run_hostile_case`).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from conftest import run_hostile_case
+from fogsim.errors import InputError
+from test_hostile import Case, fog, good_folder
+
+DEEP = '{"a": ' + "[" * 100_000 + "]" * 100_000 + "}"
+
+
+def _loop(tmp: Path, name: str = "loop") -> Path:
+    """tmp/in/<name> → tmp/in/<name>.b → tmp/in/<name>: two links that point at each other."""
+    a, b = tmp / "in" / name, tmp / "in" / f"{name}.b"
+    a.parent.mkdir(parents=True, exist_ok=True)
+    os.symlink(b.name, a)
+    os.symlink(a.name, b)
+    return a
+
+
+def _looped(make_argv):
+    """A good folder dataset in tmp/in, a loop beside it; ``make_argv(tmp, base, loop)``."""
+    def build(tmp: Path) -> list[str]:
+        base = good_folder(tmp)
+        return [str(a) for a in make_argv(tmp, base, _loop(tmp))]
+    return build
+
+
+LOOP = ("symlink loop",)
+LOOP_CASES = [
+    Case("loop-input", _looped(lambda t, b, lp: fog(b, t / "out")[:2] + [lp] + fog(b, t / "out")[3:]), 2,
+         ("{tmp}/in/loop", "--input", *LOOP)),
+    Case("loop-depth", _looped(lambda t, b, lp: ["fog", "--input", b / "images", "--depth", lp, "--hfov", "50",
+                                                 "--out", t / "out"]), 2, ("{tmp}/in/loop", "--depth", *LOOP)),
+    Case("loop-intrinsics", _looped(lambda t, b, lp: ["fog", "--input", b / "images", "--depth", b / "depth",
+                                                      "--intrinsics", lp, "--out", t / "out"]), 2,
+         ("--intrinsics", *LOOP)),
+    Case("loop-out", _looped(lambda t, b, lp: fog(b, lp)), 2, ("{tmp}/in/loop", "--out", *LOOP)),
+    Case("loop-out-parent", _looped(lambda t, b, lp: fog(b, lp / "sub")), 2, ("{tmp}/in/loop/sub", *LOOP)),
+    Case("loop-waymo", _looped(lambda t, b, lp: ["fog", "--waymo", lp, "--depth-dir", b / "depth", "--out",
+                                                 t / "out"]), 2, ("--waymo", *LOOP)),
+    Case("loop-waymo-depth-dir", _looped(lambda t, b, lp: ["fog", "--waymo", b, "--depth-dir", lp, "--out",
+                                                           t / "out"]), 2, ("--depth-dir", *LOOP)),
+    Case("loop-cityscapes", _looped(lambda t, b, lp: ["fog", "--cityscapes", lp, "--out", t / "out"]), 2,
+         ("--cityscapes", *LOOP)),
+    Case("loop-render-scene", _looped(lambda t, b, lp: ["render", "--scene", lp, "--out", t / "out"]), 2,
+         ("--scene", *LOOP)),
+    Case("loop-render-assets", _looped(lambda t, b, lp: ["render", "--assets", lp, "--out", t / "out"]), 2,
+         ("--assets", *LOOP)),
+    Case("loop-render-preset", _looped(lambda t, b, lp: ["render", "--preset", lp, "--out", t / "out"]), 2,
+         ("--preset", *LOOP)),
+    Case("loop-render-class-map", _looped(lambda t, b, lp: ["render", "--scene", b / "s.blend", "--class-map", lp,
+                                                            "--out", t / "out"]), 2, ("--class-map", *LOOP)),
+    Case("loop-study-dataset", _looped(lambda t, b, lp: ["study", "--dataset", lp, "--out", t / "out"]), 2,
+         ("--dataset", *LOOP)),
+    Case("loop-study-out", _looped(lambda t, b, lp: ["study", "--dataset", b, "--out", lp]), 2, ("--out", *LOOP)),
+    Case("loop-depth-score-pred", _looped(lambda t, b, lp: ["depth", "score", "--pred", lp, "--dataset", b,
+                                                            "--out", t / "out"]), 2, ("--pred", *LOOP)),
+    Case("loop-fit-fog-run", _looped(lambda t, b, lp: ["fit-fog", lp, "--out", t / "out" / "p.json"]), 2,
+         ("{tmp}/in/loop", *LOOP)),
+    Case("loop-fit-fog-start", _looped(lambda t, b, lp: ["fit-fog", b, "--start", lp, "--out", t / "p.json"]), 2,
+         ("--start", *LOOP)),
+    Case("loop-ila-predict-input", _looped(lambda t, b, lp: ["ila", "predict", "--checkpoint", b / "K.json",
+                                                             "--input", lp, "--out", t / "out"]), 2,
+         ("--input", *LOOP)),
+]
+
+CASES = LOOP_CASES
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+def test_hostile_path_or_document(case: Case, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    err = run_hostile_case(case, tmp_path, capsys)
+    assert "RecursionError" not in err and "RuntimeError" not in err
+    assert len(err.strip().splitlines()) == 1 if case.code == 2 else True, err
+    if case.code == 2:
+        assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir()), "a usage error wrote output"
+        assert not (tmp_path / "p.json").exists()
+
+
+def test_resolve_path_names_a_loop(tmp_path):
+    from fogsim.fileio import resolve_path
+
+    os.symlink("b", tmp_path / "a")
+    os.symlink("a", tmp_path / "b")
+    with pytest.raises(InputError, match=r"/a: --out is, or passes through, a symlink loop"):
+        resolve_path(tmp_path / "a", "--out")
+    assert resolve_path(tmp_path / "c") == tmp_path.resolve() / "c"
