@@ -22,7 +22,7 @@ import numpy as np
 
 from fogsim._version import __version__
 from fogsim.errors import InputError
-from fogsim.fileio import create_exclusive, resolve_path
+from fogsim.fileio import create_exclusive, read_json, resolve_path
 
 T = TypeVar("T")
 
@@ -69,9 +69,9 @@ def claim_output(path: str | os.PathLike, parameters: dict, record: dict | None 
     if create_exclusive(path, payload):  # atomic: of two concurrent first claims, one wins
         return True
     try:
-        old = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(path, f"unreadable run file ({exc}); delete it or use another --out") from None
+        old = read_json(path)
+    except InputError as exc:
+        raise InputError(path, f"unreadable run file ({exc.problem}); delete it or use another --out") from None
     if not isinstance(old, dict):  # (the run file's fields are fogsim.schema.documents' to check)
         raise InputError(path, f"malformed run file: must be a JSON object (got {type(old).__name__}); "
                                "delete it or use another --out")

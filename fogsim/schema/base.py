@@ -304,10 +304,11 @@ def check(obj: Any, model: type[M], source: str | os.PathLike | None = None, pre
 
 
 def load_json(path: str | os.PathLike, model: type[M]) -> M:
-    """Read the JSON file ``path`` and check it against ``model`` (one line naming the file)."""
-    from fogsim.fileio import read_json
+    """Read the JSON file ``path`` and check it against ``model`` (one line naming the file; the size bound
+    of :func:`fogsim.fileio.read_json` is the smaller one for a :class:`Closed` document, which users write)."""
+    from fogsim.fileio import MAX_DOCUMENT_BYTES, MAX_JSON_BYTES, read_json
 
-    return check(read_json(path), model, path)
+    return check(read_json(path, MAX_DOCUMENT_BYTES if issubclass(model, Closed) else MAX_JSON_BYTES), model, path)
 
 
 def shape_of(a: Any) -> tuple:
