@@ -36,10 +36,26 @@ STALE_FOREIGN_PART_S = 24 * 3600  # another host's (or an unnamed) leftover is s
 
 
 def _temp_beside(path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_HOST}-{os.getpid()}.", suffix=PART_SUFFIX, dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_HOST}-{os.getpid()}.", suffix=PART_SUFFIX,
+                                   dir=path.parent)
+    except OSError as exc:
+        raise _naming(exc, path) from None
     os.close(fd)
     return Path(tmp)
+
+
+def _naming(exc: OSError, path: Path) -> OSError:
+    """``exc`` as the user would read it: naming the target ``path``, never the hidden temporary file
+    (a folder where the file should go, a read-only folder, a full disk …)."""
+    if isinstance(exc, IsADirectoryError) or (path.is_dir() and exc.errno in (errno.EISDIR, errno.ENOTEMPTY,
+                                                                              errno.EEXIST)):
+        return IsADirectoryError(errno.EISDIR, "is a folder, not a file that can be written", str(path))
+    named = exc.filename is None or Path(str(exc.filename)).name.endswith(PART_SUFFIX)
+    if named and exc.errno is not None:
+        return type(exc)(exc.errno, exc.strerror or str(exc), str(path))
+    return exc
 
 
 @contextmanager
@@ -59,8 +75,9 @@ def atomic_path(path: str | os.PathLike):
         os.replace(tmp, path)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
-        if exc.filename is None and exc.errno is not None:  # a short write says not which file: name it
-            raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
+        named = _naming(exc, path)  # a short write says not which file, a rename names the temporary one
+        if named is not exc:
+            raise named from None
         raise
     except BaseException:
         tmp.unlink(missing_ok=True)
