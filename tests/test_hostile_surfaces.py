@@ -74,7 +74,61 @@ FIT_FOG = [
          ("night",)),
 ]
 
-CASES = FIT_FOG
+
+
+# ----------------------------------------------------------------------------- numbers that become allocations
+def _cmd(*argv: str, prepare=None):
+    """Any command; ``{tmp}`` is the case's folder; tmp/in holds a good folder dataset (and ``prepare(tmp)``)."""
+    def build(tmp: Path) -> list[str]:
+        from test_hostile import good_folder
+
+        good_folder(tmp)
+        if prepare:
+            prepare(tmp)
+        return [a.replace("{tmp}", str(tmp)) for a in argv]
+    return build
+
+
+def _fog(*extra: str):
+    return _cmd("fog", "--input", "{tmp}/in/images", "--depth", "{tmp}/in/depth", "--intrinsics", "{tmp}/in/K.json",
+                "--levels", "0.06", "--out", "{tmp}/out", "--quiet", *extra)
+
+
+def _preset_frames(tmp: Path) -> None:
+    (tmp / "in" / "p.json").write_text(json.dumps({"frames": 10**12}))
+
+
+NUMBERS = [
+    Case("bench-fog-size-huge", _cmd("bench", "fog", "--size", "100000x100000", "--repeat", "1"), 2,
+         ("--size 100000×100000", "--max-pixels")),
+    Case("bench-fog-size-above-max-pixels", _cmd("bench", "fog", "--size", "640x480", "--max-pixels", "1000"), 2,
+         ("--size 640×480", "raise --max-pixels")),
+    Case("bench-fog-max-pixels-zero", _cmd("bench", "fog", "--max-pixels", "0"), 2, ("--max-pixels",)),
+    Case("render-frames-huge", _cmd("render", "--frames", str(10**12), "--out", "{tmp}/out"), 2,
+         ("--frames", "[1, 1000000]")),
+    Case("render-preset-frames-huge", _cmd("render", "--preset", "{tmp}/in/p.json", "--out", "{tmp}/out",
+                                           prepare=_preset_frames), 2, ("p.json", "frames", "[1, 1000000]")),
+    Case("fog-workers-huge", _fog("--workers", "100000"), 2, ("--workers", "got 100000")),
+    Case("fog-kernel-size-huge", _fog("--extended", "--kernel-size", "999999999"), 2, ("kernel size", "4095")),
+    Case("fog-heterogeneity-scale-tiny", _fog("--heterogeneity", "0.5", "--heterogeneity-scale", "1e-6"), 2,
+         ("--heterogeneity-scale", "≥ 1 pixel")),
+    Case("fog-heterogeneity-scale-inf", _fog("--heterogeneity", "0.5", "--heterogeneity-scale", "inf"), 2,
+         ("--heterogeneity-scale",)),
+    Case("demo-frames-huge", _cmd("demo", "--frames", str(10**9), "--out", "{tmp}/out"), 2, ("--frames", "1000")),
+    Case("study-imgsz-huge", _cmd("study", "--dataset", "{tmp}/in", "--imgsz", str(10**7), "--out", "{tmp}/out"), 2,
+         ("--imgsz", "8192")),
+    Case("study-batch-huge", _cmd("study", "--dataset", "{tmp}/in", "--batch", str(10**7), "--out", "{tmp}/out"), 2,
+         ("--batch", "4096")),
+    Case("study-render-huge", _cmd("study", "--render", str(10**12), "--out", "{tmp}/out"), 2, ("--render",)),
+    Case("ila-train-width-huge", _cmd("ila", "train", "--data", "{tmp}/in", "--width", "100000", "--out",
+                                      "{tmp}/out"), 2, ("--width", "256")),
+    Case("ila-train-size-huge", _cmd("ila", "train", "--data", "{tmp}/in", "--size", "100000x100000", "--out",
+                                     "{tmp}/out"), 2, ("--size 100000x100000", "4 MP")),
+    Case("bench-ila-resolution-huge", _cmd("bench", "ila", "--resolution", "100000x100000", "--out", "{tmp}/out"),
+         2, ("--resolution", "65536")),
+]
+
+CASES = FIT_FOG + NUMBERS
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])

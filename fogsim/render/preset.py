@@ -41,6 +41,7 @@ from fogsim.scene.library import assets_dir, library_files
 from fogsim.schema.base import Closed, check, int_in, load_json, number_in
 from fogsim.schema.presets import (
     ASSET_CLASSES,
+    MAX_FRAMES,
     MAX_SIDE,
     MIN_SIDE,
     TRAIN_FRACTION,
@@ -105,7 +106,7 @@ class Overrides(Closed):
     """The command-line overrides of a preset, by flag (the field aliases): what
     :func:`check_overrides` checks before the preset is read."""
 
-    frames: int_in(1) | None = None
+    frames: int_in(1, MAX_FRAMES) | None = None
     seed: int_in(0) | None = None
     samples: int_in(1, MAX_SAMPLES) | None = None
     max_pixels: int_in(MIN_SIDE * MIN_SIDE) = MAX_PIXELS

@@ -47,7 +47,8 @@ from pydantic import (
 
 from fogsim.errors import InputError
 
-__all__ = ["Bool", "Closed", "Open", "Int", "Number", "NonNegInt", "Text", "by_type", "check", "int_in", "load_json",
+__all__ = ["Bool", "Closed", "Open", "Int", "Number", "NonNegInt", "Text", "by_type", "check", "check_flag", "int_in",
+           "load_json",
            "items", "word", "load_npz", "number_in", "one_line", "pair", "shape_of", "M"]
 
 M = TypeVar("M", bound=BaseModel)
@@ -301,6 +302,18 @@ def check(obj: Any, model: type[M], source: str | os.PathLike | None = None, pre
         if source is None:
             raise ValueError(line) from None
         raise InputError(source, line) from None
+
+
+def check_flag(flag: str, value: Any, kind: Any) -> Any:
+    """The command-line value ``value`` of ``flag`` checked against the value type ``kind`` (e.g.
+    ``int_in(1, 1024)``): a ValueError ``--flag: must be an integer in [1, 1024] (got 5000)``, the
+    schema's words, for the numbers no document holds (a worker count, an image size …)."""
+    from pydantic import TypeAdapter
+
+    try:
+        return TypeAdapter(kind).validate_python(value)
+    except ValidationError as exc:
+        raise ValueError(one_line(exc, flag)) from None
 
 
 def load_json(path: str | os.PathLike, model: type[M]) -> M:
