@@ -128,7 +128,101 @@ NUMBERS = [
          2, ("--resolution", "65536")),
 ]
 
-CASES = FIT_FOG + NUMBERS
+
+
+# ----------------------------------------------------------------------------- presets: sensor and sky
+BASE_PRESET = {"style": "urban-canyon", "camera": "waymo-front", "quality": "draft"}
+
+
+def _preset(extra: dict | None = None, prepare=None, *flags: str):
+    """``fogsim render --preset tmp/in/presets/p.json --frames 1 --resolution 96x64``; ``prepare(tmp)`` first.
+    Every case is refused while the preset is loaded, before Blender is needed."""
+    def build(tmp: Path) -> list[str]:
+        folder = tmp / "in" / "presets"
+        folder.mkdir(parents=True, exist_ok=True)
+        if prepare:
+            prepare(tmp)
+        (folder / "p.json").write_text(json.dumps(BASE_PRESET | (extra or {})))
+        return ["render", "--preset", str(folder / "p.json"), "--frames", "1", "--resolution", "96x64",
+                "--out", str(tmp / "out"), "--quiet", *flags]
+    return build
+
+
+def _sensor(**sensor):
+    return _preset({"sensor": sensor})
+
+
+def _exr(rel: str, value: float):
+    def prepare(tmp: Path) -> None:
+        import numpy as np
+
+        from fogsim.fileio import write_rgb_exr
+
+        rgb = np.ones((8, 16, 3), np.float32)
+        rgb[2:5, 3:9] = value
+        write_rgb_exr(tmp / "in" / rel, rgb)
+    return prepare
+
+
+def _bytes(rel: str, data: bytes):
+    def prepare(tmp: Path) -> None:
+        (tmp / "in" / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp / "in" / rel).write_bytes(data)
+    return prepare
+
+
+def _link(rel: str, target_rel: str, make=None):
+    """tmp/in/<rel> → tmp/in/<target_rel> (``make(tmp)`` writes the target first)."""
+    def prepare(tmp: Path) -> None:
+        import os
+
+        if make:
+            make(tmp)
+        (tmp / "in" / rel).parent.mkdir(parents=True, exist_ok=True)
+        os.symlink(tmp / "in" / target_rel, tmp / "in" / rel)
+    return prepare
+
+
+def _sky(hdri, prepare=None):
+    return _preset({"lighting": {"sky": "hdri", "hdri": hdri}}, prepare)
+
+
+HDR = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 2\n" + bytes([128, 128, 128, 129]) * 2  # 2×1 white
+FOLDS = ("sensor.distortion", "folds the image")
+SENSOR = [
+    Case("sensor-distortion-folds", _sensor(distortion=[-1, 1, 0, 0, -1]), 2, ("p.json", *FOLDS, "black ring")),
+    Case("sensor-distortion-barrel-too-strong", _sensor(distortion=[-0.5]), 2, ("p.json", *FOLDS)),
+    Case("sensor-distortion-k2-folds", _sensor(distortion=[0, -1]), 2, ("p.json", *FOLDS)),
+    Case("sensor-distortion-tangential-no-inverse", _sensor(distortion=[0, 0, 1, 1, 0]), 2, ("p.json", *FOLDS)),
+    Case("sensor-distortion-folds-at-this-resolution", _preset({"sensor": {"distortion": [-0.35]}}, None,
+                                                               "--resolution", "96x200"), 2, ("p.json", *FOLDS)),
+    Case("sensor-distortion-out-of-range", _sensor(distortion=[2]), 2, ("p.json", "sensor.distortion[0]")),
+    Case("sensor-distortion-six-values", _sensor(distortion=[0] * 6), 2, ("p.json", "sensor.distortion")),
+    Case("sensor-distortion-string", _sensor(distortion=["0.1"]), 2, ("p.json", "sensor.distortion[0]")),
+    Case("sensor-jpeg-quality-zero", _sensor(jpeg_quality=0), 2, ("p.json", "sensor.jpeg_quality")),
+    Case("sensor-full-well-zero", _sensor(noise={"full_well_e": 0}), 2, ("p.json", "full_well_e")),
+    Case("sensor-exposure-huge", _sensor(exposure_ev=100), 2, ("p.json", "sensor.exposure_ev")),
+    Case("sensor-vignetting-negative", _sensor(vignetting=-1), 2, ("p.json", "sensor.vignetting")),
+    Case("sensor-unknown-key", _sensor(fisheye=True), 2, ("p.json", "fisheye")),
+]
+SKIES = [
+    Case("hdri-nan", _sky("sky.exr", _exr("presets/sky.exr", float("nan"))), 2, ("sky.exr", "NaN or infinite")),
+    Case("hdri-inf", _sky("sky.exr", _exr("presets/sky.exr", float("inf"))), 2, ("sky.exr", "NaN or infinite")),
+    Case("hdri-one-of-a-list-nan", _sky(["city", "sky.exr"], _exr("presets/sky.exr", float("nan"))), 2,
+         ("sky.exr", "NaN")),
+    Case("hdri-not-an-image", _sky("sky.exr", _bytes("presets/sky.exr", b"not an EXR at all" * 10)), 2,
+         ("sky.exr", "not a readable HDRI")),
+    Case("hdri-hdr-truncated", _sky("sky.hdr", _bytes("presets/sky.hdr", HDR[:20])), 2,
+         ("sky.hdr", "not a readable HDRI")),
+    Case("hdri-missing", _sky("none.exr"), 2, ("p.json", "no such file")),
+    Case("hdri-wrong-suffix", _sky("sky.png", _bytes("presets/sky.png", b"x")), 2, ("p.json", "lighting.hdri")),
+    Case("hdri-without-sky-hdri", _preset({"lighting": {"hdri": "city"}}), 2, ("p.json", 'needs "sky": "hdri"')),
+    Case("hdri-unknown-world-name", _sky("moon"), 2, ("p.json", "Blender world HDRI")),
+    Case("sky-strength-reversed", _preset({"lighting": {"strength": [2, 1]}}), 2, ("p.json", "lighting.strength")),
+]
+
+
+CASES = FIT_FOG + NUMBERS + SENSOR + SKIES
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
@@ -149,3 +243,15 @@ def test_fit_fog_into_a_folder_of_its_own_runs(tmp_path, capsys):
     out = tmp_path / "params.json"
     assert main(["fit-fog", str(fp), "--out", str(out), "--quiet"]) == 0
     assert json.loads(out.read_text())["parameters"]
+
+
+def test_a_lens_inside_the_image_passes():
+    """Moderate barrel and pincushion distortion and small tangential terms are one-to-one over the image."""
+    from fogsim.camera import Intrinsics
+    from fogsim.sensor import distortion_problem
+
+    K = Intrinsics(102.7, 102.7, 47.5, 31.5, 96, 64)
+    for coeffs in ([-0.25, 0.05], [-0.3], [0.3], [1, 1, 0, 0, 1], [0, 0, 0.1, 0.1, 0], [0, 0, 0, 0, -1]):
+        assert distortion_problem(K, coeffs) is None, coeffs
+    assert distortion_problem(K, [-0.35]) is None
+    assert "folds" in distortion_problem(Intrinsics(102.7, 102.7, 47.5, 99.5, 96, 200), [-0.35])

@@ -218,6 +218,7 @@ def resolve_assets(given: dict, preset: Path, dirs: dict | None = None, dirs_sou
 def _hdri_paths(lighting: dict, source: Path) -> dict:
     """``lighting`` with every HDRI path made absolute (relative: to the preset's folder); a
     missing file is the preset's problem. Blender world HDRI names stay names."""
+    from fogsim.scene.sky import hdri_problem
     from fogsim.schema.presets import WORLD_HDRIS
 
     spec = lighting.get("hdri")
@@ -230,6 +231,8 @@ def _hdri_paths(lighting: dict, source: Path) -> dict:
             p = p if p.is_absolute() else source.parent / p
             if not p.is_file():
                 raise InputError(source, f"lighting.hdri: no such file {str(p)!r}")
+            if problem := hdri_problem(p):  # once per run, not per frame
+                raise InputError(source, f"lighting.hdri {str(p)!r}: {problem}")
             item = str(p.resolve())
         out.append(item)
     return {**lighting, "hdri": out[0] if isinstance(spec, str) else out}
@@ -269,4 +272,18 @@ def _compose(d: DatasetPreset, path: Path, ov: Overrides, res_override, lv_overr
         seed=ov.seed if ov.seed is not None else d.seed, stereo_baseline=baseline,
         train_fraction=ov.train_fraction if ov.train_fraction is not None else d.train_fraction)
     fog_settings(cfg)  # the fog_model with --fog / --fog-medium applied, checked again
+    check_lens(cfg, path)
     return cfg
+
+
+def check_lens(cfg: RenderConfig, source) -> None:
+    """The sensor's distortion at the run's camera and resolution: values inside the schema's range
+    that fold the image (:func:`fogsim.sensor.distortion_problem`) are refused naming the key."""
+    from fogsim.scene.layout import camera_intrinsics
+    from fogsim.sensor import distortion_problem
+
+    coeffs = cfg.sensor.get("distortion")
+    if coeffs and any(coeffs):
+        problem = distortion_problem(camera_intrinsics(cfg.camera, cfg.resolution), coeffs)
+        if problem:
+            raise InputError(source, f"sensor.distortion {list(coeffs)}: {problem}")
