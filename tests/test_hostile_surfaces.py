@@ -214,6 +214,11 @@ SKIES = [
          ("sky.exr", "not a readable HDRI")),
     Case("hdri-hdr-truncated", _sky("sky.hdr", _bytes("presets/sky.hdr", HDR[:20])), 2,
          ("sky.hdr", "not a readable HDRI")),
+    Case("hdri-relative-outside-the-preset", _sky("../sky.hdr", _bytes("sky.hdr", HDR)), 2,
+         ("p.json", "lies outside the preset's folder")),
+    Case("hdri-link-out-of-the-preset", _sky("sky.hdr", _link("presets/sky.hdr", "elsewhere/sky.hdr",
+                                                              _bytes("elsewhere/sky.hdr", HDR))), 2,
+         ("p.json", "lies outside the preset's folder")),
     Case("hdri-missing", _sky("none.exr"), 2, ("p.json", "no such file")),
     Case("hdri-wrong-suffix", _sky("sky.png", _bytes("presets/sky.png", b"x")), 2, ("p.json", "lighting.hdri")),
     Case("hdri-without-sky-hdri", _preset({"lighting": {"hdri": "city"}}), 2, ("p.json", 'needs "sky": "hdri"')),
@@ -222,7 +227,117 @@ SKIES = [
 ]
 
 
-CASES = FIT_FOG + NUMBERS + SENSOR + SKIES
+# ----------------------------------------------------------------------------- asset libraries
+def _library(change=None, *flags: str):
+    """``fogsim render --preset default --assets tmp/in/lib``: the test library (a hatch, an estate, a
+    walker), ``change(lib, tmp)`` applied; refused while the library is read, before Blender starts."""
+    def build(tmp: Path) -> list[str]:
+        from asset_models import make_library
+
+        lib = tmp / "in" / "lib"
+        cached = _CACHE / "lib"
+        if not cached.is_dir():
+            make_library(_CACHE / "lib.part")
+            (_CACHE / "lib.part").rename(cached)
+        shutil.copytree(cached, lib)
+        (tmp / "in" / "outside.bin").write_bytes(b"\0" * 64)  # a file beside the library
+        if change:
+            change(lib, tmp)
+        return ["render", "--preset", "default", "--assets", str(lib), "--frames", "1", "--resolution", "96x64",
+                "--out", str(tmp / "out"), "--quiet", *flags]
+    return build
+
+
+def _gltf(uri_of: dict, name: str = "car/m.gltf"):
+    """A .gltf in the library whose buffers / images carry the given uris (``{"buffers": uri, "images": uri}``)."""
+    def change(lib: Path, tmp: Path) -> None:
+        doc = {"asset": {"version": "2.0"}, "buffers": [{"byteLength": 64, "uri": uri_of.get("buffers", "m.bin")}]}
+        if "images" in uri_of:
+            doc["images"] = [{"uri": uri_of["images"]}]
+        (lib / name).write_text(json.dumps(doc))
+    return change
+
+
+def _glb(uri: str):
+    def change(lib: Path, tmp: Path) -> None:
+        import struct
+
+        chunk = json.dumps({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 64, "uri": uri}]}).encode()
+        chunk += b" " * (-len(chunk) % 4)
+        body = struct.pack("<II", len(chunk), 0x4E4F534A) + chunk
+        (lib / "car" / "m.glb").write_bytes(b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body)
+    return change
+
+
+def _write(rel: str, data: bytes):
+    def change(lib: Path, tmp: Path) -> None:
+        (lib / rel).parent.mkdir(parents=True, exist_ok=True)
+        (lib / rel).write_bytes(data)
+    return change
+
+
+def _symlinked_model(lib: Path, tmp: Path) -> None:
+    import os
+
+    (tmp / "in" / "elsewhere").mkdir()
+    shutil.copy(lib / "car" / "hatch.glb", tmp / "in" / "elsewhere" / "x.glb")
+    os.symlink(tmp / "in" / "elsewhere" / "x.glb", lib / "car" / "x.glb")
+
+
+def _mtl_outside(lib: Path, tmp: Path) -> None:
+    walker = lib / "pedestrian" / "walker" / "walker.obj"
+    walker.write_bytes(b"mtllib ../../../outside.mtl\n" + walker.read_bytes())
+    (tmp / "in" / "outside.mtl").write_text("newmtl skin\nKd 1 1 1\n")
+
+
+def _mtl_map_outside(lib: Path, tmp: Path) -> None:
+    mtl = next((lib / "pedestrian" / "walker").glob("*.mtl"))
+    mtl.write_text(mtl.read_text() + "\nmap_Kd -s 1 1 1 ../../../outside.bin\n")
+
+
+def _not_a_folder(tmp: Path) -> list[str]:
+    argv = _library()(tmp)
+    argv[argv.index("--assets") + 1] = str(tmp / "in" / "outside.bin")
+    return argv
+
+
+OUTSIDE = ("points outside the library folder",)
+ASSETS = [
+    Case("assets-gltf-buffer-outside", _library(_gltf({"buffers": "../../../../../../etc/passwd"})), 2,
+         ("m.gltf", "buffers[0].uri", *OUTSIDE)),
+    Case("assets-gltf-buffer-beside-the-library", _library(_gltf({"buffers": "../../outside.bin"})), 2,
+         ("m.gltf", "buffers[0].uri '../../outside.bin'", *OUTSIDE)),
+    Case("assets-gltf-image-absolute", _library(_gltf({"images": "/etc/hostname"})), 2,
+         ("m.gltf", "images[0].uri", *OUTSIDE)),
+    Case("assets-gltf-uri-percent-encoded", _library(_gltf({"buffers": "%2E%2E/%2E%2E/outside.bin"})), 2,
+         ("m.gltf", *OUTSIDE)),
+    Case("assets-gltf-uri-http", _library(_gltf({"buffers": "http://example.com/m.bin"})), 2,
+         ("m.gltf", "only relative paths and data: URIs")),
+    Case("assets-gltf-uri-file-scheme", _library(_gltf({"buffers": "file:///etc/passwd"})), 2,
+         ("m.gltf", "only relative paths and data: URIs")),
+    Case("assets-gltf-uri-not-a-string", _library(_gltf({"buffers": 7})), 2, ("m.gltf", "uri must be a string")),
+    Case("assets-gltf-deep", _library(_write("car/m.gltf", ("[" * 100_000 + "]" * 100_000).encode())), 2,
+         ("m.gltf", "nest 100000 levels deep")),
+    Case("assets-glb-buffer-outside", _library(_glb("../../../../../../etc/passwd")), 2,
+         ("m.glb", "buffers[0].uri", *OUTSIDE)),
+    Case("assets-glb-not-a-glb", _library(_write("car/m.glb", b"PK\x03\x04 not a glb" * 4)), 2,
+         ("m.glb", "not a GLB file")),
+    Case("assets-model-linked-from-outside", _library(_symlinked_model), 2,
+         ("x.glb", "outside the library folder")),
+    Case("assets-obj-mtllib-outside", _library(_mtl_outside), 2, ("walker.obj", "mtllib", *OUTSIDE)),
+    Case("assets-mtl-texture-outside", _library(_mtl_map_outside), 2, ("walker.obj", "map_Kd", *OUTSIDE)),
+    Case("assets-fbx-texture-outside", _library(_write("car/m.fbx", b'; FBX 7.4.0 project file\n'
+                                                       b'Video: "Video::t", "Clip" {\n'
+                                                       b'  RelativeFilename: "../../outside.bin"\n}\n')), 2,
+         ("m.fbx", "texture file", *OUTSIDE)),
+    Case("assets-not-a-folder", _not_a_folder, 2, ("outside.bin", "--assets: not a folder")),
+    Case("assets-odd-sub-folder", _library(lambda lib, tmp: (lib / "spaceship").mkdir()), 2,
+         ("spaceship", "are not classes")),
+    Case("assets-class-without-models", _library(lambda lib, tmp: (lib / "bus").mkdir()), 2,
+         ("assets.bus: no model file",)),
+]
+
+CASES = FIT_FOG + NUMBERS + SENSOR + SKIES + ASSETS
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
@@ -243,6 +358,28 @@ def test_fit_fog_into_a_folder_of_its_own_runs(tmp_path, capsys):
     out = tmp_path / "params.json"
     assert main(["fit-fog", str(fp), "--out", str(out), "--quiet"]) == 0
     assert json.loads(out.read_text())["parameters"]
+
+
+def test_references_inside_the_library_pass(tmp_path):
+    """The confinement refuses only what leaves the library: data: URIs, relative files beside the
+    model or elsewhere in the library, an FBX's stale absolute path from another machine pass."""
+    from asset_models import make_library
+    from fogsim.scene.library import reference_problem
+
+    lib = tmp_path / "lib"
+    make_library(lib)
+    (lib / "textures").mkdir()
+    (lib / "textures" / "paint%.png").write_bytes(b"x")
+    doc = {"buffers": [{"uri": "data:application/octet-stream;base64,AAAA"}, {"uri": "m.bin"}],
+           "images": [{"uri": "../textures/paint%25.png"}]}
+    (lib / "car" / "m.gltf").write_text(json.dumps(doc))
+    assert reference_problem(lib / "car" / "m.gltf", lib) is None
+    (lib / "car" / "m.fbx").write_bytes(b'RelativeFilename: "../textures/paint%.png"\nFileName: "C:\\\\art\\\\p.png"\n')
+    assert reference_problem(lib / "car" / "m.fbx", lib) is None
+    for f in lib.rglob("*"):
+        if f.suffix in (".glb", ".obj"):
+            assert reference_problem(f, lib) is None, f
+    assert "outside" in reference_problem(lib / "car" / "m.gltf", lib / "car")  # the root is what confines
 
 
 def test_a_lens_inside_the_image_passes():

@@ -209,7 +209,8 @@ def resolve_assets(given: dict, preset: Path, dirs: dict | None = None, dirs_sou
         return {}
     source = dirs_source if dirs is not None else preset
     a = check({**{k: v for k, v in given.items() if k not in ASSET_CLASSES}, **classes}, Assets, source, "assets")
-    files = library_files(classes, source, None if dirs is not None else preset.parent)
+    files = library_files(classes, source, None if dirs is not None else preset.parent,
+                          Path(dirs_source) if dirs is not None and dirs_source is not None else None)
     mix = {k: v for k, v in a.mix.given().items() if v is not None}
     return {"files": files, "mix": {c: float(mix.get(c, 1.0)) for c in files}, "units": a.units,
             "forward": a.forward, "out_of_range": a.out_of_range}
@@ -218,6 +219,7 @@ def resolve_assets(given: dict, preset: Path, dirs: dict | None = None, dirs_sou
 def _hdri_paths(lighting: dict, source: Path) -> dict:
     """``lighting`` with every HDRI path made absolute (relative: to the preset's folder); a
     missing file is the preset's problem. Blender world HDRI names stay names."""
+    from fogsim.scene.library import inside
     from fogsim.scene.sky import hdri_problem
     from fogsim.schema.presets import WORLD_HDRIS
 
@@ -228,9 +230,14 @@ def _hdri_paths(lighting: dict, source: Path) -> dict:
     for item in [spec] if isinstance(spec, str) else spec:
         if item not in WORLD_HDRIS:
             p = Path(item).expanduser()
-            p = p if p.is_absolute() else source.parent / p
+            relative = not p.is_absolute()
+            p = source.parent / p if relative else p
             if not p.is_file():
                 raise InputError(source, f"lighting.hdri: no such file {str(p)!r}")
+            if relative and not inside(p, source.parent):  # ../ or a link: a relative path stays in the folder
+                raise InputError(source, f"lighting.hdri {item!r} lies outside the preset's folder {source.parent} "
+                                         "(a relative path is confined to it; write an absolute path to use a file "
+                                         "elsewhere)")
             if problem := hdri_problem(p):  # once per run, not per frame
                 raise InputError(source, f"lighting.hdri {str(p)!r}: {problem}")
             item = str(p.resolve())
