@@ -337,7 +337,67 @@ ASSETS = [
          ("assets.bus: no model file",)),
 ]
 
-CASES = FIT_FOG + NUMBERS + SENSOR + SKIES + ASSETS
+
+# ----------------------------------------------------------------------------- the study's flags
+def _synthetic(tmp: Path, name: str = "ds", depth: bool = False) -> Path:
+    """tmp/in/<name>: the synthetic 6-frame dataset at the paper's levels (``depth``: with rendered depth)."""
+    from synthetic_dataset import make_dataset
+
+    key = f"ds-depth{int(depth)}"
+    if not (_CACHE / key).is_dir():
+        make_dataset(_CACHE / f"{key}.part", frames=6, train_fraction=0.5, depth=depth)
+        (_CACHE / f"{key}.part").rename(_CACHE / key)
+    shutil.copytree(_CACHE / key, tmp / "in" / name)
+    return tmp / "in" / name
+
+
+def _study(*flags: str, change=None, second: bool = False):
+    """``fogsim study --dataset tmp/in/ds … --epochs 1 --out tmp/out`` (``{ds2}``: a second copy)."""
+    def build(tmp: Path) -> list[str]:
+        ds = _synthetic(tmp)
+        ds2 = _synthetic(tmp, "ds2", depth=True) if second else None
+        if change:
+            change(ds)
+        subst = {"{ds}": str(ds), "{ds2}": str(ds2)}
+        return ["study", "--dataset", str(ds), "--out", str(tmp / "out"), "--epochs", "1", "--quiet",
+                *[subst.get(f, f) for f in flags]]
+    return build
+
+
+def _no_clear_level(ds: Path) -> None:
+    doc = json.loads((ds / "dataset.json").read_text())
+    doc["levels"] = [lv for lv in doc["levels"] if lv["beta"] > 0]
+    (ds / "dataset.json").write_text(json.dumps(doc))
+
+
+STUDY = [
+    Case("study-augment-without-rendered-depth", _study("--augment", "continuous"), 2,
+         ("depth/000000.exr", "fog from depth needs a rendered dataset")),
+    Case("study-augment-malformed", _study("--augment", "gaussian"), 2, ("--augment must be continuous",)),
+    Case("study-augment-range-reversed", _study("--augment", "continuous:0.12-0.03"), 2,
+         ("--augment continuous:0.12-0.03", "low ≤ high")),
+    Case("study-augment-range-words", _study("--augment", "continuous:a-b"), 2, ("--augment range",)),
+    Case("study-augment-without-clear-level", _study("--augment", "continuous", change=_no_clear_level), 2,
+         ("dataset.json", "no level with β = 0")),
+    Case("study-eval-without-scatter", _study("--eval-dataset", "{ds2}", second=True), 2,
+         ("--eval-dataset and --scatter-dataset come together",)),
+    Case("study-eval-with-sim", _study("--eval-dataset", "{ds2}", "--scatter-dataset", "{ds2}", "--sim-dataset",
+                                       "{ds2}", second=True), 2, ("give one of them",)),
+    Case("study-render-with-shard", _study("--render", "3", "--shard", "0/2"), 2, ("--render with --shard",)),
+    Case("study-render-with-sim", _study("--render", "3", "--sim-dataset", "{ds2}", second=True), 2,
+         ("--render renders the study's own dataset",)),
+    Case("study-sim-is-the-dataset", _study("--sim-dataset", "{ds}"), 2, ("--sim-dataset is the --dataset itself",)),
+    Case("study-class-map-unknown", _study("--class-map", "fogsim-to-mars"), 2, ("fogsim-to-mars", "not a class map")),
+    Case("study-class-map-bad-json", _study("--class-map", '{"map": 3}'), 2, ("--class-map",)),
+    Case("study-epochs-zero", _study("--epochs", "0"), 2, ("--epochs",)),
+    Case("study-mixed-epochs-negative", _study("--mixed-epochs", "-1"), 2, ("--mixed-epochs",)),
+    Case("study-max-distance-zero", _study("--max-distance", "0"), 2, ("--max-distance",)),
+    Case("study-shard-malformed", _study("--shard", "1/1"), 2, ("--shard",)),
+    Case("study-report-only-without-study", _study("--report-only"), 2,
+         ("prediction files are missing",)),
+]
+
+CASES = FIT_FOG + NUMBERS + SENSOR + SKIES + ASSETS + STUDY
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])

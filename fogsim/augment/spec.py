@@ -192,4 +192,7 @@ def parse_augment(text: str) -> FogSpec:
         except ValueError:
             raise ValueError(f"--augment range must be LOW-HIGH in 1/m (e.g. 0-0.12), got {part!r}") from None
         beta = (low, high)
-    return FogSpec(beta=beta, sample=sample)
+    try:
+        return FogSpec(beta=beta, sample=sample)
+    except ValueError as exc:  # a range FogSpec refuses: say which flag gave it
+        raise ValueError(f"--augment {text}: {exc}") from None
