@@ -1,4 +1,4 @@
-"""Hostile arguments to the Python API of ``fogsim.augment`` (issue 31, class 4: U7, U8, U9).
+"""Hostile arguments to the Python API of ``fogsim.augment`` (issue 31, class 4: U7, U8, U9; item 5).
 
 Every front end — the NumPy reference (``apply_fog``, ``random_fog``, ``FogSpec``), albumentations'
 ``Fog``, the batched torch ``fog_batch`` and torchvision's ``FogV2`` — raises a ``TypeError`` (a
@@ -9,6 +9,8 @@ as 0–1, a NaN airlight). The inputs are left as they were. The rules: :mod:`fo
 """
 from __future__ import annotations
 
+import subprocess
+import sys
 from dataclasses import dataclass
 from typing import Callable
 
@@ -234,3 +236,24 @@ def test_what_is_supported_still_fogs_by_the_formula():
         assert np.allclose(out.astype(np.float64), expected, atol=max(1.0, scale * 2e-3)), (image.dtype, out[0, 0])
     one = apply_fog(IMG[:1, :1], DEPTH[:1, :1], Draw(0.05, (255.0,) * 3))
     assert one.shape == (1, 1, 3) and abs(int(one[0, 0, 0]) - round(90 * t + 255 * (1 - t))) <= 1
+
+
+def test_fog_batch_needs_no_torchvision():
+    """Item 5: a torch-only user (torchvision absent) has fog_batch; FogV2 alone says what to install."""
+    pytest.importorskip("torch")
+    code = """
+import sys
+sys.modules["torchvision"] = None  # as if not installed: every import of it fails
+import torch
+from fogsim.augment import fog_batch
+from fogsim.errors import MissingDependency
+out = fog_batch(torch.full((1, 3, 2, 2), 90, dtype=torch.uint8), torch.full((1, 1, 2, 2), 40.0), 0.05)
+assert out.dtype == torch.uint8 and int(out[0, 0, 0, 0]) == 233, out
+try:
+    from fogsim.augment import FogV2
+except MissingDependency as exc:
+    print("MISSING", exc)
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "MISSING" in r.stdout and "torchvision" in r.stdout and "fogsim[augment]" in r.stdout, r.stdout

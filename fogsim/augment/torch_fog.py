@@ -171,45 +171,56 @@ def cuda_available() -> bool:
     return bool(torch.cuda.is_available())
 
 
-v2 = require("torchvision.transforms.v2", "augment")
-tv_tensors = require("torchvision.tv_tensors", "augment")
+def __getattr__(name: str):
+    """``FogV2`` is made on first use: only it needs torchvision (a torch-only user has fog_batch)."""
+    if name == "FogV2":
+        cls = globals()["FogV2"] = _fog_v2()
+        return cls
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-class FogV2(v2.Transform):
-    """Koschmieder fog as a torchvision v2 transform; parameters as :class:`FogSpec`, ``seed``
-    seeds its own generator (deterministic draws). The β of the last call is ``last_beta``.
+def _fog_v2():
+    v2 = require("torchvision.transforms.v2", "augment")
+    tv_tensors = require("torchvision.tv_tensors", "augment")
 
-        t = v2.Compose([v2.RandomHorizontalFlip(), FogV2(beta=(0, 0.12), seed=0)])
-        image, depth, boxes = t(tv_tensors.Image(rgb), tv_tensors.Mask(depth_m), boxes)
+    class FogV2(v2.Transform):
+        """Koschmieder fog as a torchvision v2 transform; parameters as :class:`FogSpec`, ``seed``
+        seeds its own generator (deterministic draws). The β of the last call is ``last_beta``.
 
-    One image per call (C×H×W, with its depth 1×H×W or H×W); a batch is :func:`fog_batch`'s.
-    """
+            t = v2.Compose([v2.RandomHorizontalFlip(), FogV2(beta=(0, 0.12), seed=0)])
+            image, depth, boxes = t(tv_tensors.Image(rgb), tv_tensors.Mask(depth_m), boxes)
 
-    def __init__(self, beta=(0.0, 0.12), seed: int | None = None, **spec: Any):
-        super().__init__()
-        self.spec = FogSpec(beta=beta, **spec)
-        self.rng = np.random.default_rng(seed)
-        self.last_beta: float | None = None
+        One image per call (C×H×W, with its depth 1×H×W or H×W); a batch is :func:`fog_batch`'s.
+        """
 
-    def make_params(self, flat_inputs: list[Any]) -> dict[str, Any]:
-        depths = [x for x in flat_inputs if isinstance(x, tv_tensors.Mask) and x.is_floating_point()]
-        if len(depths) != 1:
-            raise ValueError(f"FogV2 needs exactly one floating-point tv_tensors.Mask (the depth, metres); "
-                             f"got {len(depths)}")
-        beta, airlight = draw_batch(1, self.rng, self.spec)
-        self.last_beta = float(beta[0])
-        return {"depth": depths[0], "beta": beta, "airlight": airlight}
+        def __init__(self, beta=(0.0, 0.12), seed: int | None = None, **spec: Any):
+            super().__init__()
+            self.spec = FogSpec(beta=beta, **spec)
+            self.rng = np.random.default_rng(seed)
+            self.last_beta: float | None = None
 
-    def transform(self, inpt: Any, params: dict[str, Any]) -> Any:
-        if isinstance(inpt, tv_tensors.Mask) or not (isinstance(inpt, tv_tensors.Image) or
-                                                      type(inpt) is torch.Tensor):
-            return inpt
-        image = inpt.as_subclass(torch.Tensor)
-        _, h, w = check_tensor_image(image, batched=False, name="image")
-        depth = params["depth"].as_subclass(torch.Tensor)
-        if depth.shape[-2:] != (h, w) or depth.numel() != h * w:
-            raise ValueError(f"the depth Mask must be 1×H×W = 1×{h}×{w} like the image, got "
-                             f"{tuple(depth.shape)}")
-        depth = depth.reshape(1, 1, h, w)
-        out = fog_batch(image[None], depth, params["beta"], params["airlight"], self.spec)[0]
-        return tv_tensors.wrap(out, like=inpt) if isinstance(inpt, tv_tensors.Image) else out
+        def make_params(self, flat_inputs: list[Any]) -> dict[str, Any]:
+            depths = [x for x in flat_inputs if isinstance(x, tv_tensors.Mask) and x.is_floating_point()]
+            if len(depths) != 1:
+                raise ValueError(f"FogV2 needs exactly one floating-point tv_tensors.Mask (the depth, metres); "
+                                 f"got {len(depths)}")
+            beta, airlight = draw_batch(1, self.rng, self.spec)
+            self.last_beta = float(beta[0])
+            return {"depth": depths[0], "beta": beta, "airlight": airlight}
+
+        def transform(self, inpt: Any, params: dict[str, Any]) -> Any:
+            if isinstance(inpt, tv_tensors.Mask) or not (isinstance(inpt, tv_tensors.Image) or
+                                                          type(inpt) is torch.Tensor):
+                return inpt
+            image = inpt.as_subclass(torch.Tensor)
+            _, h, w = check_tensor_image(image, batched=False, name="image")
+            depth = params["depth"].as_subclass(torch.Tensor)
+            if depth.shape[-2:] != (h, w) or depth.numel() != h * w:
+                raise ValueError(f"the depth Mask must be 1×H×W = 1×{h}×{w} like the image, got "
+                                 f"{tuple(depth.shape)}")
+            depth = depth.reshape(1, 1, h, w)
+            out = fog_batch(image[None], depth, params["beta"], params["airlight"], self.spec)[0]
+            return tv_tensors.wrap(out, like=inpt) if isinstance(inpt, tv_tensors.Image) else out
+
+    FogV2.__module__ = __name__
+    return FogV2
