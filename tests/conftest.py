@@ -40,21 +40,30 @@ def tree_digest(root: Path) -> str:
     return h.hexdigest()
 
 
-def run_hostile_case(case, tmp_path: Path, capsys) -> str:
+def run_hostile_case(case, tmp_path: Path, capsys, in_process: bool = True) -> str:
     """Run a hostile case's command line (``case.build(tmp_path)``, ``{tmp}`` = tmp_path) through
-    ``fogsim.cli.main`` in ``tmp_path``; check its exit code, no traceback, the expected texts and
+    ``fogsim.cli.main`` in ``tmp_path`` (``in_process=False``: ``python -m fogsim`` in a process of its
+    own, for commands that load Blender); check its exit code, no traceback, the expected texts and
     that ``tmp_path/in`` (the inputs) is unchanged, and that nothing partial is left. Returns stderr."""
+    import subprocess
+    import sys
+
     from fogsim.cli import main
     from fogsim.fileio import PART_SUFFIX
 
     argv = [a.replace("{tmp}", str(tmp_path)) for a in case.build(tmp_path)]
     capsys.readouterr()
     before = tree_digest(tmp_path / "in")
-    try:
-        code = main(argv)
-    except SystemExit as exc:  # argparse's own usage errors
-        code = exc.code
-    err = capsys.readouterr().err
+    if in_process:
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse's own usage errors
+            code = exc.code
+        err = capsys.readouterr().err
+    else:
+        res = subprocess.run([sys.executable, "-m", "fogsim", *argv], capture_output=True, text=True,
+                             timeout=HANG_S, cwd=tmp_path)
+        code, err = res.returncode, res.stderr
     assert code == case.code, err
     assert "Traceback" not in err
     for text in case.says:

@@ -3,7 +3,8 @@
     python make_scene_blend.py SPEC.json OUT.blend                 # bpy module
     blender -b --factory-startup -P make_scene_blend.py -- SPEC.json OUT.blend
 
-The spec: ``resolution`` [W, H]; ``camera`` {location, rotation_deg (XYZ Euler), lens, sensor_width,
+The spec: ``resolution`` [W, H] (``resolution_percentage``, default 100); ``camera`` {location,
+rotation_deg (XYZ Euler), lens, sensor_width,
 sensor_height, sensor_fit, shift_x, shift_y}; ``boxes``: {name, size [x, y, z], location, class (the
 fogsim_class property, optional), parent (optional; location is then relative to the parent's),
 hidden (from renders), hide_eye, viewport_off (hidden in the viewport only), color [r, g, b],
@@ -32,7 +33,7 @@ bpy.ops.wm.read_factory_settings(use_empty=True)
 scene = bpy.context.scene
 scene.render.engine = "CYCLES"
 scene.render.resolution_x, scene.render.resolution_y = spec["resolution"]
-scene.render.resolution_percentage = 100
+scene.render.resolution_percentage = spec.get("resolution_percentage", 100)
 scene.frame_start, scene.frame_end = spec["frames"]
 scene.cycles.samples = 4
 
