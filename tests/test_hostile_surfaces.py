@@ -7,6 +7,7 @@ The Python API of ``fogsim.augment`` has its own table in :mod:`test_augment_hos
 """
 from __future__ import annotations
 
+import atexit
 import json
 import shutil
 import tempfile
@@ -17,7 +18,9 @@ import pytest
 from conftest import run_hostile_case
 from test_hostile import Case
 
+#: inputs built once per session (a fog-physics run, the asset library, datasets, .blend files), copied per case
 _CACHE = Path(tempfile.mkdtemp(prefix="fogsim-hostile-surfaces-"))
+atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
 
 
 # ----------------------------------------------------------------------------- inputs
