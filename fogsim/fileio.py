@@ -6,6 +6,7 @@ target and renames it, so a killed job never leaves a half-written output.
 """
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
@@ -35,10 +36,26 @@ STALE_FOREIGN_PART_S = 24 * 3600  # another host's (or an unnamed) leftover is s
 
 
 def _temp_beside(path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_HOST}-{os.getpid()}.", suffix=PART_SUFFIX, dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_HOST}-{os.getpid()}.", suffix=PART_SUFFIX,
+                                   dir=path.parent)
+    except OSError as exc:
+        raise _naming(exc, path) from None
     os.close(fd)
     return Path(tmp)
+
+
+def _naming(exc: OSError, path: Path) -> OSError:
+    """``exc`` as the user would read it: naming the target ``path``, never the hidden temporary file
+    (a folder where the file should go, a read-only folder, a full disk …)."""
+    if isinstance(exc, IsADirectoryError) or (path.is_dir() and exc.errno in (errno.EISDIR, errno.ENOTEMPTY,
+                                                                              errno.EEXIST)):
+        return IsADirectoryError(errno.EISDIR, "is a folder, not a file that can be written", str(path))
+    named = exc.filename is None or Path(str(exc.filename)).name.endswith(PART_SUFFIX)
+    if named and exc.errno is not None:
+        return type(exc)(exc.errno, exc.strerror or str(exc), str(path))
+    return exc
 
 
 @contextmanager
@@ -58,8 +75,9 @@ def atomic_path(path: str | os.PathLike):
         os.replace(tmp, path)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
-        if exc.filename is None and exc.errno is not None:  # a short write says not which file: name it
-            raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
+        named = _naming(exc, path)  # a short write says not which file, a rename names the temporary one
+        if named is not exc:
+            raise named from None
         raise
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -146,14 +164,132 @@ def write_json(path: str | os.PathLike, obj) -> None:
     atomic_write_bytes(path, (json.dumps(obj, indent=2, sort_keys=False) + "\n").encode())
 
 
-def read_json(path: str | os.PathLike) -> dict:
+# ----------------------------------------------------------------------------- JSON in
+#: Bounds on every JSON text fogsim reads (files and inline text): nesting deeper than
+#: :data:`MAX_JSON_DEPTH` is refused before Python's recursive decoder sees it (fogsim's documents
+#: nest ≤ 8 levels); a file larger than :data:`MAX_JSON_BYTES` (fogsim's own COCO and prediction
+#: files included) is refused before it is read, and the documents users write (presets, class
+#: maps, parameter files, glTF) are bounded by :data:`MAX_DOCUMENT_BYTES`.
+MAX_JSON_DEPTH = 100
+MAX_JSON_BYTES = 1 << 30
+MAX_DOCUMENT_BYTES = 64 << 20
+_JSON_MARKS = np.zeros(256, bool)
+_JSON_MARKS[[0x22, 0x5B, 0x5D, 0x7B, 0x7D]] = True  # " [ ] { }
+_JSON_STEP = np.zeros(256, np.int8)
+_JSON_STEP[[0x5B, 0x7B]], _JSON_STEP[[0x5D, 0x7D]] = 1, -1
+
+
+def json_depth(text: str) -> int:
+    """How deep ``text``'s arrays and objects nest (brackets inside strings do not count). Cheap: a
+    count when there are few brackets, else one vectorised pass (escaped backslashes and quotes
+    dropped, every remaining quote toggling "inside a string")."""
+    opens = text.count("[") + text.count("{")
+    if opens <= MAX_JSON_DEPTH:
+        return opens  # an upper bound, and small
+    data = text.encode("utf-8", "surrogatepass").replace(b"\\\\", b"").replace(b'\\"', b"")
+    codes = np.frombuffer(data, np.uint8)
+    codes = codes[_JSON_MARKS[codes]]
+    step = _JSON_STEP[codes]
+    step[(np.cumsum(codes == 0x22, dtype=np.int64) & 1) == 1] = 0  # inside a string
+    return int(np.cumsum(step, dtype=np.int64).max(initial=0))
+
+
+def parse_json(text: str | bytes, source: str | os.PathLike):
+    """Decode the JSON ``text`` read from ``source`` (a file, or the flag that gave it inline).
+    Malformed text, text that is not UTF-8, or nesting deeper than :data:`MAX_JSON_DEPTH` is an
+    :class:`InputError` naming ``source``, never a RecursionError. (The nesting is measured before
+    decoding for texts up to :data:`MAX_DOCUMENT_BYTES`; a larger one — fogsim's own outputs — is
+    caught by the decoder's own recursion bound.)"""
+    if isinstance(text, bytes):
+        try:
+            text = text.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise InputError(source, f"not readable as JSON (not UTF-8 text: {exc.reason} at byte {exc.start})") \
+                from None
+    depth = json_depth(text) if len(text) <= MAX_DOCUMENT_BYTES else 0
+    if depth > MAX_JSON_DEPTH:
+        raise InputError(source, f"not readable as JSON: arrays/objects nest {depth} levels deep "
+                                 f"(at most {MAX_JSON_DEPTH})")
     try:
-        with open(path, encoding="utf-8") as f:
-            return json.load(f)
+        return json.loads(text)
+    except RecursionError:
+        raise InputError(source, f"not readable as JSON: arrays/objects nest deeper than {MAX_JSON_DEPTH} "
+                                 "levels") from None
+    except ValueError as exc:
+        raise InputError(source, f"not readable as JSON ({exc})") from None
+
+
+def read_text_bounded(path: str | os.PathLike, max_bytes: int, what: str = "file") -> bytes:
+    """The bytes of ``path``, refused (InputError naming it) when it is larger than ``max_bytes``
+    — checked on the open file, so a huge or endless file (a FIFO, /dev/zero) is never read whole."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read(max_bytes + 1)
     except FileNotFoundError:
         raise InputError(path, "file not found") from None
-    except (OSError, ValueError) as exc:
-        raise InputError(path, f"not readable as JSON ({exc})") from None
+    except IsADirectoryError:
+        raise InputError(path, f"is a folder, not a {what}") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot read the {what} ({exc.strerror or exc})") from None
+    if len(data) > max_bytes:
+        bound = f"{max_bytes / 2**20:g} MiB" if max_bytes >= 2**20 else f"{max_bytes} bytes"
+        raise InputError(path, f"the {what} is larger than {bound}: not a document fogsim reads")
+    return data
+
+
+def read_json(path: str | os.PathLike, max_bytes: int = MAX_JSON_BYTES):
+    """The decoded JSON file ``path`` (one line naming it when missing, unreadable, malformed,
+    nested deeper than :data:`MAX_JSON_DEPTH` or larger than ``max_bytes``)."""
+    return parse_json(read_text_bounded(path, max_bytes, "JSON file"), path)
+
+
+# ----------------------------------------------------------------------------- paths in
+def resolve_path(path: str | os.PathLike, flag: str | None = None) -> Path:
+    """``path`` made absolute with its symlinks resolved (as :meth:`Path.resolve`); a symlink loop
+    on the way is an :class:`InputError` naming the path (and ``flag``), never a RuntimeError."""
+    try:
+        return Path(path).resolve()
+    except RuntimeError:  # Python ≤ 3.12 reports a loop so ("Symlink loop from …"); 3.13 raises OSError
+        pass
+    except OSError as exc:
+        if exc.errno != errno.ELOOP:
+            raise
+    raise InputError(path, loop_problem(flag))
+
+
+def loop_problem(flag: str | None = None) -> str:
+    """The one problem text of a symlink loop (``flag``: the argument that named the path)."""
+    return (f"{flag + ' ' if flag else ''}is, or passes through, a symlink loop (links that point back at each "
+            "other): nothing can be read or written there")
+
+
+def check_path_arguments(args) -> None:
+    """Refuse a symlink loop in any path argument of a parsed command line, before the command runs.
+
+    Every string (or list of strings) in ``vars(args)`` is tried as a path: one that the system
+    cannot look up because of a loop of links (ELOOP) is one line naming it and its flag, exit 2.
+    Strings that are not paths (a level list, inline JSON) do not exist and pass; so a new flag is
+    guarded without being declared a path."""
+    for dest, value in vars(args).items():
+        for given in (value if isinstance(value, (list, tuple)) else [value]):
+            if not isinstance(given, (str, os.PathLike)) or not str(given):
+                continue
+            try:
+                os.stat(given)
+            except OSError as exc:
+                if exc.errno == errno.ELOOP:
+                    raise InputError(given, loop_problem(f"--{dest.replace('_', '-')}")) from None
+            except ValueError:  # an embedded NUL: not a path
+                continue
+
+
+def with_checked_paths(command):
+    """``command(args)`` preceded by :func:`check_path_arguments` (the front doors' one path guard)."""
+    def guarded(args):
+        check_path_arguments(args)
+        return command(args)
+
+    return guarded
 
 
 # ----------------------------------------------------------------------------- images

@@ -22,37 +22,63 @@ import numpy as np
 
 from fogsim._version import __version__
 from fogsim.errors import InputError
-from fogsim.fileio import create_exclusive
+from fogsim.fileio import create_exclusive, read_json, resolve_path
 
 T = TypeVar("T")
 
 
 # ----------------------------------------------------------------------------- claiming
-def check_output(out: str | os.PathLike, inputs: dict[str, str | os.PathLike | None],
-                 allow_inside_out: tuple[str, ...] = ()) -> Path:
+def check_output(out: str | os.PathLike, inputs: dict[str, str | os.PathLike | None] | list[tuple],
+                 allow_inside_out: tuple[str, ...] = (), *, file: bool = False) -> Path:
     """Refuse an output folder that would overwrite or mix with an input; returns it resolved.
 
-    ``inputs`` maps a flag (``--input``) to the path it names (None: not given). The output
+    ``inputs`` maps a flag (``--input``) to the path it names (None: not given; a list of
+    ``(flag, path)`` pairs when a flag names several, e.g. positional run folders). The output
     may not equal an input, lie inside one, or contain one (symlinks resolved) — except the
     flags in ``allow_inside_out``, inputs a command keeps in its own folder by design (the
     study's dataset). ``--out ''`` and an existing file are refused too. Checked before
     anything is written.
+
+    ``file=True``: ``out`` is one file a command writes (``fit-fog --out``): it may not be an input
+    nor lie inside one, an existing folder is refused, and its folder must be writable.
     """
     if not str(out).strip():
-        raise ValueError("--out must name a folder, got ''")
-    target = Path(out).resolve()
-    if target.exists() and not target.is_dir():
+        raise ValueError(f"--out must name a {'file' if file else 'folder'}, got ''")
+    target = resolve_path(out, "--out")
+    if file and target.is_dir():
+        raise InputError(out, "--out is a folder: name the file to write (e.g. OUT/params.json)")
+    if not file and target.exists() and not target.is_dir():
         raise InputError(out, "--out exists and is not a folder")
-    for flag, given in inputs.items():
+    for flag, given in (inputs.items() if isinstance(inputs, dict) else inputs):
         if given is None or str(given) == "":
             continue
-        src = Path(given).resolve()
-        inside_out = src == target or target in src.parents
+        src = resolve_path(given, flag)
+        inside_out = not file and (src == target or target in src.parents)
         if src == target or src in target.parents or (inside_out and flag not in allow_inside_out):
             where = ("is" if src == target else "lies inside" if src in target.parents else "contains")
             raise InputError(out, f"--out {where} {flag} {given}: the outputs would overwrite or mix with "
-                                  "the input; choose an output folder outside it")
+                                  f"the input; choose an output {'file' if file else 'folder'} outside it")
+    if file:
+        _check_writable(out, target)
     return target
+
+
+def _check_writable(out, target: Path) -> None:
+    """A file can be created beside ``target`` (in its folder, or the nearest one that exists): a
+    probe file created and removed at once, so a long job does not fail at its last write."""
+    import tempfile
+
+    folder = target.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise InputError(out, f"--out cannot be created: {folder} is not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".fogsim-probe.", dir=folder)
+    except OSError as exc:
+        raise InputError(out, f"--out cannot be written ({exc.strerror or exc} in {folder})") from None
+    os.close(fd)
+    os.unlink(probe)
 
 
 def claim_output(path: str | os.PathLike, parameters: dict, record: dict | None = None, *, what: str = "run",
@@ -72,9 +98,9 @@ def claim_output(path: str | os.PathLike, parameters: dict, record: dict | None 
     if create_exclusive(path, payload):  # atomic: of two concurrent first claims, one wins
         return True
     try:
-        old = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(path, f"unreadable run file ({exc}); delete it or use another --out") from None
+        old = read_json(path)
+    except InputError as exc:
+        raise InputError(path, f"unreadable run file ({exc.problem}); delete it or use another --out") from None
     if not isinstance(old, dict):  # (the run file's fields are fogsim.schema.documents' to check)
         raise InputError(path, f"malformed run file: must be a JSON object (got {type(old).__name__}); "
                                "delete it or use another --out")

@@ -110,6 +110,37 @@ def distortion_maps(K: Intrinsics, coeffs) -> tuple[np.ndarray, np.ndarray]:
     return _maps(K.fx, K.fy, K.cx, K.cy, K.width, K.height, tuple(float(c) for c in coeffs))
 
 
+def distortion_problem(K: Intrinsics, coeffs) -> str | None:
+    """Why the OpenCV ``coeffs`` make nonsense of camera ``K``'s image, or None. Coefficients inside
+    the schema's range can still fold the lens mapping over the image (a black ring, the image
+    repeated mirrored beyond it): every pixel of the distorted image must see one ray — the
+    inverse map found by :func:`undistort_points` must map back onto the pixel (within 0.05 px) —
+    and the radial mapping r_d = r·(1 + k1 r² + k2 r⁴ + k3 r⁶) must rise monotonically out to the
+    farthest ray any pixel sees (dr_d/dr > 0)."""
+    c = tuple(float(x) for x in coeffs) + (0.0,) * (5 - len(coeffs))
+    k1, k2, k3 = c[0], c[1], c[4]
+    mx, my = distortion_maps(K, c)
+    seen = np.stack([mx.ravel(), my.ravel()], axis=1).astype(np.float64)
+    where = f"at this camera ({K.width}×{K.height}, fx {K.fx:.4g} px)"
+    if not np.isfinite(seen).all():
+        return f"folds the image {where}: some pixels see no ray (the lens mapping has no inverse there)"
+    v, u = np.mgrid[0:K.height, 0:K.width]
+    back = distort_points(seen, K, c)
+    miss = np.hypot(back[:, 0] - u.ravel(), back[:, 1] - v.ravel())
+    if not miss.max() <= 0.05:
+        worst = int(np.argmax(miss))
+        return (f"folds the image {where}: the lens mapping is not one-to-one over it (pixel "
+                f"({worst % K.width}, {worst // K.width}) sees no ray; a black ring and the image repeated "
+                "beyond it); use smaller coefficients")
+    r = np.linspace(0.0, float(np.hypot((seen[:, 0] - K.cx) / K.fx, (seen[:, 1] - K.cy) / K.fy).max()), 4097)
+    slope = 1 + 3 * k1 * r**2 + 5 * k2 * r**4 + 7 * k3 * r**6
+    if not (slope > 0).all():
+        return (f"folds the image {where}: the radial mapping r·(1 + k1 r² + k2 r⁴ + k3 r⁶) stops rising at "
+                f"r = {r[np.argmax(slope <= 0)]:.3g}, inside the image (rays beyond it land back inside); use "
+                "smaller coefficients")
+    return None
+
+
 def distort_nearest(array: np.ndarray, K: Intrinsics, coeffs, outside) -> np.ndarray:
     """A mask or depth map resampled into the distorted image by nearest neighbour (values
     exact); pixels that see outside the render get ``outside`` (mask 0, depth +inf)."""

@@ -71,13 +71,28 @@ ensure_opencv_contrib() {  # $1: the venv's python
 }
 ensure_opencv_contrib .venv/bin/python
 
-# Debian's Blender 3.4 for the `blender -b -P` tests
-if ! command -v blender >/dev/null 2>&1; then
-  if [ "$(id -u)" = 0 ]; then
-    apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends blender >/dev/null
+# Debian packages the tests need, installed as root (apt-get update once, only when one is missing):
+#   blender          Blender 3.4 for the `blender -b -P` tests
+#   slurm-wlm munge  a single-node Slurm for tests/test_cluster.py
+#   xvfb             a virtual display for the add-on window test (xvfb-run)
+# Where they cannot be installed (not root, no network) a note says which tests will skip.
+declare -A NEEDS=([blender]="blender" [slurmctld]="slurm-wlm" [munged]="munge" [Xvfb]="xvfb")
+declare -A SKIPS=([blender]="the blender-binary tests" [slurm-wlm]="the Slurm test" [munge]="the Slurm test"
+                  [xvfb]="the add-on window test")
+missing=()
+for cmd in "${!NEEDS[@]}"; do
+  command -v "$cmd" >/dev/null 2>&1 || missing+=("${NEEDS[$cmd]}")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  if [ "$(id -u)" = 0 ] && timeout 600 apt-get update -qq \
+     && DEBIAN_FRONTEND=noninteractive timeout 1800 apt-get install -y -qq --no-install-recommends \
+        "${missing[@]}" >/dev/null; then
+    :
   else
-    echo "note: blender is not installed and this is not root: the blender-binary tests will skip" >&2
+    for pkg in "${missing[@]}"; do
+      why=$([ "$(id -u)" = 0 ] && echo "could not be installed" || echo "is not installed and this is not root")
+      echo "note: $pkg $why: ${SKIPS[$pkg]} will skip" >&2
+    done
   fi
 fi
 exec .venv/bin/python -m pytest "$@"

@@ -40,21 +40,30 @@ def tree_digest(root: Path) -> str:
     return h.hexdigest()
 
 
-def run_hostile_case(case, tmp_path: Path, capsys) -> str:
+def run_hostile_case(case, tmp_path: Path, capsys, in_process: bool = True) -> str:
     """Run a hostile case's command line (``case.build(tmp_path)``, ``{tmp}`` = tmp_path) through
-    ``fogsim.cli.main`` in ``tmp_path``; check its exit code, no traceback, the expected texts and
+    ``fogsim.cli.main`` in ``tmp_path`` (``in_process=False``: ``python -m fogsim`` in a process of its
+    own, for commands that load Blender); check its exit code, no traceback, the expected texts and
     that ``tmp_path/in`` (the inputs) is unchanged, and that nothing partial is left. Returns stderr."""
+    import subprocess
+    import sys
+
     from fogsim.cli import main
     from fogsim.fileio import PART_SUFFIX
 
     argv = [a.replace("{tmp}", str(tmp_path)) for a in case.build(tmp_path)]
     capsys.readouterr()
     before = tree_digest(tmp_path / "in")
-    try:
-        code = main(argv)
-    except SystemExit as exc:  # argparse's own usage errors
-        code = exc.code
-    err = capsys.readouterr().err
+    if in_process:
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse's own usage errors
+            code = exc.code
+        err = capsys.readouterr().err
+    else:
+        res = subprocess.run([sys.executable, "-m", "fogsim", *argv], capture_output=True, text=True,
+                             timeout=HANG_S, cwd=tmp_path)
+        code, err = res.returncode, res.stderr
     assert code == case.code, err
     assert "Traceback" not in err
     for text in case.says:
@@ -109,3 +118,43 @@ def crc_impl(request, monkeypatch):
     if request.param == "fallback":  # as if neither google_crc32c nor crc32c were installed
         monkeypatch.setattr(tfrecord, "_FAST_CRC32C", None)
     return request.param
+
+
+# ----------------------------------------------------------------------------- signals at a known point
+#: how long a run may take to reach the point a signal test waits for before the test calls it a hang
+#: (never reached on a healthy machine however slow; the wait ends as soon as the point is reached)
+HANG_S = 1800
+
+
+def wait_until(proc, reached, what: str, hang_s: float = HANG_S, poll_s: float = 0.02) -> None:
+    """Wait until ``reached()`` (a file the run writes mid-way: a point it reaches by construction,
+    not a time); fail if the run ends first, or hangs for ``hang_s``."""
+    import time
+
+    start = time.monotonic()
+    while not reached():
+        if proc.poll() is not None:
+            pytest.fail(f"the run ended (exit {proc.returncode}) before {what}")
+        if time.monotonic() - start > hang_s:
+            proc.kill()
+            pytest.fail(f"the run did not reach {what} in {hang_s:.0f} s (hung?)")
+        time.sleep(poll_s)
+
+
+def signal_mid_run(proc, reached, unfinished, sig, what: str, poll_s: float = 0.02) -> None:
+    """Send ``sig`` to ``proc``'s process group (started with ``start_new_session=True``, as a
+    terminal's Ctrl-C reaches a foreground group) at a point the run reaches by construction: once
+    ``reached()``, the group is stopped (SIGSTOP), ``unfinished()`` checks there is work left — a
+    stopped run cannot finish meanwhile — and the signal is sent before it continues (SIGCONT), so
+    it lands mid-run on any machine, fast or loaded."""
+    import os
+    import signal
+
+    wait_until(proc, reached, what, poll_s=poll_s)
+    os.killpg(proc.pid, signal.SIGSTOP)
+    try:
+        assert proc.poll() is None and unfinished(), f"the run had no work left at {what}"
+        os.killpg(proc.pid, sig)
+    finally:
+        if sig != signal.SIGKILL:
+            os.killpg(proc.pid, signal.SIGCONT)

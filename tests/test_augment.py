@@ -115,7 +115,7 @@ def test_albumentations_compose_fogs_image_leaves_boxes_masks_depth():
     flip = A.Compose([A.HorizontalFlip(p=1), fogsim.augment.Fog(beta=[0.08])], additional_targets={"depth": "mask"})
     assert np.array_equal(flip(image=img, depth=d)["image"], koschmieder(img[:, ::-1], d[:, ::-1], 0.08))
     loose = A.Compose([fogsim.augment.Fog()], additional_targets={"depth": "mask"}, is_check_shapes=False)
-    with pytest.raises(ValueError, match="'depth' is 72×10 but the image is 72×48"):
+    with pytest.raises(ValueError, match=r"depth must be H×W \(or H×W×1\) = 48×72 like the image, got shape \(10, "):
         loose(image=img, depth=d[:10])
 
 

@@ -11,13 +11,12 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from conftest import expected_yolo_lines
+from conftest import expected_yolo_lines, signal_mid_run
 from fogsim.boxes import parse_yolo_line
 from fogsim.fileio import read_depth_file, read_image, read_uint16_map
 
@@ -159,11 +158,10 @@ def test_same_seed_same_dataset_and_resume_after_kill(tmp_path):
     assert render_dataset("bpy", a, *frames).returncode == 0
     # start the same run, kill it hard once the first frame is committed, then resume it
     cmd = runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(b), *TINY, *frames)
-    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 300
-    while not (b / "meta" / "000000.json").exists() and time.time() < deadline and proc.poll() is None:
-        time.sleep(0.02)
-    proc.send_signal(signal.SIGKILL)
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    signal_mid_run(proc, (b / "meta" / "000000.json").exists, lambda: not (b / "meta" / "000002.json").exists(),
+                   signal.SIGKILL, "frame 0 was committed")
     proc.wait()
     assert len(list((b / "meta").glob("*.json"))) < 3, "the kill came too late to interrupt the run"
     res = render_dataset("bpy", b, *frames)
@@ -245,15 +243,13 @@ def test_killed_render_leaves_no_temp_files(tmp_path):
     out = tmp_path / "ds"
     env = dict(os.environ, TMPDIR=str(systmp))
     cmd = runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(out), *TINY, "--frames", "3")
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 300
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
     try:  # kill during frame 1: once Cycles' file for it exists, in the system temp folder or in OUT
-        while time.time() < deadline and proc.poll() is None:
-            if (out / "meta" / "000000.json").exists() and (list(systmp.glob("fogsim_render_*"))
-                                                            or (out / ".fogsim_tmp").is_dir()):
-                break
-            time.sleep(0.002)
-        proc.send_signal(signal.SIGKILL)
+        signal_mid_run(proc, lambda: (out / "meta" / "000000.json").exists() and (
+                           list(systmp.glob("fogsim_render_*")) or (out / ".fogsim_tmp").is_dir()),
+                       lambda: not (out / "meta" / "000002.json").exists(), signal.SIGKILL, "frame 1 began",
+                       poll_s=0.002)
     finally:
         proc.wait()
     assert not (out / "meta" / "000002.json").exists(), "the kill came too late to interrupt the run"

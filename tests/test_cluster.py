@@ -87,7 +87,9 @@ class Slurm:
         res = self.run(["sinfo", "-h", "-o", "%t"], timeout=10)
         return res.returncode == 0 and res.stdout.strip() == "idle"
 
-    def _wait(self, ready, what: str, seconds: float = 30) -> None:
+    def _wait(self, ready, what: str, seconds: float = 600) -> None:
+        """Wait until ``ready()``: returns as soon as it is; ``seconds`` only bounds a hang (daemons
+        start slowly on a loaded machine — a test must not depend on its speed)."""
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
             dead = [name for name, p in self.procs if p.poll() is not None]

@@ -56,10 +56,14 @@ def write_rgb_exr(path, rgb):
 
 @pytest.fixture(scope="module")
 def bench_dir(tmp_path_factory):
+    return make_bench_dir(tmp_path_factory.mktemp("fog_physics"))
+
+
+def make_bench_dir(out):
+    """A fog-physics folder in ``out``: clear/ (one committed frame) and two stand-in volumetric runs."""
     from fogsim.render.frame import DescribedFrame, FramePasses, commit_frame
     from fogsim.render.preset import load_render_preset
 
-    out = tmp_path_factory.mktemp("fog_physics")
     config = load_render_preset("default", frames=1, resolution=f"{W}x{H}", levels="0,0.06,0.12")
     rng = np.random.default_rng(0)
     rgb = np.clip(rng.normal(0.25, 0.05, (H, W, 3)), 0, 1).astype(np.float32)

@@ -295,6 +295,13 @@ def _retry(first: Callable[[Path], list[str]], second: Callable[[list[str], Path
     return build
 
 
+def _empty_lasers(with_returns: bool) -> bytes:
+    """``lasers`` entries without range images, as real camera-only v1 frames carry them: each laser's
+    name, and (``with_returns``) empty ri_return1 / ri_return2 messages."""
+    empty = pw.bytes_field(2, b"") + pw.bytes_field(3, b"") if with_returns else b""
+    return b"".join(pw.bytes_field(5, pw.varint_field(1, la.name) + empty) for la in lfx.wall_scene().lasers)
+
+
 def _swap_lidar_for_depth_dir(argv: list[str], tmp: Path) -> list[str]:
     i = argv.index("--depth-from")
     return argv[:i] + argv[i + 2:] + ["--depth-dir", str(_depth_dir(tmp))]
@@ -311,6 +318,13 @@ CASES = [
          ("seg.tfrecord", "no LiDAR", "--depth-from lidar")),
     Case("w1-lidar-absent-retry", _retry(_v1(_labels(), "--depth-from", "lidar", lasers=False),
                                          _swap_lidar_for_depth_dir), 0, ()),
+    # U13: a real camera-only frame has lasers entries, but no range image in them
+    Case("w1-lidar-empty-returns", _v1(_labels() + _empty_lasers(True), "--depth-from", "lidar", "--lidar-holdout",
+                                       "0.1", lasers=False), 2, ("seg.tfrecord", "no LiDAR", "--depth-from lidar")),
+    Case("w1-lidar-laser-names-only", _v1(_labels() + _empty_lasers(False), "--depth-from", "lidar", lasers=False), 2,
+         ("seg.tfrecord", "no LiDAR")),
+    Case("w1-lidar-empty-returns-retry", _retry(_v1(_labels() + _empty_lasers(True), "--depth-from", "lidar",
+                                                    lasers=False), _swap_lidar_for_depth_dir), 0, ()),
     Case("w1-lidar-zipbomb", _bomb("--depth-from", "lidar"), 1, ("seg_bomb.tfrecord#record 0", "range_image_compressed",
                                                                   "declares")),
     Case("w1-lidar-zipbomb-depth-dir", _bomb(), 1, ("seg_bomb.tfrecord#record 0", "range_image_compressed")),

@@ -59,7 +59,7 @@ def preset_file(tmp_path, change: dict, name: str = "bad.json"):
     ({"labels": {"min_pixels": 2.5}}, "labels.min_pixels: must be an integer (got 2.5)"),
     ({"exposure": True}, "exposure: must be a finite number (got True)"),
     ({"fog": ["0.03"]}, "fog[0]: must be a β ≥ 0 (1/m, a number) or \"clear\" (got '0.03')"),
-    ({"frames": 0}, "frames: must be an integer ≥ 1 (got 0)"),
+    ({"frames": 0}, "frames: must be an integer in [1, 1000000] (got 0)"),
     ({"seed": -1}, "seed: must be an integer ≥ 0 (got -1)"),
 ])
 def test_wrong_types_and_ranges_name_the_preset_and_the_key(tmp_path, change, key):

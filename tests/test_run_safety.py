@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import tree_digest
+from conftest import HANG_S, signal_mid_run, tree_digest, wait_until
 from fogsim.camera import Intrinsics
 from fogsim.cli import main
 from fogsim.errors import InputError
@@ -197,12 +197,15 @@ def _alive(pid: int) -> bool:
 def _start(medium, out, workers):
     args = fog_cli(medium / "images", medium / "depth", out, "--extended", "--levels", "paper",
                    "--workers", str(workers))
-    proc = subprocess.Popen([sys.executable, "-m", "fogsim", *args], stdout=subprocess.PIPE,
+    return subprocess.Popen([sys.executable, "-m", "fogsim", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)
-    deadline = time.time() + 60
-    while time.time() < deadline and not list(out.rglob("*.json"))[1:]:
-        time.sleep(0.1)
-    return proc
+
+
+def _mid_run(out: Path):
+    """(reached, unfinished) of a fog run into ``out``: two images fogged (their sidecars beside the
+    run file), and fewer than all 64 × 5 level images written."""
+    return (lambda: len(list(out.rglob("*.json"))) >= 3,
+            lambda: len([p for p in out.rglob("*.png") if not p.name.startswith(".")]) < 64 * 5)
 
 
 @pytest.mark.slow
@@ -210,11 +213,13 @@ def _start(medium, out, workers):
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
 def test_workers_never_outlive_their_parent(medium_dataset, tmp_path, sig):
     proc = _start(medium_dataset, tmp_path / "o", 2)
+    reached, unfinished = _mid_run(tmp_path / "o")
+    wait_until(proc, reached, "two images were fogged")
     workers = _children(proc.pid)  # the pool's workers (and multiprocessing's resource tracker)
     assert workers, "no worker processes seen"
-    proc.send_signal(sig)
-    proc.wait(timeout=30)
-    deadline = time.time() + 10
+    signal_mid_run(proc, reached, unfinished, sig, "two images were fogged")
+    proc.wait(timeout=300)
+    deadline = time.time() + 60
     while time.time() < deadline and any(_alive(p) for p in workers):
         time.sleep(0.1)
     assert not [p for p in workers if _alive(p)], "workers outlived the parent"
@@ -227,10 +232,11 @@ def test_workers_never_outlive_their_parent(medium_dataset, tmp_path, sig):
 @pytest.mark.slow
 @pytest.mark.parametrize("workers", [1, 2])
 def test_ctrl_c_prints_one_line_and_exits_130(medium_dataset, tmp_path, workers):
+    """Ctrl-C once two images are fogged, with the run stopped while the signal is sent: it lands
+    mid-run by construction (not after a time), however fast or loaded the machine."""
     proc = _start(medium_dataset, tmp_path / "o", workers)
-    assert proc.poll() is None, "the run ended before the test could interrupt it"
-    os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C reaches the whole foreground process group
-    _, err = proc.communicate(timeout=60)
+    signal_mid_run(proc, *_mid_run(tmp_path / "o"), signal.SIGINT, "two images were fogged")
+    _, err = proc.communicate(timeout=HANG_S)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "interrupted" in err and len(err.strip().splitlines()) == 1, err
     assert not list((tmp_path / "o").rglob(f"*{PART_SUFFIX}"))

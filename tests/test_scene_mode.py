@@ -118,13 +118,13 @@ def test_class_map_globs_property_and_refusals(tmp_path):
     assert ClassMap().direct("x", None, "obj") is None
     bad = tmp_path / "map.json"
     bad.write_text('{"Car*": "car",')
-    with pytest.raises(InputError, match=r"map\.json: the class map is not valid JSON"):
+    with pytest.raises(InputError, match=r"map\.json: not readable as JSON"):
         load_class_map(str(bad))
     with pytest.raises(InputError, match="unknown class 'spaceship'"):
         load_class_map('{"Car*": "spaceship"}')
     with pytest.raises(InputError, match="non-empty JSON object"):
         load_class_map("{}")
-    with pytest.raises(InputError, match="cannot read"):
+    with pytest.raises(InputError, match=r"absent\.json: file not found"):
         load_class_map(str(tmp_path / "absent.json"))
     with pytest.raises(InputError, match="unknown class"):
         cmap.direct("Car", "spaceship", "object 'Car'")
@@ -134,7 +134,7 @@ def test_class_map_globs_property_and_refusals(tmp_path):
     (["--scene", "x.blend", "--preset", "default"], "--preset is not available with --scene"),
     (["--scene", "x.blend", "--frames", "3"], "--frames is not available with --scene"),
     (["--class-map", '{"a": "car"}'], "need --scene"),
-    (["--scene", "x.blend", "--class-map", "{oops"], "not valid JSON"),
+    (["--scene", "x.blend", "--class-map", "{oops"], "not readable as JSON"),
 ])
 def test_scene_usage_errors_exit_2_before_writing(tmp_path, capsys, args, message):
     out = tmp_path / "out"

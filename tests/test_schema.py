@@ -144,7 +144,8 @@ def test_the_shipped_json_schema_is_the_generated_one():
     r = subprocess.run([sys.executable, "-m", "fogsim", "schema", "preset"], capture_output=True, text=True,
                        cwd=ROOT, timeout=120)
     assert r.returncode == 0 and r.stdout == SCHEMA_FILE.read_text(), r.stderr
-    assert shipped["properties"]["frames"] == {"default": 8, "minimum": 1, "title": "Frames", "type": "integer"}
+    assert shipped["properties"]["frames"] == {"default": 8, "minimum": 1, "maximum": 1_000_000, "title": "Frames",
+                                               "type": "integer"}
     assert shipped["additionalProperties"] is False and "$schema" in shipped["properties"]
 
 

@@ -68,9 +68,13 @@ def test_overcast_probability_and_sun_ranges(tmp_path):
     assert not any(describe_frame(_preset(tmp_path, {"overcast": 0}), i)["lighting"]["overcast"] for i in range(5))
 
 
+#: a 2×1 Radiance HDR of white (RGBE 128,128,128,129 = 1.0; no run-length coding below 8 pixels)
+TINY_HDR = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 2\n" + bytes([128, 128, 128, 129]) * 2
+
+
 def test_user_hdri_path_is_relative_to_the_preset(tmp_path):
     (tmp_path / "skies").mkdir()
-    (tmp_path / "skies" / "mine.hdr").write_bytes(b"#?RADIANCE\n")
+    (tmp_path / "skies" / "mine.hdr").write_bytes(TINY_HDR)
     cfg = _preset(tmp_path, {"sky": "hdri", "hdri": ["skies/mine.hdr", "city"]})
     assert cfg.lighting["hdri"] == [str((tmp_path / "skies" / "mine.hdr").resolve()), "city"]
     assert hdri_file(cfg.lighting["hdri"][0], "/nowhere") == tmp_path / "skies" / "mine.hdr"

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from fogsim.augment.checks import check_numpy_depth, check_numpy_image
 from fogsim.augment.spec import FogSpec, apply_fog
 from fogsim.deps import require
 
@@ -42,11 +43,11 @@ class Fog(A.ImageOnlyTransform):
         return [self.depth_key]
 
     def get_params_dependent_on_data(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
-        depth = np.asarray(data[self.depth_key])
-        image = data["image"]
-        if depth.shape[:2] != image.shape[:2]:
-            raise ValueError(f"{self.depth_key!r} is {depth.shape[1]}×{depth.shape[0]} but the image is "
-                             f"{image.shape[1]}×{image.shape[0]}")
+        if self.depth_key not in data:
+            raise ValueError(f"Fog needs the depth target {self.depth_key!r} (metres): pass it to the call and "
+                             f"register it, additional_targets={{{self.depth_key!r}: 'mask'}}")
+        image = check_numpy_image(data["image"])
+        depth = check_numpy_depth(data[self.depth_key], image.shape[:2], self.depth_key)
         draw = self.spec.draw(self.random_generator, image.shape[:2])
         self._depth = depth  # read by apply (kept out of params: they are saved per call)
         return {"beta": draw.beta, "airlight": draw.airlight, "draw": draw}

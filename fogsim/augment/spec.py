@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fogsim.augment.checks import check_airlight, check_beta, check_numpy_depth, check_numpy_image, is_number
 from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.fog.engine import FogSettings, Heterogeneity
 from fogsim.fog.levels import beta_from_visibility, visibility_from_beta
@@ -83,8 +84,13 @@ class FogSpec:
 
     def __post_init__(self):
         beta = self.beta
-        if isinstance(beta, (int, float)):
+        if is_number(beta):
             beta = (float(beta), float(beta))
+        elif not isinstance(beta, (tuple, list, np.ndarray)):
+            raise TypeError(f"beta must be a number, a (low, high) tuple or a list of numbers in 1/m, got "
+                            f"{type(beta).__name__} {beta!r}")
+        if not all(is_number(b) for b in beta):
+            raise TypeError(f"beta must hold numbers in 1/m, got {self.beta!r}")
         beta = tuple(float(b) for b in beta)
         is_list = isinstance(self.beta, list) or len(beta) != 2
         if not beta or not all(math.isfinite(b) and b >= 0 for b in beta):
@@ -95,6 +101,9 @@ class FogSpec:
             raise ValueError(f"sample must be one of {', '.join(SAMPLING)}, got {self.sample!r}")
         if self.sample == "visibility" and not is_list and beta[0] == 0:
             raise ValueError("uniform in visibility needs a β range with low > 0 (visibility is infinite at β = 0)")
+        for name in ("airlight", "airlight_jitter"):
+            if not is_number(getattr(self, name)):
+                raise TypeError(f"{name} must be a number (8-bit units), got {getattr(self, name)!r}")
         if not (0 <= self.airlight - self.airlight_jitter and self.airlight + self.airlight_jitter <= 255):
             raise ValueError(f"airlight ± jitter must stay in [0, 255], got {self.airlight} ± {self.airlight_jitter}")
         if self.depth not in DEPTH_KINDS:
@@ -156,9 +165,18 @@ class FogSpec:
 
 
 def apply_fog(image: np.ndarray, depth: np.ndarray, draw: Draw, spec: FogSpec = FogSpec()) -> np.ndarray:
-    """The reference: fog ``image`` (H×W×3 uint8/uint16/float) with ``draw`` over ``depth``
+    """The reference: fog ``image`` (H×W×3 uint8/uint16/float in [0, 1]) with ``draw`` over ``depth``
     (see the module docstring) by the spec's fog record; same dtype back. Channel order does not
-    matter for grey airlight."""
+    matter for grey airlight. An argument it does not support is a TypeError / ValueError naming it
+    (:mod:`fogsim.augment.checks`)."""
+    check_numpy_image(image)
+    depth = check_numpy_depth(depth, image.shape[:2])
+    if not isinstance(draw, Draw):
+        raise TypeError(f"draw must be a fogsim.augment.Draw (FogSpec.draw(rng)), got {type(draw).__name__}")
+    check_beta(draw.beta, "draw.beta")
+    check_airlight(draw.airlight, "draw.airlight")
+    if not isinstance(spec, FogSpec):
+        raise TypeError(f"spec must be a fogsim.augment.FogSpec, got {type(spec).__name__}")
     distance = spec.ray_distance(depth)
     camera = spec.camera(*distance.shape) if spec.intrinsics is not None or spec.hfov is not None else None
     return spec.fog.fogger(image, distance, camera, density=draw.density, airlight=draw.airlight)(draw.beta)
@@ -167,6 +185,11 @@ def apply_fog(image: np.ndarray, depth: np.ndarray, draw: Draw, spec: FogSpec = 
 def random_fog(image: np.ndarray, depth: np.ndarray, rng: np.random.Generator,
                spec: FogSpec = FogSpec()) -> tuple[np.ndarray, float]:
     """Draw one sample's fog from ``rng`` and apply it: (fogged image, β used in 1/m)."""
+    check_numpy_image(image)
+    check_numpy_depth(depth, image.shape[:2])
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
+                        f"{type(rng).__name__}")
     draw = spec.draw(rng, image.shape[:2])
     return apply_fog(image, depth, draw, spec), draw.beta
 
@@ -187,4 +210,7 @@ def parse_augment(text: str) -> FogSpec:
         except ValueError:
             raise ValueError(f"--augment range must be LOW-HIGH in 1/m (e.g. 0-0.12), got {part!r}") from None
         beta = (low, high)
-    return FogSpec(beta=beta, sample=sample)
+    try:
+        return FogSpec(beta=beta, sample=sample)
+    except ValueError as exc:  # a range FogSpec refuses: say which flag gave it
+        raise ValueError(f"--augment {text}: {exc}") from None

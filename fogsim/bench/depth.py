@@ -87,9 +87,11 @@ def render_if_needed(out: Path, frames: int, resolution: str, samples: int) -> N
     """Render the stereo dataset in a process of its own unless it already has ``frames`` frames."""
     if frame_count(out) >= frames:
         return
-    subprocess.run([sys.executable, "-m", "fogsim", "render", "--preset", "cityscapes-stereo",
-                    "--frames", str(frames), "--resolution", resolution, "--samples", str(samples),
-                    "--out", str(out)], check=True)
+    code = subprocess.run([sys.executable, "-m", "fogsim", "render", "--preset", "cityscapes-stereo",
+                           "--frames", str(frames), "--resolution", resolution, "--samples", str(samples),
+                           "--out", str(out)]).returncode
+    if code:  # the render said why, in its own one line
+        raise SystemExit(code)
 
 
 def table(summary: dict, region: str) -> str:

@@ -298,11 +298,14 @@ def run(args) -> int:
     """``fogsim fit-fog``: fit, check the document against the schema, write it atomically."""
     from fogsim.fileio import write_json
     from fogsim.fog.scatter import load_params, load_params_file
+    from fogsim.runs import check_output
     from fogsim.schema.base import check
     from fogsim.schema.scatter import ScatterParamsFile
 
     log = (lambda *a: None) if args.quiet else print
     folders = [Path(f) for f in args.runs]
+    check_output(args.out, [("--start", getattr(args, "start", None))] + [("RUN_DIR", f) for f in args.runs],
+                 file=True)  # before the fit: never over one of its inputs
     if getattr(args, "glow_only", False):
         start = load_params_file(args.start).model_dump(mode="json")   # default: the shipped file
         doc = fit_glow_only(folders, start, log=log)

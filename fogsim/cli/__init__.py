@@ -34,8 +34,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from fogsim.fileio import with_checked_paths
+
     args = build_parser().parse_args(argv)
-    return run_command(args.run, args)
+    return run_command(with_checked_paths(args.run), args)
 
 
 if __name__ == "__main__":

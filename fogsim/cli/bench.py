@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 
+from fogsim.fileio import MAX_PIXELS, pixel_limit_problem
 from fogsim.schema.vocabulary import FOG_MEDIA
 
 
@@ -20,6 +21,8 @@ def add_parsers(sub) -> None:
                           "and the reference's per-pixel loop")
     fog.add_argument("--repeat", type=int, default=15, help="interleaved repeats (medians)")
     fog.add_argument("--size", default="1920x1280", help="frame WIDTHxHEIGHT (the targets are for 1920x1280)")
+    fog.add_argument("--max-pixels", type=int, default=MAX_PIXELS,
+                     help=f"refuse a --size of more pixels than this (default {MAX_PIXELS:,}, as fog and render)")
     _quiet_option(fog)
     fog.set_defaults(run=lambda args: _fog(args))
 
@@ -144,11 +147,14 @@ def _fog(args) -> int:
     from fogsim.bench.fog import run
     from fogsim.render.preset import parse_resolution
 
-    _positive(repeat=args.repeat)
+    _positive(repeat=args.repeat, max_pixels=args.max_pixels)
     try:
         size = parse_resolution(args.size)
     except ValueError as e:
         raise ValueError(str(e).replace("--resolution", "--size")) from None
+    too_big = pixel_limit_problem(*size, args.max_pixels, "time")
+    if too_big:  # the bench holds several float64 copies of the frame
+        raise ValueError(f"--size {too_big}")
     return run(args.repeat, size)
 
 
@@ -213,6 +219,10 @@ def _ila(args) -> int:
     from fogsim.bench.depth import run_benchmark
 
     _positive(frames=args.frames, samples=args.samples, epochs=args.epochs)
+    from fogsim.render.preset import load_render_preset
+
+    # the render's flags, checked before it starts (its resolution becomes Cycles' buffers)
+    load_render_preset("cityscapes-stereo", frames=args.frames, resolution=args.resolution, samples=args.samples)
     config = None
     if args.rounds:
         from fogsim.cli.ila import training_config

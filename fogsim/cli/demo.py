@@ -6,6 +6,9 @@ from pathlib import Path
 
 from fogsim.errors import EXIT_FAILED, EXIT_OK
 
+#: the demo writes its procedural input images first: a handful, not a dataset
+MAX_DEMO_FRAMES = 1000
+
 
 def add_parsers(sub) -> None:
     demo = sub.add_parser("demo", help="fog the built-in procedural street images (no dataset needed)")
@@ -35,8 +38,9 @@ def cmd_demo(args) -> int:
 
     check_output(args.out, {})
     out = Path(args.out)
-    if args.frames < 1:
-        raise ValueError(f"--frames must be ≥ 1, got {args.frames}")
+    from fogsim.schema.base import check_flag, int_in
+
+    check_flag("--frames", args.frames, int_in(1, MAX_DEMO_FRAMES))
     levels = tuple(parse_levels(args.levels))
     job = FogJob(levels, str(out / "fog"), seed=args.seed, inputs={"demo_seed": args.seed, "frames": args.frames})
     check_run_file(job, package_versions())  # before writing inputs: never overwrite another run's

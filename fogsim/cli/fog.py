@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -180,6 +181,11 @@ def _check_depth_from(args) -> None:
     holdout_split(0, args.lidar_holdout or 0.0)  # a fraction outside [0, 1) → the message
 
 
+def max_workers() -> int:
+    """The most worker processes a command starts: 4 per CPU this process may use (more only queue)."""
+    return 4 * len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 4 * (os.cpu_count() or 1)
+
+
 def _depth_from_path(depth_from: str | None) -> str | None:
     """The file ``--depth-from`` names (the checkpoint), or None."""
     kind, _, rest = (depth_from or "").partition(":")
@@ -302,8 +308,9 @@ def cmd_fog(args) -> int:
         return _finalize_only(args)
     if not (args.input or args.cityscapes or args.waymo):
         raise ValueError("give one of --input, --cityscapes, --waymo (or --finalize-only --out OUT)")
-    if args.workers < 1:
-        raise ValueError("--workers must be ≥ 1")
+    from fogsim.schema.base import check_flag, int_in
+
+    check_flag("--workers", args.workers, int_in(1, max_workers()))  # each is a process with its own images
     _check_depth_from(args)
     check_output(args.out, {f"--{k.replace('_', '-')}": getattr(args, k)
                             for k in ("input", "depth", "cityscapes", "waymo", "depth_dir", "intrinsics")}

@@ -36,14 +36,20 @@ def parse_size(text: str) -> tuple[int, int]:
     if w < 16 or h < 16 or w % 16 or h % 16:
         raise ValueError(f"--size {text}: width and height must be positive multiples of 16 "
                          "(the U-Net halves them four times), e.g. 256x128")
+    if w * h > ILAConfig.MAX_PIXELS:
+        raise ValueError(f"--size {text}: at most {ILAConfig.MAX_PIXELS / 2**20:g} MP (the training set is held "
+                         "in memory at this size; the reference trains at 480x320)")
     return w, h
 
 
 def training_config(args):
     """The ``ILAConfig`` of the training flags; a bad value is a ``ValueError`` naming its flag."""
-    for flag, value in (("--rounds", args.rounds), ("--epochs", args.epochs), ("--width", args.width)):
+    from fogsim.schema.base import check_flag, int_in
+
+    for flag, value in (("--rounds", args.rounds), ("--epochs", args.epochs)):
         if value < 1:
             raise ValueError(f"{flag} must be ≥ 1, got {value}")
+    check_flag("--width", args.width, int_in(1, ILAConfig.MAX_WIDTH))  # the U-Net's parameters: ∝ width²
     if args.seed < 0:
         raise ValueError(f"--seed must be ≥ 0, got {args.seed}")
     return ILAConfig(width=args.width, size=parse_size(args.size), use_sparse=args.sparse, loss_on=args.loss_on,

@@ -225,5 +225,22 @@ def finalize_line(summary: dict, frames: int, shard: tuple[int, int]) -> str:
 def main(argv: list[str] | None = None, prog: str = "fogsim render") -> int:
     """Entry of ``scripts/render_batch.py`` (``blender -b -P``): the same command, its own prog name."""
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    from fogsim.fileio import with_checked_paths
+
     add_arguments(p)
-    return run_command(cmd_render, p.parse_args(argv), prog="fogsim")
+    interrupt_as_python()
+    return run_command(with_checked_paths(cmd_render), p.parse_args(argv), prog="fogsim")
+
+
+def interrupt_as_python() -> None:
+    """Ctrl-C as KeyboardInterrupt in Blender's own Python too (``blender -b -P``). Blender embeds
+    Python without its signal handlers and handles SIGINT itself: the first one only breaks the
+    render in progress (the frame is lost and the run goes on), the second kills Blender (exit 2).
+    With Python's handler, every front door stops alike: the current render completes, then exit
+    130, resumable (:func:`fogsim.render.blender.cycles.interrupts_deferred`)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) in (
+            None, signal.SIG_DFL):
+        signal.signal(signal.SIGINT, signal.default_int_handler)

@@ -102,6 +102,10 @@ def add_parsers(sub) -> None:
 
 
 
+#: bounds on the training flags that become allocations (Ultralytics holds batch × 3 × imgsz² floats)
+MAX_IMGSZ, MAX_BATCH = 8192, 4096
+
+
 def check_args(args) -> None:
     """Usage errors (ValueError) before anything runs."""
     positive = {"--epochs": args.epochs, "--mixed-epochs": args.mixed_epochs, "--imgsz": args.imgsz,
@@ -110,6 +114,14 @@ def check_args(args) -> None:
     bad = [name for name, v in positive.items() if v is not None and not v > 0]
     if bad:
         raise ValueError(f"{', '.join(bad)} must be positive")
+    from fogsim.schema.base import check_flag, int_in
+    from fogsim.schema.presets import MAX_FRAMES
+
+    # what becomes memory: a batch of batch × 3 × imgsz² floats; --render: the frame list
+    check_flag("--imgsz", args.imgsz, int_in(1, MAX_IMGSZ))
+    check_flag("--batch", args.batch, int_in(1, MAX_BATCH))
+    if args.render is not None:
+        check_flag("--render", args.render, int_in(1, MAX_FRAMES))
     if args.render and args.sim_dataset:
         raise ValueError("--render renders the study's own dataset: render the --sim-dataset first "
                          "(fogsim render), then pass both")

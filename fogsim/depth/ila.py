@@ -72,12 +72,23 @@ class ILAConfig:
     lr: float = 1e-3
     seed: int = 0
 
+    #: bounds on what becomes memory: the training set is held at ``size`` (N × 5 channels × W × H
+    #: float32), the U-Net's parameters grow with ``width`` squared (64: the reference's 31 M)
+    MAX_PIXELS: ClassVar[int] = 2048 * 2048
+    MAX_WIDTH: ClassVar[int] = 256
+
     def __post_init__(self):
         if len(self.size) != 2 or any(v < 16 or v % 16 for v in self.size):
             raise ValueError(f"ILA size must be positive multiples of 16 (four 2× poolings), got {self.size}")
+        if self.size[0] * self.size[1] > self.MAX_PIXELS:
+            raise ValueError(f"ILA size {self.size[0]}x{self.size[1]} is above {self.MAX_PIXELS / 2**20:g} MP "
+                             "(the training set is held in memory at this size; the reference trains at 480x320)")
         for name in ("width", "rounds", "epochs", "batch"):
             if getattr(self, name) < 1:
                 raise ValueError(f"ILA {name} must be ≥ 1, got {getattr(self, name)}")
+        if self.width > self.MAX_WIDTH:
+            raise ValueError(f"ILA width must be ≤ {self.MAX_WIDTH} (64 = the reference's 31 M parameters; they "
+                             f"grow with its square), got {self.width}")
         if not 0 <= self.sparse_drop < 1:
             raise ValueError(f"sparse_drop must be in [0, 1), got {self.sparse_drop}")
         if not self.lr > 0:

@@ -25,12 +25,12 @@ by accident.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 from fogsim.boxes import coco_category
 from fogsim.errors import InputError
+from fogsim.fileio import MAX_DOCUMENT_BYTES, parse_json, read_text_bounded
 from fogsim.readers.cityscapes_labels import CITYSCAPES_CLASSES
 from fogsim.readers.waymo.labels import WAYMO_CLASSES
 from fogsim.scene.classes import LABELLED
@@ -109,16 +109,9 @@ def load_class_map(text: str) -> ClassMap:
         path = Path(text)
         if not path.is_file():
             raise InputError(text, f"not a class map: no such file, and not one of {', '.join(BUILTIN)}")
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(path, f"unreadable class map ({exc})") from None
+        text = read_text_bounded(path, MAX_DOCUMENT_BYTES, "class map")
         source = str(path)
-    try:
-        data = json.loads(text)
-    except ValueError as exc:
-        raise InputError(source if source != text or len(source) < 80 else "--class-map",
-                         f"class map is not JSON ({exc})") from None
+    data = parse_json(text, source if source != text or len(source) < 80 else "--class-map")
     where = source if source != text else "--class-map"  # the file, or the flag that gave the JSON text
     if isinstance(data, dict) and "map" not in data:  # the flat form {source: target}
         data = {"map": data}

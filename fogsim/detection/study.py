@@ -196,10 +196,10 @@ class Study:
             self.check_files(eval_gts, self.eval_layout)
             self.check_files({lv: val_ground_truth(self.scatter_layout, lv) for lv in self.levels}, self.scatter_layout)
         mine = self.models[shard[0]::shard[1]]
+        if AUGMENTED_MODEL in mine:  # the data's checks first: check_model writes OUT/ultralytics_config
+            self.check_depth()
         if any(not self.files.run_done(m).is_file() for m in mine):
             check_model(self.cfg.model, self.config_dir)  # before study.json: a typo must not lock OUT
-        if AUGMENTED_MODEL in mine:
-            self.check_depth()
         self.check_parameters(gts)
         data = training_view(self.dataset, self.files.training_view(), self.levels, self.classes, self.clear)
         if self.scatter_layout is not None:  # the scatter render's own mixed view

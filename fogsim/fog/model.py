@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from fogsim.colour import from_float, full_scale, linear_to_srgb, srgb_to_linear
+from fogsim.schema.presets import MAX_KERNEL_SIZE
 from fogsim.schema.vocabulary import KERNELS, SPACES
 
 
@@ -44,8 +45,8 @@ class Kernel:
     def __post_init__(self):
         if self.kind not in KERNELS:
             raise ValueError(f"kernel must be one of {', '.join(KERNELS)}, got {self.kind!r}")
-        if self.size < 1 or self.size % 2 == 0:
-            raise ValueError(f"kernel size must be a positive odd number, got {self.size}")
+        if self.size < 1 or self.size % 2 == 0 or self.size > MAX_KERNEL_SIZE:
+            raise ValueError(f"kernel size must be a positive odd number ≤ {MAX_KERNEL_SIZE}, got {self.size}")
         if self.kind == "gaussian" and not self.sigma > 0:
             raise ValueError(f"Gaussian sigma must be > 0, got {self.sigma}")
         if self.kind == "guided" and not self.eps > 0:
@@ -171,12 +172,13 @@ def estimate_airlight(image: np.ndarray, patch: int = 15, top_fraction: float = 
 # ----------------------------------------------------------------------------- heterogeneous fog
 def check_heterogeneity(amplitude: float, scale_px: float,
                         names: tuple[str, str] = ("heterogeneity amplitude", "heterogeneity scale")) -> None:
-    """The range of :func:`density_field`'s parameters: 0 ≤ ``amplitude`` < 1 and ``scale_px`` > 0
-    pixels; a ValueError names the parameter by ``names`` (the caller's words, e.g. flags)."""
+    """The range of :func:`density_field`'s parameters: 0 ≤ ``amplitude`` < 1 and ``scale_px`` ≥ 1
+    pixel (finite: the random grid has one cell per ``scale_px`` pixels, so a smaller patch would be
+    an allocation, not a pattern); a ValueError names the parameter by ``names`` (the caller's words)."""
     if not 0 <= amplitude < 1:
         raise ValueError(f"{names[0]} must be in [0, 1), got {amplitude}")
-    if not scale_px > 0:
-        raise ValueError(f"{names[1]} must be > 0 pixels, got {scale_px}")
+    if not 1 <= scale_px < float("inf"):
+        raise ValueError(f"{names[1]} must be a finite number ≥ 1 pixel, got {scale_px}")
 
 
 def density_field(shape: tuple[int, int], rng: np.random.Generator, amplitude: float = 0.3,

@@ -232,6 +232,8 @@ class ScatterFogger:
                  params: ScatterParams | None = None, intrinsics: Intrinsics | None = None, up=None):
         if image.ndim != 3 or image.shape[2] != 3:
             raise ValueError(f"image must be H×W×3 RGB, got shape {image.shape}")
+        if image.shape[0] * image.shape[1] < 2:  # its glow and forward scatter move light between pixels
+            raise ValueError(f"image is {image.shape[1]}×{image.shape[0]}: the scatter model needs at least 2 pixels")
         if space not in SPACES:
             raise ValueError(f"blend space must be one of {', '.join(SPACES)}, got {space!r}")
         check_distance(distance, image.shape[:2])

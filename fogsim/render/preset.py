@@ -36,6 +36,7 @@ from fogsim.schema.base import Closed, check, int_in, load_json, number_in
 from fogsim.schema.lidar import LidarSensorSpec
 from fogsim.schema.presets import (
     ASSET_CLASSES,
+    MAX_FRAMES,
     MAX_SAMPLES,
     MAX_SIDE,
     MIN_SIDE,
@@ -128,7 +129,7 @@ class Overrides(Closed):
     """The command-line overrides of a preset, by flag (the field aliases): what
     :func:`check_overrides` checks before the preset is read."""
 
-    frames: int_in(1) | None = None
+    frames: int_in(1, MAX_FRAMES) | None = None
     seed: int_in(0) | None = None
     samples: int_in(1, MAX_SAMPLES) | None = None
     max_pixels: int_in(MIN_SIDE * MIN_SIDE) = MAX_PIXELS
@@ -260,7 +261,8 @@ def resolve_assets(given: dict, preset: Path, dirs: dict | None = None, dirs_sou
         return {}
     source = dirs_source if dirs is not None else preset
     a = check({**{k: v for k, v in given.items() if k not in ASSET_CLASSES}, **classes}, Assets, source, "assets")
-    files = library_files(classes, source, None if dirs is not None else preset.parent)
+    files = library_files(classes, source, None if dirs is not None else preset.parent,
+                          Path(dirs_source) if dirs is not None and dirs_source is not None else None)
     mix = {k: v for k, v in a.mix.given().items() if v is not None}
     return {"files": files, "mix": {c: float(mix.get(c, 1.0)) for c in files}, "units": a.units,
             "forward": a.forward, "out_of_range": a.out_of_range}
@@ -269,6 +271,8 @@ def resolve_assets(given: dict, preset: Path, dirs: dict | None = None, dirs_sou
 def _hdri_paths(lighting: dict, source: Path) -> dict:
     """``lighting`` with every HDRI path made absolute (relative: to the preset's folder); a
     missing file is the preset's problem. Blender world HDRI names stay names."""
+    from fogsim.scene.library import inside
+    from fogsim.scene.sky import hdri_problem
     from fogsim.schema.presets import WORLD_HDRIS
 
     spec = lighting.get("hdri")
@@ -278,9 +282,16 @@ def _hdri_paths(lighting: dict, source: Path) -> dict:
     for item in [spec] if isinstance(spec, str) else spec:
         if item not in WORLD_HDRIS:
             p = Path(item).expanduser()
-            p = p if p.is_absolute() else source.parent / p
+            relative = not p.is_absolute()
+            p = source.parent / p if relative else p
             if not p.is_file():
                 raise InputError(source, f"lighting.hdri: no such file {str(p)!r}")
+            if relative and not inside(p, source.parent):  # ../ or a link: a relative path stays in the folder
+                raise InputError(source, f"lighting.hdri {item!r} lies outside the preset's folder {source.parent} "
+                                         "(a relative path is confined to it; write an absolute path to use a file "
+                                         "elsewhere)")
+            if problem := hdri_problem(p):  # once per run, not per frame
+                raise InputError(source, f"lighting.hdri {str(p)!r}: {problem}")
             item = str(p.resolve())
         out.append(item)
     return {**lighting, "hdri": out[0] if isinstance(spec, str) else out}
@@ -320,4 +331,18 @@ def _compose(d: DatasetPreset, path: Path, ov: Overrides, res_override, lv_overr
         seed=ov.seed if ov.seed is not None else d.seed, stereo_baseline=baseline,
         train_fraction=ov.train_fraction if ov.train_fraction is not None else d.train_fraction)
     fog_settings(cfg)  # the fog_model with --fog / --fog-medium applied, checked again
+    check_lens(cfg, path)
     return cfg
+
+
+def check_lens(cfg: RenderConfig, source) -> None:
+    """The sensor's distortion at the run's camera and resolution: values inside the schema's range
+    that fold the image (:func:`fogsim.sensor.distortion_problem`) are refused naming the key."""
+    from fogsim.scene.layout import camera_intrinsics
+    from fogsim.sensor import distortion_problem
+
+    coeffs = cfg.sensor.get("distortion")
+    if coeffs and any(coeffs):
+        problem = distortion_problem(camera_intrinsics(cfg.camera, cfg.resolution), coeffs)
+        if problem:
+            raise InputError(source, f"sensor.distortion {list(coeffs)}: {problem}")

@@ -10,12 +10,11 @@ Classes are fogsim's (:mod:`fogsim.scene.classes`): a labelled class gets boxes,
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from fnmatch import fnmatchcase
-from pathlib import Path
 
 from fogsim.errors import InputError
+from fogsim.fileio import MAX_DOCUMENT_BYTES, parse_json, read_text_bounded
 from fogsim.scene.classes import LABELLED, STUFF
 
 PROPERTY = "fogsim_class"
@@ -61,14 +60,8 @@ def load_class_map(arg: str | None) -> ClassMap:
         return ClassMap()
     inline = arg.lstrip().startswith("{")
     source = "--class-map" if inline else arg
-    try:
-        text = arg if inline else Path(arg).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(source, f"cannot read the class map ({exc})") from None
-    try:
-        data = json.loads(text)
-    except ValueError as exc:
-        raise InputError(source, f"the class map is not valid JSON ({exc})") from None
+    text = arg if inline else read_text_bounded(arg, MAX_DOCUMENT_BYTES, "class map")
+    data = parse_json(text, source)
     if not isinstance(data, dict) or not data:
         raise InputError(source, 'the class map must be a non-empty JSON object of name glob → class, '
                                  'e.g. {"Car*": "car"}')

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import glob
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,9 +49,13 @@ def model_files(where: str, base: Path | None = None) -> list[Path]:
     return sorted(p.resolve() for p in found if p.is_file() and p.suffix.lower() in FORMATS)
 
 
-def library_files(assets: dict, source, base: Path | None = None) -> dict[str, list[str]]:
+def library_files(assets: dict, source, base: Path | None = None, root: Path | None = None) -> dict[str, list[str]]:
     """Class → model files (absolute paths) of a checked ``assets`` object; a class whose folder
-    or glob holds no model file is an InputError naming ``source`` (the preset or --assets)."""
+    or glob holds no model file is an InputError naming ``source`` (the preset or --assets).
+
+    Every model, and every file it refers to, must lie inside the library (:func:`reference_problem`):
+    ``root`` (the ``--assets`` folder), else the preset's folder ``base`` for a relative entry, else
+    the entry's own folder (an absolute one); one that does not is an InputError naming it."""
     out = {}
     for cls in ASSET_CLASSES:
         if assets.get(cls) is None:
@@ -59,8 +64,143 @@ def library_files(assets: dict, source, base: Path | None = None) -> dict[str, l
         if not files:
             raise InputError(source, f"assets.{cls}: no model file ({', '.join(FORMATS)}) in or matching "
                                      f"{assets[cls]!r}")
+        inside = root or _entry_root(assets[cls], base)
+        for f in files:
+            if problem := reference_problem(f, inside):
+                raise InputError(f, f"assets.{cls}: {problem}")
         out[cls] = [str(f) for f in files]
     return out
+
+
+def _entry_root(where: str, base: Path | None) -> Path:
+    """The folder a preset's class entry confines its models to: the preset's folder for a relative
+    entry, else the entry's folder (a glob: the part before its first wildcard)."""
+    path = Path(where).expanduser()
+    if not path.is_absolute() and base is not None:
+        return Path(base)
+    plain = Path(*[p for p in path.parts[:next((i for i, p in enumerate(path.parts) if glob.has_magic(p)),
+                                                len(path.parts))]])
+    return plain if plain.is_dir() else plain.parent
+
+
+# ----------------------------------------------------------------------------- confinement
+#: an URI with a scheme (http:, file:, …): a glTF's files must be relative references or data: URIs
+_SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*:")
+#: OBJ / MTL statements that name a file (the file is the statement's last word; MTL options come first)
+_OBJ_FILES = re.compile(rb"^[ \t]*(mtllib|map_\w+|bump|disp|decal|refl|norm)[ \t]+(.+?)[ \t]*$",
+                        re.MULTILINE | re.IGNORECASE)
+#: an FBX's external files: node FileName / RelativeFilename, one string property (binary FBX) or ASCII
+_FBX_FILES = (re.compile(rb"[\x08]FileNameS(....)|[\x10]RelativeFilenameS(....)", re.DOTALL),
+              re.compile(rb'(?:FileName|RelativeFilename)\s*:\s*"([^"]*)"'))
+
+
+def inside(path: Path, root: Path) -> bool:
+    """Whether ``path``, its symlinks resolved, lies in the folder ``root`` (resolved too)."""
+    from fogsim.fileio import resolve_path
+
+    p, r = resolve_path(path), resolve_path(root)
+    return p == r or r in p.parents
+
+
+def reference_problem(file: str | Path, root: Path) -> str | None:
+    """Why the model ``file`` reaches outside the library folder ``root``, or None: the file itself
+    (a symlink out of the library), a glTF's buffer or image ``uri`` (data: URIs are fine; another
+    scheme or a path outside is not), an OBJ's ``mtllib`` and the texture maps of those MTL files,
+    an FBX's external texture names. Blender's importers follow these references, so they are read
+    here first, without Blender: the model's own JSON or text (no geometry is decoded)."""
+    file = Path(file)
+    if not inside(file, root):
+        return f"the model file is outside the library folder {root} (a link out of it?)"
+    refs = []
+    try:
+        suffix = file.suffix.lower()
+        if suffix in (".gltf", ".glb"):
+            refs = _gltf_uris(file)
+        elif suffix == ".obj":
+            refs = _obj_refs(file, root)
+        elif suffix == ".fbx":
+            refs = _fbx_refs(file)
+    except InputError as exc:
+        return exc.problem
+    for where, ref in refs:
+        if ref.startswith("data:"):
+            continue
+        if _SCHEME.match(ref) and not re.match(r"^[A-Za-z]:[\\/]", ref):
+            return f"{where} {ref[:80]!r} is not a file of the library (only relative paths and data: URIs)"
+        target = Path(ref.replace("\\", "/"))
+        target = target if target.is_absolute() else file.parent / target
+        if suffix == ".fbx" and not target.exists():
+            continue  # FBX keeps the authoring machine's absolute paths: one that is not here reads nothing
+        if not inside(target, root):
+            return (f"{where} {ref[:80]!r} points outside the library folder {root}: refused before any "
+                    "importer reads it")
+    return None
+
+
+def _gltf_uris(file: Path) -> list[tuple[str, str]]:
+    """The ``uri`` of every buffer and image of a .gltf (JSON) or .glb (its JSON chunk), percent-decoded."""
+    import struct
+    from urllib.parse import unquote
+
+    from fogsim.fileio import MAX_JSON_BYTES, parse_json, read_text_bounded
+
+    if file.suffix.lower() == ".glb":
+        with open(file, "rb") as f:
+            head = f.read(20)
+            if len(head) < 20 or head[:4] != b"glTF":
+                raise InputError(file, "not a GLB file (no glTF header)")
+            size, kind = struct.unpack("<II", head[12:20])
+            if kind != 0x4E4F534A or size > MAX_JSON_BYTES:
+                raise InputError(file, "not a GLB file (its first chunk is not JSON of a sane size)")
+            text = f.read(size)
+    else:
+        text = read_text_bounded(file, MAX_JSON_BYTES, "glTF file")
+    doc = parse_json(text, file)
+    refs = []
+    for key in ("buffers", "images"):
+        items = doc.get(key, []) if isinstance(doc, dict) else []
+        for i, item in enumerate(items if isinstance(items, list) else []):
+            uri = item.get("uri") if isinstance(item, dict) else None
+            if uri is not None:
+                if not isinstance(uri, str):
+                    raise InputError(file, f"{key}[{i}].uri must be a string")
+                refs.append((f"{key}[{i}].uri", uri if uri.startswith("data:") else unquote(uri)))
+    return refs
+
+
+def _obj_refs(file: Path, root: Path) -> list[tuple[str, str]]:
+    """An OBJ's material libraries and, of those inside the library, their texture maps."""
+    refs = []
+    for match in _OBJ_FILES.finditer(file.read_bytes()):
+        if match.group(1).lower() != b"mtllib":
+            continue
+        name = match.group(2).decode("utf-8", "replace")
+        refs.append(("mtllib", name))
+        mtl = Path(name) if Path(name).is_absolute() else file.parent / name
+        if mtl.is_file() and inside(mtl, root):
+            for m in _OBJ_FILES.finditer(mtl.read_bytes()):
+                if m.group(1).lower() != b"mtllib":
+                    word = m.group(2).split()[-1].decode("utf-8", "replace")
+                    # an MTL's maps are relative to the MTL's folder
+                    refs.append((f"{mtl.name}: {m.group(1).decode()}",
+                                 word if Path(word).is_absolute() else str(mtl.parent / word)))
+    return refs
+
+
+def _fbx_refs(file: Path) -> list[tuple[str, str]]:
+    """An FBX's external file names (binary or ASCII FBX; embedded textures need none)."""
+    import struct
+
+    data = file.read_bytes()
+    refs = []
+    binary, ascii_ = _FBX_FILES
+    for m in binary.finditer(data):
+        start = m.end()
+        (n,) = struct.unpack("<I", m.group(1) or m.group(2))
+        refs.append(("texture file", data[start:start + n].decode("utf-8", "replace")))
+    for m in ascii_.finditer(data):
+        refs.append(("texture file", m.group(1).decode("utf-8", "replace")))
+    return [(w, r) for w, r in refs if r]
 
 
 def assets_dir(folder: str | Path) -> dict[str, str]:

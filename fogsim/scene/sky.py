@@ -58,6 +58,29 @@ def sky_of(light: dict) -> str:
     return light["sky"] if "sky" in light else "procedural"
 
 
+def hdri_problem(path: str | Path) -> str | None:
+    """Why the user's HDRI file ``path`` would light a frame with garbage, or None: it does not
+    decode as an image, or it holds NaN or ±inf (Cycles renders a black frame from it). One decode
+    per file, at set-up (OpenCV; the OpenEXR package where this OpenCV build reads no EXR)."""
+    import cv2
+
+    from fogsim.errors import InputError
+    from fogsim.fileio import read_exr_channels, read_image
+
+    path = Path(path)
+    try:
+        if path.suffix.lower() == ".exr" and not cv2.haveImageWriter(".exr"):  # an OpenCV without EXR
+            pixels = np.stack(list(read_exr_channels(path).values()))
+        else:
+            pixels = read_image(path)
+    except InputError as exc:
+        return f"not a readable HDRI ({exc.problem})"
+    if pixels.dtype.kind == "f" and not np.isfinite(pixels).all():
+        bad = int((~np.isfinite(pixels)).sum())
+        return f"holds {bad} NaN or infinite values (of {pixels.size}): Cycles would render black frames from it"
+    return None
+
+
 def _uniform(rng: np.random.Generator, lo_hi) -> float:
     lo, hi = (float(v) for v in lo_hi)
     return lo if lo == hi else float(rng.uniform(lo, hi))

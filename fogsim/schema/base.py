@@ -46,7 +46,8 @@ from pydantic import (
 
 from fogsim.errors import InputError
 
-__all__ = ["Bool", "Closed", "Open", "Int", "Number", "NonNegInt", "Text", "by_type", "check", "int_in", "load_json",
+__all__ = ["Bool", "Closed", "Open", "Int", "Number", "NonNegInt", "Text", "by_type", "check", "check_flag", "int_in",
+           "load_json",
            "items", "word", "load_npz", "number_in", "one_line", "pair", "shape_of", "M"]
 
 M = TypeVar("M", bound=BaseModel)
@@ -302,11 +303,24 @@ def check(obj: Any, model: type[M], source: str | os.PathLike | None = None, pre
         raise InputError(source, line) from None
 
 
-def load_json(path: str | os.PathLike, model: type[M]) -> M:
-    """Read the JSON file ``path`` and check it against ``model`` (one line naming the file)."""
-    from fogsim.fileio import read_json
+def check_flag(flag: str, value: Any, kind: Any) -> Any:
+    """The command-line value ``value`` of ``flag`` checked against the value type ``kind`` (e.g.
+    ``int_in(1, 1024)``): a ValueError ``--flag: must be an integer in [1, 1024] (got 5000)``, the
+    schema's words, for the numbers no document holds (a worker count, an image size …)."""
+    from pydantic import TypeAdapter
 
-    return check(read_json(path), model, path)
+    try:
+        return TypeAdapter(kind).validate_python(value)
+    except ValidationError as exc:
+        raise ValueError(one_line(exc, flag)) from None
+
+
+def load_json(path: str | os.PathLike, model: type[M]) -> M:
+    """Read the JSON file ``path`` and check it against ``model`` (one line naming the file; the size bound
+    of :func:`fogsim.fileio.read_json` is the smaller one for a :class:`Closed` document, which users write)."""
+    from fogsim.fileio import MAX_DOCUMENT_BYTES, MAX_JSON_BYTES, read_json
+
+    return check(read_json(path, MAX_DOCUMENT_BYTES if issubclass(model, Closed) else MAX_JSON_BYTES), model, path)
 
 
 def shape_of(a: Any) -> tuple:

@@ -45,6 +45,9 @@ from fogsim.schema.vocabulary import FOG_EXPOSURES, FOG_KINDS, FOG_MEDIA, KERNEL
 COMPONENT_NAME = re.compile(r"[A-Za-z0-9_-]+")
 #: Cycles' limit on samples per pixel.
 MAX_SAMPLES = 1 << 24
+#: The most frames one dataset holds (the paper's 12,900 × 77): the frame list, the split and the
+#: finalize report are as long as this.
+MAX_FRAMES = 1_000_000
 #: Blender's own limit on each side of a render (not raisable), and the smallest side fogsim renders.
 MAX_SIDE, MIN_SIDE = 65536, 8
 #: The share of frames in the train split unless a preset or ``--train-fraction`` says otherwise.
@@ -52,6 +55,8 @@ TRAIN_FRACTION = 0.8
 #: Labels: objects below this many visible pixels, or this visible fraction, are ignore regions.
 MIN_PIXELS, MIN_VISIBLE_FRACTION = 25, 0.1
 VEHICLES = ("car", "van", "truck", "bus")
+#: The widest airlight kernel (k × k pixels, k odd): its weights and the filter's buffers grow with it.
+MAX_KERNEL_SIZE = 4095
 #: A fog render's box domain must lie inside the camera's clip_end (2000 m): half-width ≤ this.
 MAX_FOG_EXTENT_M = 1400.0
 TIMES_OF_DAY = ("day", "night")
@@ -231,7 +236,7 @@ class FogModel(Closed):
     kind: Literal[FOG_KINDS] = "koschmieder"
     extended: Bool = False  # Koschmieder with a spatially varying airlight (kernel below)
     kernel: Literal[KERNELS] = "box"
-    kernel_size: int_in(1, 4095) = 19
+    kernel_size: int_in(1, MAX_KERNEL_SIZE) = 19
     sigma: Number = 5.0
     eps: Number = 1e-3
     airlight: Airlight = 255.0  # 8-bit units, a number or [R, G, B]
@@ -462,7 +467,7 @@ class DatasetPreset(_Meta):
     #: a LiDAR on the ego vehicle: a bundled sensor's name (presets/lidar/) or a custom block; None = none
     lidar: _style(LidarSensorSpec, "LiDAR sensor") | None = None
     exposure: number_in(0, lo_open=True) = 1.0
-    frames: int_in(1) = 8
+    frames: int_in(1, MAX_FRAMES) = 8
     seed: int_in(0) = 0
     stereo: StereoSpec | None = None  # true = the camera's stereo_baseline_m, else Cityscapes'
     train_fraction: number_in(0, 1, lo_open=True, hi_open=True) = TRAIN_FRACTION

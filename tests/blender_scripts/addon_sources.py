@@ -57,7 +57,8 @@ def settings(**values):
 # ---- preset source: Sky and Assets reach the RenderConfig
 s = settings(sky="hdri", hdri="sunset")
 r["hdri_name"] = panel_options.config(s).lighting
-(out / "sky.hdr").write_bytes(b"#?RADIANCE\n")  # only its existence is checked before a render
+# a 2×1 Radiance HDR of white (the preset loader decodes it once, refusing NaN or garbage)
+(out / "sky.hdr").write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 2\n" + bytes([128, 128, 128, 129]) * 2)
 s.hdri, s.hdri_file = "FILE", str(out / "sky.hdr")
 r["hdri_file"] = panel_options.config(s).lighting
 s.sky = "overcast"

@@ -3,7 +3,8 @@
     python make_scene_blend.py SPEC.json OUT.blend                 # bpy module
     blender -b --factory-startup -P make_scene_blend.py -- SPEC.json OUT.blend
 
-The spec: ``resolution`` [W, H]; ``camera`` {location, rotation_deg (XYZ Euler), lens, sensor_width,
+The spec: ``resolution`` [W, H] (``resolution_percentage``, default 100); ``camera`` {location,
+rotation_deg (XYZ Euler), lens, sensor_width,
 sensor_height, sensor_fit, shift_x, shift_y}; ``boxes``: {name, size [x, y, z], location, class (the
 fogsim_class property, optional), parent (optional; location is then relative to the parent's),
 hidden (from renders), hide_eye, viewport_off (hidden in the viewport only), color [r, g, b],

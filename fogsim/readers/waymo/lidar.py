@@ -22,12 +22,11 @@ from typing import Iterable
 
 import numpy as np
 
-from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.waymo.address import V1Record, V2Frame
 from fogsim.readers.waymo.images import ParquetImage, TFRecordImage
 from fogsim.readers.waymo.lidar_frame import LidarFrame, NoLidar
 from fogsim.readers.waymo.lidar_geometry import CameraPoints, camera_points
-from fogsim.readers.waymo.lidar_v1 import FRAME_LASERS, read_v1_lidar
+from fogsim.readers.waymo.lidar_v1 import has_range_images, read_v1_lidar
 from fogsim.readers.waymo.lidar_v2 import read_v2_lidar
 
 
@@ -103,11 +102,12 @@ class OptionalPoints:
 
 def frame_has_lidar(points: LidarPoints) -> bool:
     """Whether the frame of ``points`` has LiDAR data at all, without decoding it: a v1 Frame
-    with a ``lasers`` field, a v2 segment with a ``lidar`` table (a run-wide check: data
-    without any is refused before ``--depth-from lidar`` starts)."""
+    with a range image in one of its ``lasers`` (a laser entry without one, as real camera-only
+    frames have, is none), a v2 segment with a ``lidar`` table (a run-wide check: data without any
+    is refused before ``--depth-from lidar`` starts)."""
     where = points.where
     if isinstance(where, V1Record):
-        return FRAME_LASERS in pw.decode_fields(where.read(points.source), points.source)
+        return has_range_images(where.read(points.source), points.source)
     return where.table("lidar").is_file()
 
 

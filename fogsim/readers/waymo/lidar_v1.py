@@ -100,6 +100,19 @@ def parse_v1_lidar(data: bytes, source: str, returns: Iterable[int] = (1,)) -> L
     return LidarFrame(source, out, calibrations, cameras, pose, {k: v for k, v in poses.items() if k in out})
 
 
+def has_range_images(frame: bytes, source: str) -> bool:
+    """Whether a v1 Frame holds a range image in any laser (return 1 or 2, compressed or the
+    deprecated raw field), without decoding one: real camera-only frames (the test split) carry
+    ``lasers`` entries whose returns are empty."""
+    for laser_msg in pw.submessages(pw.decode_fields(frame, source), FRAME_LASERS, source):
+        for field in LASER_RETURNS.values():
+            if field in laser_msg:
+                ri = pw.submessage(laser_msg, field, source)
+                if pw.blob(ri, RI_RANGE, source) or pw.blob(ri, RI_DEPRECATED, source):
+                    return True
+    return False
+
+
 def read_v1_lidar(path: str | os.PathLike, offset: int, length: int, source: str | None = None,
                   verify: bool = True, returns: Iterable[int] = (1,)) -> LidarFrame:
     """:func:`parse_v1_lidar` of the record at ``offset`` of a .tfrecord file; a frame without

@@ -198,13 +198,33 @@ class FOGSIM_OT_render_dataset(bpy.types.Operator):
         loop = FrameLoop(job)
         _state.update(job=job, loop=loop, cancel=False)
         if bpy.app.background or context.window is None:  # no event loop: run to the end
-            loop.run(lambda index, meta, error: self._report_failure(index, error))
+            try:
+                loop.run(lambda index, meta, error: self._report_failure(index, error))
+            except KeyboardInterrupt:
+                self._interrupted(context)
             return self._finish(context)
         context.window_manager.progress_begin(0, 100)
         _state["timer"] = context.window_manager.event_timer_add(0.1, window=context.window)
         context.window_manager.modal_handler_add(self)
         s.status = f"rendering {loop.total} frames…" + (f" ({job.summary})" if s.source == "SCENE" else "")
         return {"RUNNING_MODAL"}
+
+    def _interrupted(self, context):
+        """Ctrl-C stops the batch as it stops ``fogsim render``: the committed frames stay (a rerun
+        resumes), one line, exit 130. An operator cannot raise it on: Blender catches every
+        exception of an operator, prints it and goes on — the script that called it would too — so
+        the job is closed and the process ends here (SystemExit ends Blender and the bpy module)."""
+        import sys
+
+        from fogsim.errors import EXIT_INTERRUPTED
+
+        job, loop = _state["job"], _state["loop"]
+        job.close()
+        context.scene.fogsim.status = f"interrupted: {loop.done} frames (the output folder resumes)"
+        _state.update(job=None, loop=None, timer=None)
+        print("fogsim: error: interrupted", file=sys.stderr)
+        sys.stderr.flush()
+        raise SystemExit(EXIT_INTERRUPTED)
 
     def _report_failure(self, index, error):
         if error is not None:  # the frame loop's policy: report it and go on with the next frame

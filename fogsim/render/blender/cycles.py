@@ -4,7 +4,10 @@ from __future__ import annotations
 import errno
 import os
 import shutil
+import signal
 import tempfile
+import threading
+from contextlib import contextmanager
 
 import bpy
 import numpy as np
@@ -97,6 +100,34 @@ def _disk_full(scene, path: str) -> None:
                                     f"({free:,} bytes free, a frame's passes take up to {need:,})", path)
 
 
+@contextmanager
+def interrupts_deferred():
+    """Ctrl-C (SIGINT) during a call into Blender, raised as KeyboardInterrupt once the call returns.
+
+    Cycles renders from its engine's Python callback, and Blender catches every exception of an
+    engine callback — it prints the KeyboardInterrupt's traceback and goes on, so the run would
+    render its remaining frames and exit 0. While the block runs SIGINT is only noted; after it
+    (the current render completes: Blender has no API to stop it from Python) the interrupt is
+    raised here, where every mode's frame loop sees it (exit 130, resumable). Outside the main
+    thread, or when SIGINT is not Python's to handle (ignored, Blender's own), nothing changes."""
+    previous = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread() or not callable(previous):
+        yield
+        return
+    noted = []
+    signal.signal(signal.SIGINT, lambda signum, frame: noted.append(signum))
+    try:
+        yield
+    except BaseException:
+        if noted:
+            raise KeyboardInterrupt from None
+        raise
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if noted:
+        raise KeyboardInterrupt
+
+
 def _render_channels(scene, exr_path, quiet: bool) -> dict:
     path = None if exr_path is None else os.path.abspath(exr_path)
     if path is None or "#" in path:  # Blender would put frame numbers in place of '#'
@@ -107,7 +138,7 @@ def _render_channels(scene, exr_path, quiet: bool) -> dict:
     try:
         scene.render.filepath = path
         scene.render.use_file_extension = False
-        with blender_output(quiet):
+        with blender_output(quiet), interrupts_deferred():
             bpy.ops.render.render(write_still=True, scene=scene.name)
         try:
             return read_exr(path)
