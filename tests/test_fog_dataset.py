@@ -327,7 +327,7 @@ def test_class_maps():
         inline.check_source(["a", "c"], "ds")
     with pytest.raises(InputError, match="not a class map"):
         load_class_map("no-such-map")
-    with pytest.raises(InputError, match="not JSON"):
+    with pytest.raises(InputError, match="not readable as JSON"):
         load_class_map("{oops")
     with pytest.raises(InputError, match="not in its class list"):
         load_class_map('{"map": {"a": "x"}, "classes": ["y"]}')
