@@ -460,9 +460,8 @@ def _scene_dataset_damaged(tmp: Path) -> list[str]:
 
 
 def _lead(defect: str, case: Case):
-    """A case of a scene-mode set-up defect the lead's refactor fixes (issue 28): xfail until then, strictly."""
-    return pytest.param(case, id=case.id, marks=[pytest.mark.blender, pytest.mark.slow,
-                                                 pytest.mark.xfail(strict=True, reason=f"{defect}: the lead's fix")])
+    """A case of a scene-mode set-up defect of the fourth trial (``defect``: its id), fixed by the one job set-up."""
+    return pytest.param(case, id=case.id, marks=[pytest.mark.blender, pytest.mark.slow])
 
 
 SCENE_PURE = [  # refused before Blender starts (no bpy needed)
@@ -501,10 +500,10 @@ SCENE_BLENDER = [  # Blender reads the scene (a process of its own)
     Case("scene-frame-range-reversed", _scene("--frame-range", "3:1", *SCENE_TINY), 2, ("--frame-range",)),
     Case("scene-frame-range-step-zero", _scene("--frame-range", "1:3:0", *SCENE_TINY), 2, ("--frame-range",)),
     Case("scene-resolution-above-blender", _scene("--resolution", "70000x10", *SCENE_TINY[:-3], "--quiet"), 2,
-         ("70000×10", "65536")),  # (it names the .blend, not --resolution: reported to the lead)
+         ("--resolution", "70000×10", "65536")),  # refused as the flag, before the .blend is opened
     Case("scene-above-max-pixels", _scene("--max-pixels", "100", *SCENE_TINY), 2, ("--max-pixels",)),
 ]
-SCENE_LEAD = [  # the scene-mode set-up defects the lead fixes (U2, U3, U4, U14, U18)
+SCENE_LEAD = [  # the scene-mode set-up defects of the fourth trial (U2, U3, U4, U14, U18)
     _lead("U2", Case("scene-frame-range-20-digits", _scene("--frame-range", "1:" + "9" * 20, *SCENE_TINY), 2,
                      ("--frame-range",))),
     _lead("U2", Case("scene-frame-range-past-blender", _scene("--frame-range", "2000000:2000001", *SCENE_TINY), 2,
