@@ -129,9 +129,12 @@ def _project(points_world: np.ndarray, K: dict, w2c: np.ndarray):
     return u, v, z, np.linalg.norm(cam, axis=1)
 
 
-def check_points_on_depth(out: Path, frame: str, min_points: int = 200) -> dict:
-    """Every LiDAR point the camera also sees (its pixel's neighbourhood shows the same object on one plane)
-    lies on the rendered depth within 2 cm; labelled points lie in their object's box. Returns counts."""
+def check_points_on_depth(out: Path, frame: str, caster=None, min_points: int = 200, convex: bool = False) -> dict:
+    """Every LiDAR point the camera also sees lies on the rendered depth within 2 cm; labelled points lie in
+    their object's box. "Seen": its pixel's 4×4 neighbourhood shows the object it hit, on one plane, and —
+    with ``caster`` (the frame's geometry, rebuilt here) — the ray from the camera to the point meets nothing
+    before it (an object can hide its own far side); ``convex`` (every object is a box, as the user scene of
+    these tests): the surface the point lies on faces the camera. Returns counts."""
     from fogsim.fileio import read_depth_file, read_uint16_map
     from fogsim.lidar.formats import read_points
 
@@ -140,22 +143,45 @@ def check_points_on_depth(out: Path, frame: str, min_points: int = 200) -> dict:
     l2w = np.asarray(meta["lidar"]["lidar_to_world"])
     cloud = read_points(out / meta["lidar"]["levels"]["clear"]["scan"], meta["lidar"]["levels"]["clear"]["format"])
     labels = np.fromfile(out / meta["lidar"]["levels"]["clear"]["labels"], "<u4")
-    assert len(labels) == len(cloud)
+    with np.load(out / meta["lidar"]["sweep"]["points_file"], allow_pickle=False) as f:
+        hit = f["object_id"].astype(np.int64)
+        normal = f["normal"].astype(np.float64) @ l2w[:3, :3].T
+        np.testing.assert_allclose(f["range_m"], cloud.range_m, rtol=1e-6)
+    assert len(labels) == len(cloud) == len(hit)
     instance = (labels >> 16).astype(np.int64)
+    assert ((instance == 0) | (instance == hit)).all()  # a labelled object's points carry its mask id
     world = cloud.xyz.astype(np.float64) @ l2w[:3, :3].T + l2w[:3, 3]
     u, v, z, ray = _project(world, K, w2c)
     depth, mask = read_depth_file(out / meta["depth"]["file"]), read_uint16_map(out / "masks" / f"{frame}.png")
     h, w = depth.shape
     inside = (z > 0.5) & (u >= 1) & (v >= 1) & (u < w - 2) & (v < h - 2)
+    if convex:  # a box's face that faces the camera is seen where the mask shows that box
+        inside &= np.einsum("ij,ij->i", normal, np.linalg.inv(w2c)[:3, 3] - world) > 0
+    if caster is not None:  # the camera's own line of sight to each point, and the surface around it
+        c2w = np.linalg.inv(w2c)
+        centre = c2w[:3, 3]
+        to_point = world - centre
+        dist = np.linalg.norm(to_point, axis=1)
+        first, prim = caster.cast(np.broadcast_to(centre, world.shape), to_point / dist[:, None])
+        inside &= first >= dist - 0.005  # nothing hides the point from the camera
+        normal = caster.normals(np.maximum(prim, 0))
+        for du, dv in ((0, 0), (1, 0), (0, 1), (1, 1)):  # the pixel centres the depth is interpolated from
+            pu, pv = np.floor(u) + du, np.floor(v) + dv
+            d = np.stack([(pu - K["cx"]) / K["fx"], (pv - K["cy"]) / K["fy"], np.ones_like(pu)], 1) @ c2w[:3, :3].T
+            d /= np.linalg.norm(d, axis=1)[:, None]
+            t, _ = caster.cast(np.broadcast_to(centre, d.shape), d)
+            q = centre + d * np.where(np.isfinite(t), t, 1e9)[:, None]
+            inside &= np.abs(np.einsum("ij,ij->i", q - world, normal)) < 1e-3  # on the point's plane
     ui, vi = np.floor(u[inside]).astype(int), np.floor(v[inside]).astype(int)
     idx = np.flatnonzero(inside)
     errs = []
     for k, x0, y0 in zip(idx, ui, vi):
         ids = mask[y0 - 1:y0 + 3, x0 - 1:x0 + 3]
-        if instance[k] == 0 or not (ids == instance[k]).all():
-            continue  # scenery, or the camera sees another object there (occlusion from another viewpoint)
+        if hit[k] == 0 or not (ids == hit[k]).all():
+            continue  # the camera sees another object there (occlusion from another viewpoint)
         inv = 1.0 / depth[y0 - 1:y0 + 3, x0 - 1:x0 + 3].astype(np.float64)
-        if np.abs(np.diff(inv, 2, axis=0)).max() > 1e-5 or np.abs(np.diff(inv, 2, axis=1)).max() > 1e-5:
+        flat = 1e-4 * inv[1, 1]  # 1/Z is linear in the image on a plane: second differences vanish
+        if np.abs(np.diff(inv, 2, axis=0)).max() > flat or np.abs(np.diff(inv, 2, axis=1)).max() > flat:
             continue  # the 4×4 neighbourhood is not one plane (an edge between two faces)
         fx, fy = u[k] - x0, v[k] - y0  # 1/Z is bilinear on a plane: interpolate between pixel centres
         iz = (inv[1, 1] * (1 - fx) * (1 - fy) + inv[1, 2] * fx * (1 - fy) + inv[2, 1] * (1 - fx) * fy
@@ -166,7 +192,7 @@ def check_points_on_depth(out: Path, frame: str, min_points: int = 200) -> dict:
     assert len(errs) >= min_points, len(errs)
     assert max(errs) <= 0.02, max(errs)
     # labelled points lie in their object's box (1 cm of tolerance on the faces)
-    boxes = {r["id"]: r["box3d"]["lidar"] for r in meta["objects"] if "box3d" in r}
+    boxes = {r["id"]: r["box3d"]["lidar"] for r in meta["lidar"]["objects"] if "box3d" in r}
     labelled = np.flatnonzero(instance > 0)
     assert len(labelled) > 50
     for oid in np.unique(instance[labelled]):
@@ -184,21 +210,17 @@ def check_boxes_project_onto_masks(out: Path, frame: str, tolerance_px: float = 
     for r in meta["objects"]:
         if "box3d" not in r or r["visible_fraction"] < 0.99 or r["truncated"] or r["pixels"] < 40:
             continue
-        c = r["box3d"]["camera"]
-        h, w, length = c["dimensions_hwl_m"]
-        ry = c["rotation_y"]
-        L = np.array([math.cos(ry), 0, -math.sin(ry)])
-        W = np.array([math.sin(ry), 0, math.cos(ry)])
-        up = np.array([0, -1.0, 0])
-        bottom = np.asarray(c["location_m"])
-        corners = np.array([bottom + sl * L * length / 2 + sw * W * w / 2 + sh * up * h
-                            for sl in (-1, 1) for sw in (-1, 1) for sh in (0, 1)])
-        u = K["fx"] * corners[:, 0] / corners[:, 2] + K["cx"]
-        v = K["fy"] * corners[:, 1] / corners[:, 2] + K["cy"]
+        b = r["box3d"]["world"]  # the camera may pitch: project the world box, not KITTI's yaw-only form
+        box = Box3D.from_yaw(b["centre_m"], *b["size_lwh_m"], b["yaw"])
+        w2c = np.asarray(meta["camera"]["world_to_camera"])
+        u, v, _, _ = _project(box.corners(), K, w2c)
         projected = [u.min() + 0.5, v.min() + 0.5, u.max() + 0.5, v.max() + 0.5]  # pixel centres → edges
         assert np.abs(np.subtract(projected, r["bbox"])).max() <= tolerance_px, (r["class"], projected, r["bbox"])
         n += 1
     return n
+
+
+RENDER = {"lidar": "hdl64e", "resolution": "240x160", "levels": "clear,0.06", "seed": 3}
 
 
 @pytest.fixture(scope="module")
@@ -207,8 +229,9 @@ def lidar_render(tmp_path_factory):
 
     _need_bpy()
     out = tmp_path_factory.mktemp("lidar") / "out"
-    res = run([sys.executable, "-m", "fogsim", "render", "--lidar", "hdl64e", "--frames", "2", "--resolution",
-               "240x160", "--samples", "1", "--levels", "clear,0.06", "--seed", "3", "--quiet", "--out", str(out)])
+    res = run([sys.executable, "-m", "fogsim", "render", "--lidar", RENDER["lidar"], "--frames", "2", "--resolution",
+               RENDER["resolution"], "--samples", "1", "--levels", RENDER["levels"], "--seed", str(RENDER["seed"]),
+               "--quiet", "--out", str(out)])
     assert res.returncode == 0, res.stderr[-3000:]
     return out
 
@@ -216,7 +239,14 @@ def lidar_render(tmp_path_factory):
 @pytest.mark.blender
 @pytest.mark.slow
 def test_a_render_sweeps_what_the_camera_rendered(lidar_render):
-    counts = [check_points_on_depth(lidar_render, f) for f in ("000000", "000001")]
+    from fogsim.render.frame import DescribedFrame
+    from fogsim.render.preset import load_render_preset
+
+    config = load_render_preset("default", **RENDER)  # the scenes are functions of the preset and the seed
+    counts = []
+    for index, f in enumerate(("000000", "000001")):
+        frame = DescribedFrame.of(config, index)
+        counts.append(check_points_on_depth(lidar_render, f, RayCaster(Geometry.of_frame(frame.desc, frame.meshes))))
     assert sum(c["on_depth"] for c in counts) >= 500
     assert sum(check_boxes_project_onto_masks(lidar_render, f) for f in ("000000", "000001")) >= 1
 
@@ -236,10 +266,7 @@ def test_each_level_is_the_fog_models_scan_and_the_kitti_tree_reads_back(lidar_r
     lv = meta["lidar"]["levels"]
     clear = read_points(out / lv["clear"]["scan"], "kitti")
     fogged = read_points(out / lv["beta0.06"]["scan"], "kitti")
-    again = LidarFogger(clear, LidarSensor.from_dict({k: v for k, v in meta["lidar"]["sensor"].items()
-                                                      if k not in ("inclinations_deg", "steps_per_sweep",
-                                                                   "mount_xyz_m", "mount_rpy_deg")}
-                                                     | {"beams": 64, "vertical_fov_deg": [-24.9, 2.0]}))
+    again = LidarFogger(clear, LidarSensor.from_dict(meta["lidar"]["sensor_spec"]))
     ref = again(0.06, np.random.default_rng([meta["seed"], 1, LIDAR_STREAM]))
     np.testing.assert_array_equal(fogged.xyz, ref.cloud.xyz)
     outcome, index = read_outcomes(out / lv["beta0.06"]["outcome_file"])
@@ -267,3 +294,26 @@ def test_each_level_is_the_fog_models_scan_and_the_kitti_tree_reads_back(lidar_r
     written = [r for r in meta["objects"] if r["kept"] and r["class"] in ("car", "van", "truck", "pedestrian",
                                                                           "cyclist", "bus") and "box3d" in r]
     assert len(cars) == len(written)
+
+
+@pytest.mark.blender
+@pytest.mark.slow
+def test_scene_mode_sweeps_the_users_scene_and_leaves_the_blend(tmp_path):
+    """A user's scene of boxes (tests/test_scene_mode.py's, the parented truck box left out so that every
+    object is convex): the same checks; the .blend is untouched; the LiDAR sits at the camera + KITTI's offset."""
+    from test_scene_mode import SPEC, _build, _digest, _render
+
+    spec = {**SPEC, "boxes": [b for b in SPEC["boxes"] if b["name"] != "TruckBox"]}
+    blend = _build("bpy", tmp_path, spec)
+    before = _digest(blend.parent)
+    out = tmp_path / "out"
+    res = _render("bpy", blend, out, "--lidar", "hdl64e", "--samples", "1", "--levels", "clear,0.06",
+                  "--frame-range", "1:3:2", "--resolution", "192x128", "--quiet")
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert _digest(blend.parent) == before
+    for f in ("000000", "000001"):
+        counts = check_points_on_depth(out, f, convex=True, min_points=100)
+        assert counts["labelled"] > 50
+        meta = json.loads((out / "meta" / f"{f}.json").read_text())
+        assert meta["scene"]["lidar"]["mount"].startswith("the camera")
+    assert check_boxes_project_onto_masks(out, "000000") + check_boxes_project_onto_masks(out, "000001") >= 1

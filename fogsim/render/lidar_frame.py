@@ -6,7 +6,8 @@ Per frame with a LiDAR (preset key ``lidar``, ``fogsim render --lidar SENSOR``):
 * the sweep (:func:`fogsim.render.lidar_scan.sweep`) over the frame's geometry from the sensor's pose
   (``desc["lidar"]["lidar_to_world"]``, :mod:`fogsim.render.lidar_rig`);
 * every labelled object's oriented 3D box (:mod:`fogsim.render.boxes3d`) in its record (``box3d``: world,
-  camera as KITTI writes it, LiDAR frame);
+  camera as KITTI writes it, LiDAR frame), and in ``meta["lidar"]["objects"]`` for every labelled object the
+  sweep hits (360°: behind the camera too);
 * each fog level's scan from the LiDAR fog model with that level's β — the camera's, also in volumetric
   renders, whose medium has that β — through the run's fog record
   (:meth:`fogsim.fog.engine.FogSettings.lidar_fogger`), range noise seeded by
@@ -15,6 +16,8 @@ Per frame with a LiDAR (preset key ``lidar``, ``fogsim render --lidar SENSOR``):
 
 Files, per level ``L`` and frame ``F`` (written before the frame's meta, which marks the frame done):
 
+* ``lidar/sweep/F.npz`` — per point of the clear sweep what it hit (:func:`write_sweep`: object, range,
+  azimuth, beam, incidence angle, reflectivity);
 * ``lidar/L/F.bin`` — the scan the sensor reports, in its own format (0–1 intensities: KITTI's
   4 × float32; 0–255: nuScenes' 5 × float32 with the ring), ``lidar/L/F.outcomes.npz`` — every clear-sweep
   point's outcome and row (:mod:`fogsim.lidar.outcome_file`), ``lidar/L/F.label`` — SemanticKITTI labels,
@@ -28,6 +31,7 @@ Files, per level ``L`` and frame ``F`` (written before the frame's meta, which m
 """
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,7 +49,7 @@ from fogsim.lidar.sensors import LidarSensor
 from fogsim.readers.kitti.calib import KittiCalib
 from fogsim.render.boxes3d import box_record, object_box, transformed
 from fogsim.render.lidar_scan import Geometry, RayCaster, SyntheticScan, sweep
-from fogsim.scene.classes import LABELLED, STUFF
+from fogsim.scene.classes import LABELLED, STUFF, is_labelled
 
 #: the LiDAR noise generator of level i: default_rng([frame seed, i, LIDAR_STREAM])
 LIDAR_STREAM = 0x11DA2
@@ -67,13 +71,16 @@ def occlusion_level(visible_fraction: float) -> int:
 @dataclass(frozen=True)
 class LidarFrame:
     """What one frame's LiDAR produced: the clear ``scan``, ``fogged`` scans by level key, the LiDAR-frame
-    ``boxes`` by object id, the ``pose`` (LiDAR → world) and the ``sensor``."""
+    ``boxes`` by object id, the ``pose`` (LiDAR → world), the ``sensor`` and its ``spec``, and the LiDAR's
+    ``objects`` (360°: also those the camera does not see)."""
 
     scan: SyntheticScan
     fogged: dict[str, FoggedScan]
     boxes: dict[int, Box3D]
     pose: np.ndarray
     sensor: LidarSensor
+    spec: dict  # the sensor's block as the preset gave it (LidarSensor.from_dict rebuilds the sensor)
+    objects: list  # every labelled object the sweep hits or the camera sees: id, class, box3d, lidar_points
 
 
 def lidar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int,
@@ -87,18 +94,28 @@ def lidar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int
     scan = sweep(RayCaster(geometry), pose, sensor, f"frame {desc.get('seed')}")
     w2c, w2l = np.asarray(desc["camera"]["world_to_camera"], np.float64), np.linalg.inv(pose)
     by_id = {o["id"]: o for o in desc["objects"]}
+    hit = set(np.unique(scan.object_id).tolist())
+    seen = {r["id"] for r in records}  # the camera's records; the LiDAR's objects: every labelled one it hits
+    objects = [{"id": o["id"], "class": o["class"]} for o in desc["objects"]
+               if is_labelled(o["class"]) and (o["id"] in hit or o["id"] in seen)]
     boxes: dict[int, Box3D] = {}
-    for rec in records:
+    box3d: dict[int, dict] = {}
+    for rec in objects:
         obj = by_id[rec["id"]]
         box = object_box(meshes.get(rec["id"], []), obj["transform"], obj.get("forward", "+y"))
         if box is not None:
-            rec["box3d"] = box_record(box, w2c, w2l)
+            box3d[rec["id"]] = rec["box3d"] = box_record(box, w2c, w2l)
             boxes[rec["id"]] = transformed(box, w2l)
     fogger = fog_settings(config).lidar_fogger(scan.cloud, sensor)
     fogged = {lv.key: fogger(lv.beta, np.random.default_rng([seed, i, LIDAR_STREAM]))
               for i, lv in enumerate(config.levels)}
-    attach_lidar_points(records, {k: f.cloud for k, f in fogged.items()}, [boxes.get(r["id"]) for r in records])
-    return LidarFrame(scan, fogged, boxes, pose, sensor)
+    clouds = {k: f.cloud for k, f in fogged.items()}
+    attach_lidar_points(objects, clouds, [boxes.get(r["id"]) for r in objects])
+    points = {r["id"]: r["lidar_points"] for r in objects if "lidar_points" in r}
+    for rec in records:  # the camera's records get the same box and counts
+        if rec["id"] in box3d:
+            rec["box3d"], rec["lidar_points"] = box3d[rec["id"]], points[rec["id"]]
+    return LidarFrame(scan, fogged, boxes, pose, sensor, dict(config.lidar), objects)
 
 
 def semantic_labels(scan: SyntheticScan, fogged: FoggedScan, classes: dict[int, str]) -> np.ndarray:
@@ -141,6 +158,18 @@ def kitti_records(records: list[dict]) -> list[dict]:
     return out
 
 
+def write_sweep(path, scan: SyntheticScan) -> None:
+    """``lidar/sweep/F.npz``: per point of the clear sweep (the clear level's rows) what it hit — ``object_id``
+    (the mask id, scenery included; 0 = background), ``range_m``, ``azimuth_rad``, ``beam``, ``incidence_deg``,
+    ``reflectivity``, ``normal`` (N×3, sensor frame, towards the sensor) — read with
+    ``numpy.load(allow_pickle=False)``; written atomically."""
+    buf = io.BytesIO()
+    np.savez(buf, object_id=scan.object_id.astype(np.uint16), range_m=scan.cloud.range_m.astype(np.float32),
+             azimuth_rad=scan.azimuth, beam=scan.cloud.ring.astype(np.int16), incidence_deg=scan.incidence_deg,
+             reflectivity=scan.reflectivity, normal=scan.normal)
+    atomic_write_bytes(path, buf.getvalue())
+
+
 def write_lidar(layout: DatasetLayout, name: str, lidar: LidarFrame, images: dict, K: Intrinsics,
                 w2c: np.ndarray, records: list[dict], classes: dict[int, str]) -> dict:
     """Write the frame's LiDAR files (the module docstring) and return ``meta["lidar"]``; ``images``:
@@ -149,6 +178,8 @@ def write_lidar(layout: DatasetLayout, name: str, lidar: LidarFrame, images: dic
     l2c = np.asarray(w2c, np.float64) @ lidar.pose
     calib = kitti_calib(K, l2c, f"frame {name}")
     labels_2 = kitti_records(records)
+    sweep_file = layout.root / "lidar" / "sweep" / f"{name}.npz"
+    write_sweep(sweep_file, lidar.scan)
     levels = {}
     for key, fogged in lidar.fogged.items():
         base = layout.root / "lidar" / key
@@ -159,8 +190,10 @@ def write_lidar(layout: DatasetLayout, name: str, lidar: LidarFrame, images: dic
         levels[key] = {**fogged.record(), "scan": layout.relative(base / f"{name}{ext}"), "format": fmt,
                        "outcome_file": layout.relative(base / f"{name}.outcomes.npz"),
                        "labels": layout.relative(base / f"{name}.label")}
-    return {"sensor": lidar.sensor.to_dict(), "lidar_to_world": lidar.pose.tolist(), "lidar_to_camera": l2c.tolist(),
-            "sweep": lidar.scan.record(), "levels": levels, "semantic_classes": list(SEMANTIC_CLASSES),
+    return {"sensor": lidar.sensor.to_dict(), "sensor_spec": lidar.spec, "lidar_to_world": lidar.pose.tolist(),
+            "lidar_to_camera": l2c.tolist(),
+            "sweep": {**lidar.scan.record(), "points_file": layout.relative(sweep_file)}, "levels": levels,
+            "objects": lidar.objects, "semantic_classes": list(SEMANTIC_CLASSES),
             "label_rule": "uint32 = instance << 16 | class (instance: the mask id of a labelled object, else 0)",
             "noise_seed_rule": "numpy default_rng([frame seed, level index, 0x11DA2])",
             "frame": "sensor: x forward, y left, z up (m); points in the sensor frame",

@@ -151,14 +151,15 @@ def sweep_directions(sensor: LidarSensor) -> tuple[np.ndarray, np.ndarray, np.nd
 class SyntheticScan:
     """One sweep's reported points: ``cloud`` (sensor frame; intensity in the sensor's scale, ring = beam,
     ``index`` = the ray's number in the sweep) and per point ``object_id`` (mask id, 0 = background),
-    ``azimuth`` (rad), ``incidence_deg``, ``reflectivity`` (ρ of the surface); ``rays`` cast, ``hits``
-    within range, ``reported`` above the threshold."""
+    ``azimuth`` (rad), ``incidence_deg``, ``reflectivity`` (ρ of the surface), ``normal`` (the surface's unit
+    normal in the sensor frame, towards the sensor); ``rays`` cast, ``hits`` within range."""
 
     cloud: PointCloud
     object_id: np.ndarray
     azimuth: np.ndarray
     incidence_deg: np.ndarray
     reflectivity: np.ndarray
+    normal: np.ndarray
     rays: int
     hits: int
 
@@ -178,16 +179,19 @@ def sweep(caster: RayCaster, lidar_to_world: np.ndarray, sensor: LidarSensor, so
     hit = np.isfinite(t) & (t >= sensor.min_range_m) & (t <= sensor.max_range_m)
     idx = np.flatnonzero(hit)
     r, p = t[idx], prim[idx]
-    cos_i = np.abs(np.einsum("ij,ij->i", caster.normals(p), dirs_world[idx]))
+    n_world = caster.normals(p)
+    facing = np.einsum("ij,ij->i", n_world, dirs_world[idx])
+    cos_i = np.abs(facing)
+    n_world *= -np.sign(facing)[:, None]  # towards the sensor
     rho = caster.geometry.face_rho[p].astype(np.float64)
     apparent = rho * cos_i
     seen = sensor.clear_signal(apparent, r) >= 1.0
     keep = idx[seen]
-    r, p, apparent, cos_i, rho = r[seen], p[seen], apparent[seen], cos_i[seen], rho[seen]
+    r, p, apparent, cos_i, rho, n_world = r[seen], p[seen], apparent[seen], cos_i[seen], rho[seen], n_world[seen]
     _, raw = scale_named(sensor.intensity_scale).from_linear(sensor.intensity_of(apparent, r))
     xyz = (d[keep] * r[:, None]).astype(np.float32)
     cloud = PointCloud.from_raw(xyz, raw, sensor.intensity_scale, source, ring=beam[keep], index=keep,
                                 allow_empty=True)
     return SyntheticScan(cloud, caster.geometry.face_id[p], az[keep].astype(np.float32),
                          np.degrees(np.arccos(np.clip(cos_i, 0.0, 1.0))).astype(np.float32), rho.astype(np.float32),
-                         rays=len(d), hits=int(hit.sum()))
+                         (n_world @ T[:3, :3]).astype(np.float32), rays=len(d), hits=int(hit.sum()))
