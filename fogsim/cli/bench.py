@@ -42,6 +42,11 @@ def add_parsers(sub) -> None:
     render.add_argument("--out", help="dataset folder (default: a temporary one)")
     render.add_argument("--no-skies", dest="skies", action="store_false",
                         help="skip timing the HDRI and overcast skies against the procedural one")
+    render.add_argument("--lidar", metavar="SENSOR",
+                        help="also sweep this LiDAR (e.g. hdl64e) in every frame: its stage beside Cycles', and the "
+                             "ray casters (Embree vs Blender's BVHTree in a Python loop) on one core")
+    render.add_argument("--lidar-steps", type=int, default=2048,
+                        help="azimuth steps per sweep of --lidar (default 2048: 64 beams × 2048 = 131 k rays)")
     _quiet_option(render)
     render.set_defaults(run=lambda args: _render(args))
 

@@ -9,8 +9,10 @@ Conventions (boxes: :mod:`fogsim.boxes`):
 * A record the label filters dropped (too few pixels, too occluded), or a real dataset's ignore
   region (a Cityscapes group), is an ignore region: ``iscrowd = 1`` with its ``ignore_reason``.
 * ``distance_m`` is always present (None = unknown); :data:`COCO_EXTRA_FIELDS` are copied when the
-  record has them; the per-level :data:`COCO_VISIBILITY_FIELDS` come from the record's
-  ``visibility[<level key>]`` (:func:`fogsim.fog.visibility.attach_visibility` computes them).
+  record has them (``box3d``: the object's oriented 3D box, :mod:`fogsim.render.boxes3d`); with a LiDAR,
+  ``lidar_points`` is the points in that box at the file's level; the per-level
+  :data:`COCO_VISIBILITY_FIELDS` come from the record's ``visibility[<level key>]``
+  (:func:`fogsim.fog.visibility.attach_visibility` computes them).
 
 Records are the renderer's (:func:`fogsim.render.labels.object_records`) or a real dataset's
 (:class:`fogsim.readers.base.Labels`), both as stored in ``meta/<frame>.json``.
@@ -24,7 +26,7 @@ from fogsim.scene.classes import LABELLED
 #: optional per-record fields a COCO annotation carries when the record has them (rendered records:
 #: ``visible_fraction``, ``truncation``; real datasets': the distance's provenance, Waymo's
 #: difficulty and object id, …)
-COCO_EXTRA_FIELDS = ("visible_fraction", "truncation", "distance_source", "difficulty", "object_id")
+COCO_EXTRA_FIELDS = ("visible_fraction", "truncation", "distance_source", "difficulty", "object_id", "box3d")
 #: the per-level fields of a record's ``visibility[<level key>]`` that go into that level's annotations
 COCO_VISIBILITY_FIELDS = ("transmission", "contrast", "visible")
 
@@ -55,6 +57,12 @@ def visibility_fields(record: dict, level_key: str) -> dict:
     return {} if vis is None else {k: vis.get(k) for k in COCO_VISIBILITY_FIELDS}
 
 
+def lidar_fields(record: dict, level_key: str) -> dict:
+    """``lidar_points``: the LiDAR points in the object's 3D box at this level (``{}`` without a LiDAR)."""
+    points = (record.get("lidar_points") or {}).get(level_key)
+    return {} if points is None else {"lidar_points": points}
+
+
 def coco_dataset(metas: list[dict], level, layout: DatasetLayout, classes=LABELLED) -> dict:
     """COCO detection JSON of one fog ``level`` (its ``key`` and ``to_dict()``: a
     :class:`fogsim.fog.levels.FogLevel`); image ids follow the order of ``metas`` (the frame
@@ -67,7 +75,8 @@ def coco_dataset(metas: list[dict], level, layout: DatasetLayout, classes=LABELL
                        "height": meta["height"], "frame": meta["frame"]})
         for rec in meta["objects"]:
             annotations.append(coco_annotation(rec, len(annotations) + 1, image_id)
-                               | visibility_fields(rec, level.key))  # transmission, contrast, visible
+                               | visibility_fields(rec, level.key)  # transmission, contrast, visible
+                               | lidar_fields(rec, level.key))
     return {"info": {"description": f"fogsim, fog level {level.key}", "fog_level": level.to_dict(),
                      "area": "visible (instance mask) pixel count",
                      "category_id": "YOLO class id + 1"},

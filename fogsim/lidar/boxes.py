@@ -48,10 +48,16 @@ def points_in_box(xyz: np.ndarray, box: Box3D) -> int:
 
 
 def points_in_boxes(xyz: np.ndarray, boxes: list[Box3D]) -> np.ndarray:
-    """Points inside each box (M int64), the points pre-filtered by each box's bounding sphere."""
+    """Points inside each box (M int64). The points are sorted by x once; each box looks only at the slab
+    of x its bounding sphere spans (O(N log N + Σ slab) instead of O(N·M))."""
     xyz = np.asarray(xyz, np.float64)
     out = np.zeros(len(boxes), np.int64)
+    if not len(xyz) or not boxes:
+        return out
+    order = np.argsort(xyz[:, 0], kind="stable")
+    xs, sorted_xyz = xyz[order, 0], xyz[order]
     for k, box in enumerate(boxes):
-        near = np.einsum("ij,ij->i", xyz - box.centre, xyz - box.centre) <= float(box.half @ box.half)
-        out[k] = int(box.contains(xyz[near]).sum())
+        r = float(np.linalg.norm(box.half))
+        lo, hi = np.searchsorted(xs, [box.centre[0] - r, box.centre[0] + r], side="left")
+        out[k] = int(box.contains(sorted_xyz[lo:hi]).sum()) if hi > lo else 0
     return out

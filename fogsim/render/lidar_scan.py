@@ -112,8 +112,8 @@ class RayCaster:
         self.scene = None
         if len(geometry.faces):
             self.scene = rtcs.EmbreeScene()
-            triangles = np.ascontiguousarray(geometry.vertices[geometry.faces], np.float32)  # F×3×3
-            mesh_construction.TriangleMesh(scene=self.scene, vertices=triangles)
+            mesh_construction.TriangleMesh(self.scene, np.ascontiguousarray(geometry.vertices, np.float32),
+                                           np.ascontiguousarray(geometry.faces, np.int32))  # indexed: no copies
 
     def cast(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(distance N float64, +inf on a miss; triangle index N int64, −1 on a miss) of unit-length rays."""
