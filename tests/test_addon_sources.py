@@ -46,6 +46,9 @@ def test_addon_sources_sky_assets_and_panel_errors(tmp_path):
     assert r["hdri_file"]["hdri"] == str((tmp_path / "out" / "sky.hdr").resolve())
     assert r["overcast"] == {"time_of_day": "day", "overcast": True}
     assert r["procedural_over_hdri_preset"] == {} and r["hdri_preset"] == "hdri"  # {}: the default day sky
+    beams, choices = r["lidar"]
+    assert beams == 64 and r["no_lidar"] == {}
+    assert choices[:2] == ["PRESET", "NONE"] and "hdl64e" in choices and "waymo-top" not in choices  # beams known
     assert r["assets"] == {"car": ["estate.glb", "hatch.glb"], "pedestrian": ["walker.obj"]}
 
     # refusals: Blender's report (a RuntimeError for a script caller) and the panel's status line

@@ -22,7 +22,9 @@ import numpy as np
 from fogsim.boxes import yolo_line
 from fogsim.colour import to_uint8
 from fogsim.dataset.coco import coco_dataset
+from fogsim.dataset.kitti import KittiTree
 from fogsim.dataset.layout import MIXED_SPLIT, PARTS, DatasetLayout
+from fogsim.dataset.lidar_sheet import lidar_rows
 from fogsim.dataset.reader import FrameRecords, frame_records, read_checked_meta
 from fogsim.fileio import atomic_write_bytes, read_image, write_image, write_json
 from fogsim.runs import split_key
@@ -135,6 +137,9 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
         for part in mixed:
             mixed[part] += split[part]
     _write_lists(layout, MIXED_SPLIT, mixed, "fogsim dataset, every fog level mixed", classes)
+    for lv in levels:  # a dataset with a KITTI tree per level: its ImageSets follow the same split
+        if (tree := KittiTree(layout.root, lv.key)).base.is_dir():
+            tree.write_image_sets({"train": list(train), "val": list(val), "trainval": sorted([*train, *val])})
     summary = dict(manifest) | _summary(metas, levels, train, val, train_fraction, seed, classes)
     if groups is not None and len(set(groups.values())) > 1:
         cut = round(1000 * train_fraction)
@@ -161,8 +166,8 @@ def _summary(metas: list[dict], levels, train: list, val: list, train_fraction: 
 
 def contact_sheet(layout: DatasetLayout, levels, frames: list[str], max_frames: int = 4,
                   tile_width: int = 384, metas: list[dict] | None = None) -> np.ndarray:
-    """RGB uint8 overview: one row per frame, one column per level, kept boxes drawn
-    (``metas``: the frames' records, if read already)."""
+    """RGB uint8 overview: one row per frame, one column per level, kept boxes drawn, and for a frame
+    with a LiDAR its scans (:mod:`fogsim.dataset.lidar_sheet`) (``metas``: the frames' records, if read already)."""
     rows = []
     for n, frame in enumerate(frames[:max_frames]):
         meta = metas[n] if metas is not None else read_checked_meta(layout, frame)
@@ -170,6 +175,7 @@ def contact_sheet(layout: DatasetLayout, levels, frames: list[str], max_frames: 
         tiles = [_tile(read_image(layout.image(lv.key, frame)), records, tile_width) for lv in levels]
         captions = [(f"frame {frame}: " if i == 0 else "") + _caption(lv) for i, lv in enumerate(levels)]
         rows.append(strip(tiles, captions))
+        rows += lidar_rows(layout, meta, levels, tile_width)  # a frame with a LiDAR: its scans too
     width = max(r.shape[1] for r in rows)
     gap = np.full((4, width, 3), 255, np.uint8)
     padded = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=255) for r in rows]

@@ -5,6 +5,7 @@
   (:data:`OUTCOME_COLOURS`: kept green, attenuated blue, clutter orange — at its new range near the
   sensor), a lost point faint grey where it was; optional 3D boxes as their footprints.
 * :func:`bev_levels` — one bird's-eye view per level side by side, captioned with β and the outcome shares.
+* :func:`projected_image` — a level's reported points drawn on the camera image, coloured by outcome.
 * :func:`points_vs_distance` — points per object (log scale) against the object's distance, one colour
   per level, the ``min_points`` line drawn.
 """
@@ -23,7 +24,7 @@ from fogsim.lidar.objects import MIN_POINTS, distances_and_points
 from fogsim.lidar.points import PointCloud
 from fogsim.viz import strip
 
-__all__ = ["OUTCOME_COLOURS", "bev_image", "bev_levels", "points_vs_distance", "write_png"]
+__all__ = ["OUTCOME_COLOURS", "bev_image", "bev_levels", "points_vs_distance", "projected_image", "write_png"]
 
 OUTCOME_COLOURS = {KEPT: (44, 160, 44), ATTENUATED: (31, 119, 180), LOST: (205, 205, 205), CLUTTER: (255, 127, 14)}
 LEVEL_COLOURS = ((40, 40, 40), (31, 119, 180), (44, 160, 44), (255, 127, 14), (214, 39, 40), (148, 103, 189))
@@ -65,6 +66,30 @@ def bev_image(scan: PointCloud, fogged: FoggedScan | None = None, extent_m: floa
         r, k, _ = _to_pixels(c, extent_m, px_per_m)
         cv2.polylines(img, [np.stack([k, r], 1).astype(np.int32)], True, (60, 60, 60), 1, cv2.LINE_AA)
     cv2.drawMarker(img, centre, (0, 0, 0), cv2.MARKER_TRIANGLE_UP, 10, 2)
+    return img
+
+
+def projected_image(image: np.ndarray, fogged: FoggedScan, intrinsics, lidar_to_camera: np.ndarray,
+                    max_range_m: float = 80.0) -> np.ndarray:
+    """The camera ``image`` (RGB uint8) with a level's reported points drawn where they project (one pixel
+    each, coloured by outcome; OpenCV pinhole ``intrinsics``: fx, fy, cx, cy, integer = pixel centre;
+    ``lidar_to_camera`` 4×4 LiDAR → camera). Points behind the camera or beyond ``max_range_m`` are left out."""
+    img = image.copy()
+    h, w = img.shape[:2]
+    xyz = fogged.cloud.xyz.astype(np.float64)
+    m = np.asarray(lidar_to_camera, np.float64)
+    cam = xyz @ m[:3, :3].T + m[:3, 3]
+    rows = np.flatnonzero(fogged.output_index >= 0)
+    kinds = fogged.outcome[rows]
+    cam = cam[fogged.output_index[rows]]
+    front = (cam[:, 2] > 0.1) & (np.linalg.norm(cam, axis=1) <= max_range_m)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.round(intrinsics.fx * cam[:, 0] / cam[:, 2] + intrinsics.cx).astype(np.int64)
+        v = np.round(intrinsics.fy * cam[:, 1] / cam[:, 2] + intrinsics.cy).astype(np.int64)
+    ok = front & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    for kind in ORDER:
+        pick = ok & (kinds == kind)
+        img[v[pick], u[pick]] = OUTCOME_COLOURS[kind]
     return img
 
 

@@ -159,12 +159,14 @@ def kitti_records(records: list[dict]) -> list[dict]:
 
 
 def write_sweep(path, scan: SyntheticScan) -> None:
-    """``lidar/sweep/F.npz``: per point of the clear sweep (the clear level's rows) what it hit — ``object_id``
+    """``lidar/sweep/F.npz``: the clear sweep — ``xyz`` (N×3 float32, sensor frame, m), ``intensity`` (as the
+    sensor reports it, in its ``scale``) — and per point what it hit: ``object_id``
     (the mask id, scenery included; 0 = background), ``range_m``, ``azimuth_rad``, ``beam``, ``incidence_deg``,
     ``reflectivity``, ``normal`` (N×3, sensor frame, towards the sensor) — read with
     ``numpy.load(allow_pickle=False)``; written atomically."""
     buf = io.BytesIO()
-    np.savez(buf, object_id=scan.object_id.astype(np.uint16), range_m=scan.cloud.range_m.astype(np.float32),
+    np.savez(buf, xyz=scan.cloud.xyz, intensity=scan.cloud.raw_intensity, scale=np.array(scan.cloud.scale),
+             object_id=scan.object_id.astype(np.uint16), range_m=scan.cloud.range_m.astype(np.float32),
              azimuth_rad=scan.azimuth, beam=scan.cloud.ring.astype(np.int16), incidence_deg=scan.incidence_deg,
              reflectivity=scan.reflectivity, normal=scan.normal)
     atomic_write_bytes(path, buf.getvalue())

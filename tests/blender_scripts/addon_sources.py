@@ -67,6 +67,11 @@ s.preset, s.sky = "hdri", "procedural"
 r["procedural_over_hdri_preset"] = panel_options.config(s).lighting
 s.sky = "PRESET"
 r["hdri_preset"] = panel_options.config(s).lighting.get("sky")
+s = settings(lidar="hdl64e")  # the LiDAR choice reaches the RenderConfig (and NONE turns one off)
+r["lidar"] = panel_options.config(s).lidar_sensor.beams, [i.identifier for i in s.bl_rna.properties["lidar"].enum_items]
+s.lidar = "NONE"
+r["no_lidar"] = panel_options.config(s).lidar
+s = settings()
 s.preset, s.assets = "default", str(library)
 r["assets"] = {k: sorted(Path(p).name for p in v) for k, v in panel_options.config(s).assets["files"].items()}
 

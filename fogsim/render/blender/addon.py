@@ -37,6 +37,16 @@ SKY_LABELS = {"procedural": ("Procedural", "Blender's physical sky texture and a
               "overcast": ("Overcast", "CIE standard overcast sky, no sun: soft shadows")}
 
 
+def _lidar_items() -> list:
+    """The LiDAR choice: the preset's, none, or a bundled sensor a render can sweep (its beams are known)."""
+    from fogsim.lidar.sensors import LidarSensor, sensor_names
+
+    sensors = [n for n in sensor_names() if LidarSensor.preset(n).inclinations_deg is not None]
+    return ([("PRESET", "Preset's", "The preset's lidar (none unless it names one)"),
+             ("NONE", "None", "No LiDAR")]
+            + [(n, n, LidarSensor.preset(n).description[:120]) for n in sensors])
+
+
 def _enum(words, labels: dict, preset: str) -> list:
     """An EnumProperty's items: "Preset's" first, then one per word of the vocabulary."""
     return [("PRESET", "Preset's", preset)] + [(w, *labels[w]) for w in words]
@@ -84,6 +94,8 @@ class FogsimSettings(bpy.types.PropertyGroup):
         FOG_KINDS, FOG_LABELS, "The preset's fog_model.kind (Koschmieder unless it says otherwise)"))
     fog_medium: EnumProperty(name="Medium", default="PRESET", items=_enum(
         FOG_MEDIA, MEDIUM_LABELS, "The preset's fog_model.volumetric.medium (full unless it says otherwise)"))
+    lidar: EnumProperty(name="LiDAR", default="PRESET", items=_lidar_items(),
+                        description="A LiDAR swept in every frame, its scan fogged with each level's β")
     levels_kind: EnumProperty(name="Levels", default="PRESET", items=[
         ("PRESET", "Preset's", "The preset's fog levels (the paper's five unless it says otherwise)"),
         ("beta", "β list", "Comma-separated extinction coefficients β in 1/m (\"clear\" or 0 = no fog)"),
@@ -366,6 +378,7 @@ class FOGSIM_PT_panel(bpy.types.Panel):
         box.prop(s, "fog_model")
         if s.fog_model == "volumetric":
             box.prop(s, "fog_medium")
+        box.prop(s, "lidar")
         if not scene_source:
             row = box.row(align=True)
             row.prop(s, "preview_beta", text="Preview β")

@@ -17,7 +17,7 @@ def config(s, frames: int | None = None):
     from dataclasses import replace
 
     from fogsim.fog.levels import parse_levels
-    from fogsim.render.preset import load_render_preset
+    from fogsim.render.preset import lidar_block, load_render_preset
 
     volumetric = s.fog_model == "volumetric"
     cfg = load_render_preset(
@@ -28,6 +28,10 @@ def config(s, frames: int | None = None):
         assets=bpy.path.abspath(s.assets) if s.assets.strip() else None)
     if s.levels_kind == "visibility":
         cfg = replace(cfg, levels=tuple(parse_levels(visibility=s.levels or "-")))
+    if s.lidar not in ("PRESET", "NONE"):
+        cfg = replace(cfg, lidar=lidar_block(s.lidar))
+    elif s.lidar == "NONE":
+        cfg = replace(cfg, lidar={})
     light = lighting(s, cfg.lighting)
     if light is not None:
         cfg = replace(cfg, lighting=light)
@@ -90,7 +94,8 @@ def scene_options(s):
     return SceneOptions(camera=s.camera or None, frame_range=s.frame_range or None, class_map=class_map,
                         levels=levels, samples=s.samples or None, resolution=s.resolution or None, seed=s.seed,
                         fog=None if s.fog_model == "PRESET" else s.fog_model,
-                        fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None)
+                        fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None,
+                        lidar=s.lidar if s.lidar not in ("PRESET", "NONE") else None)
 
 
 def scene_job(s, scene):

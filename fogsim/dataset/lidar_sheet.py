@@ -1,0 +1,55 @@
+"""The contact sheet's LiDAR rows: for a frame whose record has a LiDAR (``meta["lidar"]``), one row with
+each level's reported points projected on that level's image and one with each level's bird's-eye view,
+points coloured by outcome (:mod:`fogsim.lidar.pictures`), read back from the frame's files."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from fogsim.camera import Intrinsics
+from fogsim.colour import to_uint8
+from fogsim.dataset.layout import DatasetLayout
+from fogsim.fileio import read_image
+from fogsim.lidar.fog import FoggedScan
+from fogsim.lidar.formats import read_points
+from fogsim.lidar.outcome_file import read_outcomes
+from fogsim.lidar.pictures import bev_image, projected_image
+from fogsim.lidar.points import PointCloud
+from fogsim.viz import strip
+
+
+def read_level(layout: DatasetLayout, meta: dict, key: str) -> FoggedScan:
+    """A level's fogged scan of a frame, from its scan file and outcome file (as ``meta["lidar"]`` names them)."""
+    lv = meta["lidar"]["levels"][key]
+    cloud = read_points(layout.root / lv["scan"], lv["format"])
+    outcome, index = read_outcomes(layout.root / lv["outcome_file"])
+    return FoggedScan(cloud, outcome, index)
+
+
+def read_sweep(layout: DatasetLayout, meta: dict) -> PointCloud:
+    """A frame's clear sweep (``lidar/sweep/<frame>.npz``), the scan every level's outcomes refer to."""
+    with np.load(layout.root / meta["lidar"]["sweep"]["points_file"], allow_pickle=False) as f:
+        return PointCloud.from_raw(f["xyz"], f["intensity"], str(f["scale"]), meta["lidar"]["sweep"]["points_file"],
+                                   ring=f["beam"], allow_empty=True)
+
+
+def lidar_rows(layout: DatasetLayout, meta: dict, levels, tile_width: int) -> list[np.ndarray]:
+    """The two rows of one frame (points on the images; bird's-eye views), or [] without a LiDAR."""
+    if "lidar" not in meta:
+        return []
+    K = Intrinsics.from_dict(meta["camera"]["intrinsics"])
+    l2c = np.asarray(meta["lidar"]["lidar_to_camera"], np.float64)
+    fogged = {lv.key: read_level(layout, meta, lv.key) for lv in levels if lv.key in meta["lidar"]["levels"]}
+    clear = read_sweep(layout, meta)
+    projected, bev, captions = [], [], []
+    for key, f in fogged.items():
+        img = to_uint8(read_image(layout.image(key, meta["frame"])))
+        projected.append(projected_image(img, f, K, l2c))
+        view = bev_image(clear, f, extent_m=40.0, px_per_m=6.0)
+        side = round(tile_width * 2 / 3)  # as tall as an image tile
+        bev.append(cv2.resize(view, (side, side), interpolation=cv2.INTER_AREA))
+        c = f.counts()
+        captions.append(f"lidar {key}: lost {c['lost']}, clutter {c['clutter']}")
+    tiles = [cv2.resize(p, (tile_width, round(p.shape[0] * tile_width / p.shape[1])), interpolation=cv2.INTER_NEAREST)
+             for p in projected]
+    return [strip(tiles, captions), strip(bev, [f"top view {k}" for k in fogged])]
