@@ -132,5 +132,5 @@ class PointsJob:
             write_outcomes(outcome_path, fogged)
             write_json(sidecar, {"level": level.to_dict(), "source": item.source, "key": item.key,
                                  "scan": scan_path.name, "outcomes": outcome_path.name, "seed": seed,
-                                 "seed_rule": LEVEL_SEED_RULE, "sensor": sensor.to_dict(), **fogged.record(),
+                                 "seed_rule": LEVEL_SEED_RULE, **fogged.record(), "sensor": sensor.to_dict(),
                                  "fogsim_version": __version__})
