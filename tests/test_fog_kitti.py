@@ -256,7 +256,7 @@ def test_heterogeneous_fog_gives_each_ray_the_cameras_beta(tmp_path):
     col, row = np.floor(uv[:, 0]), np.floor(uv[:, 1])
     inside = np.isfinite(col) & (col >= 0) & (col < kt.WIDTH) & (row >= 0) & (row < kt.HEIGHT)
     betas = np.full(len(cloud), 0.06)
-    betas[inside] = 0.06 * density[row[inside].astype(int), col[inside].astype(int)]
+    betas[inside] = 0.06 * density[row[inside].astype(int), col[inside].astype(int)].astype(np.float64)
     assert inside.sum() > 100 and betas.std() > 0.005
     expected = LidarFogger(cloud, "hdl64e")(betas, np.random.default_rng(level_seed(3, key, "beta0.06")))
     outcome, _ = read_outcomes(out / "lidar" / "beta0.06" / f"{frame('000000')}.outcomes.npz")
