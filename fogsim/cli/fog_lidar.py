@@ -170,7 +170,14 @@ def samples(args):
     labels = False if args.no_labels else None
     if args.kitti:
         return kitti_samples(args.kitti, args.split, labels, args.kitti_part)
-    return stf_samples(args.stf, args.split, args.stf_returns, args.stf_calib, labels)
+    root = Path(args.stf)
+    if args.stf_calib is None and (root / "cam_stereo_left_lut").is_dir() and not (root / "calib").is_dir():
+        from fogsim.errors import InputError
+
+        raise InputError(root, "Seeing Through Fog has no calibration in its download: pass --stf-calib FILE "
+                               "(the repository's kitti_stereo_velodynehdl_calib.txt) or --stf-calib DIR (its "
+                               "tools/DatasetViewer/calibs)")
+    return stf_samples(root, args.split, args.stf_returns, args.stf_calib, labels)
 
 
 def with_waymo_scans(samples_, args):
