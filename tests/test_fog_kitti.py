@@ -385,3 +385,23 @@ def test_usage_errors_exit_2_before_out_is_claimed(tmp_path, capsys):
         assert fog(*argv, "--levels", "0.06") == 2, args
         assert message in capsys.readouterr().err, args
         assert not out.exists(), args
+
+
+def test_a_ray_cast_street_the_lidar_loses_far_cars_first(tmp_path):
+    """The docs' fixture (:data:`kitti_tree.STREET`, ray-cast: fewer points on farther cars): per distance bin
+    the share of cars the LiDAR still sees never rises with β, and at β = 0.12 it has lost every car beyond
+    20 m while it still sees every car within 10 m; the clear scan sees every car."""
+    root = kt.write_kitti_street(tmp_path / "in" / "kitti", kt.STREET)
+    out = tmp_path / "out"
+    assert fog("--kitti", root, "--lidar", "--levels", "paper", "--out", out) == 0
+    rows = json.loads((out / "dataset.json").read_text())["lidar"]["cross_sensor"]
+    share = {(r["level"], r["bin_label"]): r["lidar_share"] for r in rows if r["objects"]}
+    bins = sorted({b for _, b in share}, key=lambda b: float(b.split("–")[0].lstrip("≥ ").split(" ")[0]))
+    for b in bins:
+        values = [share[(k, b)] for k, _ in PAPER]
+        assert values[0] == 1.0 and all(x >= y for x, y in zip(values, values[1:])), (b, values)
+    assert share[("beta0.12", "0–10 m")] == 1.0
+    assert share[("beta0.12", "20–40 m")] == share[("beta0.12", "40–80 m")] == 0.0
+    counts = [r["lidar_points"]["clear"] for m in (out / "meta").iterdir()
+              for r in json.loads(m.read_text())["objects"]]
+    assert len(counts) == 24 and min(counts) >= 5
