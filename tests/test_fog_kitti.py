@@ -277,8 +277,10 @@ def test_resume_shards_and_other_parameters(tmp_path, capsys):
         assert fog("--kitti", root, "--lidar", "--levels", "0,0.09", "--shard", f"{i}/2", "--out", parts) == 0
     assert not (parts / "dataset.json").exists()
     assert fog("--finalize-only", "--out", parts) == 0
+    pool = tmp_path / "pool"
+    assert fog("--kitti", root, "--lidar", "--levels", "0,0.09", "--workers", "2", "--out", pool) == 0
     for sub in ("lidar", "kitti", "images", "labels"):
-        assert tree_digest(whole / sub) == tree_digest(parts / sub), sub
+        assert tree_digest(whole / sub) == tree_digest(parts / sub) == tree_digest(pool / sub), sub
     capsys.readouterr()
     assert fog("--kitti", root, "--lidar", "--levels", "0,0.09", "--out", whole) == 0
     assert "3 already done" in capsys.readouterr().out
@@ -319,6 +321,10 @@ def test_testing_part_and_splits(tmp_path):
     out2 = tmp_path / "out2"
     assert fog("--kitti", root2, "--split", "val", "--levels", "0.06", "--out", out2) == 0
     assert [p.name for p in (out2 / "meta").iterdir()] == [f"{frame('000002')}.json"]
+    out3 = tmp_path / "out3"  # training frames without their labels: the tree's training/ without label_2
+    assert fog("--kitti", root2, "--no-labels", "--lidar", "--levels", "0.06", "--out", out3) == 0
+    tree = out3 / "kitti" / "beta0.06" / "training"
+    assert sorted(p.name for p in tree.iterdir()) == ["calib", "image_2", "velodyne"]
 
 
 # ----------------------------------------------------------------------------- Seeing Through Fog

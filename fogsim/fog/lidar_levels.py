@@ -109,7 +109,8 @@ class FrameLidar:
 
     @property
     def kitti_part(self) -> str:
-        return "training" if self.records is not None else "testing"
+        """The KITTI tree's part of this frame: the source's (KITTI's training / testing), else training."""
+        return getattr(self.source, "part", None) or "training"
 
     def write_kitti(self, level, png: bytes, fogged: FoggedScan) -> None:
         """The level's KITTI-tree frame (KITTI-style sources only): the fogged image, scan, calibration, labels."""

@@ -60,8 +60,8 @@ class KittiPoints:
 
     It is also the frame's scan source (:class:`fogsim.readers.base.ScanSource`) for ``fogsim fog --lidar``:
     ``key`` names the LiDAR frame (the sample key), ``kitti_id`` its id in a KITTI tree (KITTI's own;
-    STF's a 6-digit number, as mmdetection3d's converter reads ids as integers), ``return_mode`` the
-    scan's (STF: the folder read)."""
+    STF's a 6-digit number, as mmdetection3d's converter reads ids as integers), ``part`` the tree's part
+    it belongs in (``training`` or ``testing``), ``return_mode`` the scan's (STF: the folder read)."""
 
     scan: str
     calib: "str | KittiCalib"
@@ -69,6 +69,7 @@ class KittiPoints:
     key: str = ""
     kitti_id: str = ""
     return_mode: str | None = None
+    part: str = "training"
 
     def calibration(self) -> KittiCalib:
         if isinstance(self.calib, KittiCalib):
@@ -182,7 +183,8 @@ def kitti_samples(root: str | os.PathLike, split: str | os.PathLike | None = Non
         w, h = _size(files["image"])
         calib = read_kitti_calib(files["calibration"])
         key = f"{base.name}/image_2/{fid}"
-        points = KittiPoints(str(files["scan"]), str(files["calibration"]), "kitti", key, fid)
+        points = KittiPoints(str(files["scan"]), str(files["calibration"]), "kitti", key, fid,
+                             part=base.name if base.name in KITTI_PARTS else part)
         meta = {"dataset": "kitti", "frame": fid, "part": base.name, "scan": str(files["scan"]),
                 "calib": str(files["calibration"]), "lidar_points": points, "lidar_format": "kitti",
                 "lidar_sensor": SENSORS["kitti"]}
