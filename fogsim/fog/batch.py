@@ -18,6 +18,12 @@ Two output layouts:
   annotations are kept as annotated; ``min_pixels`` > 0 turns kept records with fewer pixels
   into ignore regions.
 
+With ``FogJob.lidar`` (``--lidar``) every sample with a scan source also gets each level's scan,
+outcome file and, for KITTI-style sources, KITTI-tree frame (:mod:`fogsim.fog.lidar_levels`), written
+before the level's sidecar or the frame's meta; per-object counts go into the meta's records and the
+cross-sensor table into ``dataset.json`` at finalize (:mod:`fogsim.dataset.lidar`). :func:`run` also drives
+a LiDAR-only job (:class:`fogsim.fog.points.PointsJob`).
+
 ``OUT/fogsim_run.json`` holds the run parameters (labels: ``"labels": {"classes", "min_pixels"}``;
 no ``labels`` key = images only); a run into an OUT made with other parameters is refused
 rather than mixed.
