@@ -130,6 +130,8 @@ def test_resume_shards_workers_and_refusals(scans, capsys):
     capsys.readouterr()
     assert fog(*argv, "--out", whole) == 0
     assert "2 already done" in capsys.readouterr().out
+    assert fog("--finalize-only", "--out", whole) == 2
+    assert "fogged scans alone (--points)" in capsys.readouterr().err
     assert fog(*argv, "--lidar-model", "attenuation", "--out", whole) == 2
     assert "other parameters" in capsys.readouterr().err
     cases = [((*argv, "--out", src / "o"), "lies inside --points"),

@@ -336,6 +336,8 @@ def finalize_dataset(out: str | Path, train_fraction: float | None = None, split
         raise InputError(out, f"no {RUN_FILE} here: not a fogsim fog output to finalize")
     run = load_json(run_file, FogRunFile)
     params = upgrade_parameters(read_json(run_file)["parameters"])  # checked above; today's words for dataset.json
+    if params.get("points"):
+        raise InputError(run_file, "this run fogged scans alone (--points): there is no dataset to finalize")
     if run.parameters.labels is None:
         raise InputError(run_file, "this run wrote images without labels (--no-labels): there is no "
                                    "dataset to finalize")
