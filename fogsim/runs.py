@@ -154,6 +154,18 @@ def sample_seed(seed: int, key: str) -> int:
     return (int(seed) * 1_000_003 + zlib.crc32(key.encode())) % 2**32
 
 
+def level_seed(seed: int, key: str, level_key: str) -> int:
+    """Seed of one sample's fog level where the fog draws noise (the LiDAR's range noise):
+    ``SeedSequence([seed, crc32(key), crc32(level key)]).generate_state(1)[0]`` — the same for a level
+    whatever the other levels, their order, the shard or the worker."""
+    parts = [int(seed) % 2**32, zlib.crc32(key.encode()), zlib.crc32(level_key.encode())]
+    return int(np.random.SeedSequence(parts).generate_state(1)[0])
+
+
+LEVEL_SEED_RULE = ("numpy default_rng(SeedSequence([seed mod 2^32, crc32(frame key), crc32(level key)])"
+                   ".generate_state(1)[0])")
+
+
 def split_key(frame: str, seed: int = 0) -> int:
     """A frame's position in [0, 1000) for the train/val split: ``crc32("seed/frame") mod 1000``."""
     return zlib.crc32(f"{seed}/{frame}".encode()) % 1000

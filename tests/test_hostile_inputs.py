@@ -20,6 +20,8 @@ from typing import Callable
 import numpy as np
 import pytest
 
+import kitti_tree as kt
+import lidar_fixtures as lf
 import waymo_fixtures as wfx
 import waymo_lidar_fixtures as lfx
 from conftest import run_hostile_case, tree_digest
@@ -284,6 +286,101 @@ def _big_image(tmp: Path) -> list[str]:
     return fog(base, tmp / "out", "--max-pixels", "700")
 
 
+# ----------------------------------------------------------------------------- KITTI, STF, --points (issue 29 item 6)
+def _kitti(change: Callable[[Path], None] | None = None, *flags: str):
+    """``fogsim fog --kitti`` of the fixture tree (three frames) changed by ``change``, with --lidar (the KITTI
+    trees off: their empty ImageSets/test.txt would read as a partial file here)."""
+    def build(tmp: Path) -> list[str]:
+        root = kt.write_kitti(tmp / "in" / "kitti")
+        if change:
+            change(root)
+        return ["fog", "--kitti", str(root), "--levels", "0,0.06", "--lidar", "--no-kitti-trees", "--out",
+                str(tmp / "out"), "--quiet", *flags]
+    return build
+
+
+def _scan(fid: str, edit: Callable[[np.ndarray], np.ndarray | bytes]):
+    """Rewrite frame ``fid``'s velodyne file: ``edit`` gets its N×4 float32 records."""
+    def change(root: Path) -> None:
+        path = root / "training" / "velodyne" / f"{fid}.bin"
+        rec = np.frombuffer(path.read_bytes(), "<f4").reshape(-1, 4).copy()
+        got = edit(rec)
+        path.write_bytes(got if isinstance(got, bytes) else got.astype("<f4").tobytes())
+    return change
+
+
+def _put(rec: np.ndarray, row: int, col: int, value: float) -> np.ndarray:
+    rec[row, col] = value
+    return rec
+
+
+def _text(rel: str, edit: Callable[[str], str]):
+    def change(root: Path) -> None:
+        path = root / rel
+        path.write_text(edit(path.read_text()))
+    return change
+
+
+def _unlink(rel: str):
+    def change(root: Path) -> None:
+        (root / rel).unlink()
+    return change
+
+
+def _restore_scan(argv: list[str], tmp: Path) -> list[str]:
+    fresh = kt.write_kitti(tmp / "fresh")
+    name = "training/velodyne/000001.bin"
+    (tmp / "in" / "kitti" / name).write_bytes((fresh / name).read_bytes())
+    return argv
+
+
+def _stf(*flags: str, calib: bool = True, edit: Callable[[Path], None] | None = None):
+    def build(tmp: Path) -> list[str]:
+        root = tmp / "in" / "stf"
+        path = kt.write_stf(root)
+        if edit:
+            edit(root)
+        return ["fog", "--stf", str(root), *(["--stf-calib", str(path)] if calib else []), "--levels", "0.06",
+                "--lidar", "--no-kitti-trees", "--out", str(tmp / "out"), "--quiet", *flags]
+    return build
+
+
+def _stf_fractional(root: Path) -> None:
+    path = next((root / "lidar_hdl64_strongest").glob("*.bin"))
+    rec = np.frombuffer(path.read_bytes(), "<f4").reshape(-1, 5).copy()
+    rec[:, 3] = np.linspace(0.01, 0.99, len(rec))  # KITTI-like 0–1 data in a 0–255 format
+    path.write_bytes(rec.astype("<f4").tobytes())
+
+
+def _points(blob: Callable[[], bytes], fmt: str = "nuscenes", *flags: str, out_inside: bool = False):
+    """``fogsim fog --points`` of a folder with a good scan and ``blob`` as a second one."""
+    def build(tmp: Path) -> list[str]:
+        suffix = {"nuscenes": ".pcd.bin", "kitti": ".bin"}[fmt]
+        folder = tmp / "in" / "scans"
+        folder.mkdir(parents=True)
+        xyz, rho, *_ = lf.surfaces_scan([lf.Surface(10.0, 0.5), lf.Surface(30.0, 0.2)])
+        good = (lf.stf_bin(xyz, 100 * rho, np.arange(len(xyz)) % 32) if fmt == "nuscenes"
+                else lf.kitti_bin(xyz, rho / 2.55))
+        (folder / f"good{suffix}").write_bytes(good)
+        (folder / f"bad{suffix}").write_bytes(blob())
+        out = folder / "out" if out_inside else tmp / "out"
+        return ["fog", "--points", str(folder), "--point-format", fmt, "--levels", "0.06", "--out", str(out),
+                "--quiet", *flags]
+    return build
+
+
+def _sensor_file(tmp_doc: dict):
+    def build(tmp: Path) -> list[str]:
+        argv = _kitti()(tmp)
+        path = tmp / "in" / "s.json"
+        path.write_text(json.dumps(tmp_doc))
+        return argv + ["--lidar-sensor", str(path)]
+    return build
+
+
+_FIVE = np.array([[10.0, 0.0, 0.0, 40.0, 3.0]] * 4)
+
+
 # ----------------------------------------------------------------------------- the cases
 def _retry(first: Callable[[Path], list[str]], second: Callable[[list[str], Path], list[str]]):
     """``first``'s argv, then the corrected rerun ``second(first argv, tmp)`` into the same --out."""
@@ -394,6 +491,51 @@ CASES = [
          ("1000000_FRONT.exr",)),
     Case("score-pred-truncated", _score_pred(lambda p: p.write_bytes(p.read_bytes()[:200])), 2,
          ("1000000_FRONT.exr",)),
+    # --- KITTI: a bad file fails its frame (exit 1), a set or calibration that does not hold exits 2
+    Case("kitti-bin-size", _kitti(_scan("000001", lambda r: r.tobytes()[:-6])), 1,
+         ("velodyne/000001.bin", "not a whole number of 16-byte kitti records")),
+    Case("kitti-bin-nan", _kitti(_scan("000001", lambda r: _put(r, 3, 1, math.nan))), 1,
+         ("velodyne/000001.bin", "NaN or infinite coordinates", "row 3")),
+    Case("kitti-bin-inf", _kitti(_scan("000001", lambda r: _put(r, 0, 0, math.inf))), 1,
+         ("velodyne/000001.bin", "NaN or infinite coordinates")),
+    Case("kitti-intensity-255", _kitti(_scan("000001", lambda r: _put(r, 0, 3, 200.0))), 1,
+         ("velodyne/000001.bin", "outside the declared 0-1 scale", "0–255 data?")),
+    Case("kitti-scan-empty", _kitti(_scan("000001", lambda r: b"")), 1, ("velodyne/000001.bin", "empty scan")),
+    Case("kitti-scan-mismatch-retry", _retry(_kitti(_unlink("training/velodyne/000001.bin")), _restore_scan), 0, ()),
+    Case("kitti-set-mismatch", _kitti(_unlink("training/velodyne/000001.bin")), 2,
+         ("frame 000001: no scan training/velodyne/000001.bin", "do not match")),
+    Case("kitti-label-missing", _kitti(_unlink("training/label_2/000002.txt")), 2,
+         ("frame 000002: no label file",)),
+    Case("kitti-split-unknown-id", _kitti(_text("ImageSets/val.txt", lambda t: "000009\n"), "--split", "val"), 2,
+         ("frame 000009: no image",)),
+    Case("kitti-calib-missing-key", _kitti(_text("training/calib/000001.txt",
+                                                 lambda t: kt.calib_text(drop="Tr_velo_to_cam"))), 2,
+         ("calib/000001.txt", "missing calibration key Tr_velo_to_cam")),
+    Case("kitti-calib-singular", _kitti(_text("training/calib/000001.txt", lambda t: t.replace(
+        " ".join(f"{v:.12e}" for v in kt.R0.ravel()), " ".join(["0"] * 9)))), 2, ("calib/000001.txt", "singular")),
+    Case("kitti-label-fields", _kitti(_text("training/label_2/000001.txt",
+                                            lambda t: " ".join(t.split("\n")[0].split()[:14]) + "\n")), 1,
+         ("label_2/000001.txt", "line 1: 14 fields, expected 15")),
+    Case("kitti-label-type", _kitti(_text("training/label_2/000001.txt", lambda t: t.replace("Car", "Bus", 1))), 1,
+         ("label_2/000001.txt", "unknown object type 'Bus'")),
+    Case("kitti-lidar-without-scans", lambda t: fog(good_folder(t), t / "out", "--lidar"), 2,
+         ("--lidar", "--kitti, --stf or --waymo")),
+    Case("kitti-sensor-unknown", _kitti(None, "--lidar-sensor", "vlp99"), 2, ("vlp99", "hdl64e")),
+    Case("kitti-sensor-file-bad", _sensor_file({"beams": 64, "vertical_fov_deg": [-24.9, 2.0],
+                                                "horizontal_resolution_deg": 0.18, "intensity_scale": "0-1"}), 2,
+         ("s.json", "max_range_m")),
+    # --- STF
+    Case("stf-no-calibration", _stf(calib=False), 2, ("in/stf", "no calibration", "--stf-calib")),
+    Case("stf-intensity-fractional", _stf(edit=_stf_fractional), 1, ("lidar_hdl64_strongest", "0–1 data")),
+    # --- --points: a bad scan fails alone; setup problems exit 2
+    Case("points-bin-size", _points(lambda: _FIVE.astype("<f4").tobytes()[:-3]), 1,
+         ("bad.pcd.bin", "not a whole number of 20-byte nuscenes records")),
+    Case("points-intensity-300", _points(lambda: np.where(np.arange(5) == 3, 300.0, _FIVE).astype("<f4").tobytes()),
+         1, ("bad.pcd.bin", "outside the declared 0-255 scale")),
+    Case("points-nan", _points(lambda: np.where(np.arange(5) == 0, math.nan, _FIVE).astype("<f4").tobytes()), 1,
+         ("bad.pcd.bin", "NaN or infinite")),
+    Case("points-empty", _points(lambda: b"", "kitti"), 1, ("bad.bin", "empty scan")),
+    Case("points-out-inside-input", _points(lambda: b"", out_inside=True), 2, ("lies inside --points",)),
 ]
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 import pickle
-import struct
 
 import numpy as np
 import pytest
@@ -231,22 +230,7 @@ def test_stf_layout_as_a_variant(tmp_path):
 
 # ----------------------------------------------------------------------------- the writer, read back by the spec
 def spec_read_frame(level_root, fid):
-    """A KITTI reader written from the format's description alone."""
-    base = level_root / "training"
-    data = (base / "velodyne" / f"{fid}.bin").read_bytes()
-    assert len(data) % 16 == 0
-    points = [struct.unpack("<4f", data[i:i + 16]) for i in range(0, len(data), 16)]
-    calib = {}
-    for line in (base / "calib" / f"{fid}.txt").read_text().splitlines():
-        key, values = line.split(":", 1)
-        calib[key] = [float(v) for v in values.split()]
-    assert set(calib) == {"P0", "P1", "P2", "P3", "R0_rect", "Tr_velo_to_cam", "Tr_imu_to_velo"}
-    assert [len(calib[k]) for k in ("P2", "R0_rect", "Tr_velo_to_cam", "Tr_imu_to_velo")] == [12, 9, 12, 12]
-    labels = [line.split() for line in (base / "label_2" / f"{fid}.txt").read_text().splitlines()]
-    assert all(len(f) == 15 for f in labels)
-    png = (base / "image_2" / f"{fid}.png").read_bytes()
-    assert png[:8] == b"\x89PNG\r\n\x1a\n"
-    return np.array(points, np.float32), calib, labels, struct.unpack(">II", png[16:24])
+    return kt.read_kitti_frame(level_root, fid)
 
 
 def test_each_fog_level_is_written_as_a_kitti_tree_read_back_by_the_spec(tree, tmp_path):

@@ -141,9 +141,9 @@ def check_points_on_depth(out: Path, frame: str, caster=None, min_points: int = 
     meta = json.loads((out / "meta" / f"{frame}.json").read_text())
     K, w2c = meta["camera"]["intrinsics"], np.asarray(meta["camera"]["world_to_camera"])
     l2w = np.asarray(meta["lidar"]["lidar_to_world"])
-    cloud = read_points(out / meta["lidar"]["levels"]["clear"]["scan"], meta["lidar"]["levels"]["clear"]["format"])
+    cloud = read_points(out / meta["lidar"]["levels"]["clear"]["file"], meta["lidar"]["format"])
     labels = np.fromfile(out / meta["lidar"]["levels"]["clear"]["labels"], "<u4")
-    with np.load(out / meta["lidar"]["sweep"]["points_file"], allow_pickle=False) as f:
+    with np.load(out / meta["lidar"]["sweep"]["attributes"], allow_pickle=False) as f:
         hit = f["object_id"].astype(np.int64)
         normal = f["normal"].astype(np.float64) @ l2w[:3, :3].T
         np.testing.assert_allclose(f["range_m"], cloud.range_m, rtol=1e-6)
@@ -264,8 +264,9 @@ def test_each_level_is_the_fog_models_scan_and_the_kitti_tree_reads_back(lidar_r
     out = lidar_render
     meta = json.loads((out / "meta" / "000000.json").read_text())
     lv = meta["lidar"]["levels"]
-    clear = read_points(out / lv["clear"]["scan"], "kitti")
-    fogged = read_points(out / lv["beta0.06"]["scan"], "kitti")
+    clear = read_points(out / lv["clear"]["file"], "kitti")
+    fogged = read_points(out / lv["beta0.06"]["file"], "kitti")
+    assert clear.same_as(read_points(out / meta["lidar"]["input"]["file"], "kitti"))  # the clear level is the sweep
     again = LidarFogger(clear, LidarSensor.from_dict(meta["lidar"]["sensor_spec"]))
     ref = again(0.06, np.random.default_rng([meta["seed"], 1, LIDAR_STREAM]))
     np.testing.assert_array_equal(fogged.xyz, ref.cloud.xyz)
@@ -278,7 +279,7 @@ def test_each_level_is_the_fog_models_scan_and_the_kitti_tree_reads_back(lidar_r
     # the KITTI tree: the spec reader, and fogsim's own KITTI reader (P2·R0·Tr reproduces the render's K and pose)
     for level in ("clear", "beta0.06"):
         points, calib, labels, size = spec_read_frame(out / "kitti" / level, "000000")
-        assert size == (240, 160) and len(points) == len(read_points(out / lv[level]["scan"], "kitti"))
+        assert size == (240, 160) and len(points) == len(read_points(out / lv[level]["file"], "kitti"))
     cal = read_kitti_calib(out / "kitti" / "clear" / "training" / "calib" / "000000.txt")
     K = meta["camera"]["intrinsics"]
     assert cal.intrinsics(240, 160).to_dict()["fx"] == pytest.approx(K["fx"])
@@ -317,3 +318,30 @@ def test_scene_mode_sweeps_the_users_scene_and_leaves_the_blend(tmp_path):
         meta = json.loads((out / "meta" / f"{f}.json").read_text())
         assert meta["scene"]["lidar"]["mount"].startswith("the camera")
     assert check_boxes_project_onto_masks(out, "000000") + check_boxes_project_onto_masks(out, "000001") >= 1
+
+
+@pytest.mark.blender
+@pytest.mark.slow
+def test_the_renders_kitti_tree_round_trips_through_fogsim_fog_kitti(lidar_render, tmp_path):
+    """fogsim's own KITTI export is a KITTI dataset: `fogsim fog --kitti` reads it, with its labels and scans,
+    and fogs both sensors again; the render's dataset.json has the cross-sensor table."""
+    from fogsim.cli import main
+    from fogsim.lidar.formats import read_points
+
+    manifest = json.loads((lidar_render / "dataset.json").read_text())
+    rows = manifest["lidar"]["cross_sensor"]
+    assert rows and {r["level"] for r in rows} == {"clear", "beta0.06"}
+    assert all(r["lidar_share"] is None or 0 <= r["lidar_share"] <= 1 for r in rows)
+    assert all(r["lidar_seen"] <= r["objects"] for r in rows)
+    assert (lidar_render / "cross_sensor.md").is_file() and (lidar_render / "lidar_bev.png").is_file()
+    assert (lidar_render / "kitti" / "clear" / "ImageSets" / "train.txt").is_file()
+    out = tmp_path / "refog"
+    code = main(["fog", "--kitti", str(lidar_render / "kitti" / "clear"), "--lidar", "--levels", "0,0.06",
+                 "--quiet", "--out", str(out)])
+    assert code == 0
+    meta = json.loads(sorted((out / "meta").glob("*.json"))[0].read_text())
+    kept = [o for o in meta["objects"] if o["kept"]]
+    assert kept and all("lidar_points" in o for o in kept)  # the export's 3D boxes hold the export's scan
+    assert sum(o["lidar_points"]["clear"] for o in kept) > 0
+    refogged = read_points(out / meta["lidar"]["levels"]["clear"]["file"], "kitti")
+    assert len(refogged) > 1000

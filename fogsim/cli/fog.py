@@ -6,6 +6,7 @@ import os
 import sys
 from pathlib import Path
 
+from fogsim.cli import fog_lidar
 from fogsim.dataset.writer import check_train_fraction
 from fogsim.errors import EXIT_FAILED, EXIT_OK, InputError
 from fogsim.fileio import MAX_PIXELS
@@ -90,6 +91,7 @@ def add_parsers(sub) -> None:
     src.add_argument("--input", help="folder of images (paired with --depth by name)")
     src.add_argument("--cityscapes", help="Cityscapes root (leftImg8bit/, disparity/, camera/)")
     src.add_argument("--waymo", help="Waymo v1 .tfrecord file or folder, or a Waymo v2 parquet root")
+    fog_lidar.add_inputs(src)
     d = fog.add_argument_group("depth")
     d.add_argument("--depth", help="folder of depth maps for --input, matched by relative name")
     d.add_argument("--depth-dir", help="folder of depth maps for --waymo (<segment>/<time>_<CAMERA>.*)")
@@ -104,20 +106,23 @@ def add_parsers(sub) -> None:
     d.add_argument("--intrinsics", help="JSON with fx, fy, cx, cy, width, height (or K, width, height)")
     d.add_argument("--hfov", type=float, help="horizontal field of view in degrees (centred, square pixels)")
     d.add_argument("--depth-from", help="ila:CHECKPOINT — predict depth for every image with an ILA model "
-                                        "(for datasets without depth, e.g. Waymo); lidar[:METHOD] (--waymo "
-                                        "only) — complete each frame's LiDAR points into dense ray distance, "
-                                        "METHOD ipbasic (default), linear (beam-aware interpolation) or ila:CHECKPOINT "
-                                        "(ILA aligned to the points)")
+                                        "(for datasets without depth, e.g. Waymo); lidar[:METHOD] (--waymo, "
+                                        "--kitti, --stf; the default of the last two) — complete each frame's "
+                                        "LiDAR points into dense ray distance, METHOD ipbasic (default), linear "
+                                        "(beam-aware interpolation) or ila:CHECKPOINT (ILA aligned to the points)")
     d.add_argument("--lidar-holdout", type=float, metavar="FRACTION",
                    help="with --depth-from lidar: hold this fraction of each image's points out of the "
                         "completion and save them (OUT/lidar_holdout/<key>.npz, with the completion in "
                         "OUT/lidar_depth/<key>.exr) for `fogsim depth score` (default 0: none)")
-    fog.add_argument("--split", default="val", help="Cityscapes split(s), comma-separated")
+    fog.add_argument("--split", default=None, help="Cityscapes split(s), comma-separated (default val); --kitti: "
+                                                   "an ImageSets name (train, val, test, trainval) or a split file "
+                                                   "(default: every image); --stf: a split file (date,frame lines)")
     fog.add_argument("--cameras", default="FRONT", help="Waymo cameras, comma-separated (FRONT, FRONT_LEFT, …)")
     fog.add_argument("--no-verify", action="store_true",
                      help="Waymo v1: do not check the TFRecord data CRCs (a damaged record then goes unnoticed; "
                           "the check runs at ≈ 100-200 MB/s without a compiled CRC32C module, GB/s with google-crc32c)")
     _add_fog_options(fog)
+    fog_lidar.add_options(fog)
     _add_batch_options(fog)
     _add_label_options(fog)
 
@@ -150,6 +155,8 @@ def _samples(args):
             K = Intrinsics.from_hfov(args.hfov, w, h)
             samples = [replace(smp, intrinsics=K) for smp in samples]
         return samples
+    if args.kitti or args.stf:
+        return fog_lidar.samples(args)
     if args.cityscapes:
         from fogsim.readers.cityscapes import cityscapes_samples
 
@@ -173,8 +180,8 @@ def _check_depth_from(args) -> None:
     from fogsim.depth.lidar_source import parse_lidar
 
     parse_lidar(depth_from)  # unknown method → the usage
-    if not args.waymo:
-        raise ValueError(f"--depth-from {depth_from} completes Waymo LiDAR points: it needs --waymo")
+    if not (args.waymo or args.kitti or args.stf):
+        raise ValueError(f"--depth-from {depth_from} completes LiDAR points: it needs --waymo, --kitti or --stf")
     if args.depth_dir:
         raise ValueError(f"--depth-from {depth_from} and --depth-dir are two depth sources for one image: "
                          "give one of them")
@@ -195,10 +202,11 @@ def _depth_from_path(depth_from: str | None) -> str | None:
 
 
 def _with_depth_from(samples, depth_from: str | None, out: str | None = None, holdout: float | None = None,
-                     seed: int = 0, dataset: str | None = None):
+                     seed: int = 0, dataset: str | None = None, scans_in_meta: bool = False):
     """``--depth-from ila:CKPT``: every sample's depth is predicted by that model;
     ``--depth-from lidar[:METHOD]``: completed from its LiDAR points
-    (:func:`fogsim.depth.lidar_source.lidar_samples`, hold-out files under ``out``).
+    (:func:`fogsim.depth.lidar_source.lidar_samples`, hold-out files under ``out``; ``scans_in_meta``:
+    the points source is the reader's own, KITTI's and STF's ``meta["lidar_points"]``).
 
     The checkpoint is loaded and checked here, once, before the output folder is claimed: a
     missing, unreadable or unsafe one is one line naming it (exit 2), not a failure per image.
@@ -206,8 +214,11 @@ def _with_depth_from(samples, depth_from: str | None, out: str | None = None, ho
     if not depth_from:
         return samples
     if depth_from.startswith("lidar"):
-        from fogsim.depth.lidar_source import lidar_samples
+        from fogsim.depth.lidar_source import lidar_samples, meta_points_source
 
+        if scans_in_meta:
+            return lidar_samples(samples, depth_from, out, holdout or 0.0, seed, points_source=meta_points_source,
+                                 has_lidar=None, dataset=dataset)
         return lidar_samples(samples, depth_from, out, holdout or 0.0, seed, dataset=dataset)
     from dataclasses import replace
 
@@ -256,9 +267,12 @@ def _job(args, out: str, classes: tuple[str, ...] = ()):
     elif args.scatter_params:
         raise ValueError("--scatter-params needs --model scatter")
     check_heterogeneity(args.heterogeneity, args.heterogeneity_scale, ("--heterogeneity", "--heterogeneity-scale"))
+    lidar_spec = None
+    if getattr(args, "lidar", False):
+        lidar_spec = fog_lidar.fog_spec(args, "last" if getattr(args, "stf_returns", None) == "last" else None)
     fog = FogSettings(model, airlight, args.space, kernel,
                       Heterogeneity(args.heterogeneity, args.heterogeneity_scale) if args.heterogeneity else None,
-                      scatter_file)
+                      scatter_file, lidar=lidar_spec)
     fog.params  # a malformed scatter parameter file: one line naming it, before any work
     fill = args.fill or ("inpaint" if getattr(args, "cityscapes", None) else "none")
     from fogsim.fog.fill import fill_methods
@@ -278,7 +292,8 @@ def _job(args, out: str, classes: tuple[str, ...] = ()):
                                                         "--train-fraction")
         inputs["split_by"] = getattr(args, "split_by", None) or "frame"
     return FogJob(levels, out, fog, fill, args.seed, getattr(args, "image_format", "png"), inputs,
-                  labels=bool(classes), classes=tuple(classes), min_pixels=min_pixels, max_pixels=max_pixels)
+                  labels=bool(classes), classes=tuple(classes), min_pixels=min_pixels, max_pixels=max_pixels,
+                  lidar=fog_lidar.output(args) if getattr(args, "lidar", False) else None)
 
 
 def _inputs(args) -> dict:
@@ -293,6 +308,8 @@ def _inputs(args) -> dict:
         from fogsim.fileio import read_json
 
         out["intrinsics_values"] = read_json(args.intrinsics)
+    if getattr(args, "kitti", None) or getattr(args, "stf", None):
+        out |= fog_lidar.inputs(args)
     return out
 
 
@@ -306,17 +323,24 @@ def cmd_fog(args) -> int:
 
     if args.finalize_only:
         return _finalize_only(args)
-    if not (args.input or args.cityscapes or args.waymo):
-        raise ValueError("give one of --input, --cityscapes, --waymo (or --finalize-only --out OUT)")
+    if args.points:
+        return fog_lidar.cmd_points(args)
+    if not (args.input or args.cityscapes or args.waymo or args.kitti or args.stf):
+        raise ValueError("give one of --input, --cityscapes, --waymo, --kitti, --stf, --points "
+                         "(or --finalize-only --out OUT)")
     from fogsim.schema.base import check_flag, int_in
 
     check_flag("--workers", args.workers, int_in(1, max_workers()))  # each is a process with its own images
+    fog_lidar.normalise(args)
     _check_depth_from(args)
     check_output(args.out, {f"--{k.replace('_', '-')}": getattr(args, k)
-                            for k in ("input", "depth", "cityscapes", "waymo", "depth_dir", "intrinsics")}
+                            for k in ("input", "depth", "cityscapes", "waymo", "depth_dir", "intrinsics", "kitti",
+                                      "stf", "stf_calib")}
                  | {"--depth-from": _depth_from_path(args.depth_from)})
     everything = _with_depth_from(_samples(args), args.depth_from, args.out, args.lidar_holdout, args.seed,
-                                  args.waymo)
+                                  args.waymo or args.kitti or args.stf, scans_in_meta=bool(args.kitti or args.stf))
+    if args.lidar and args.waymo:
+        everything = fog_lidar.with_waymo_scans(everything, args)
     if args.no_labels:
         everything = [replace(s, labels=None) if s.labels is not None else s for s in everything]
     labelled = any(s.labels is not None for s in everything)
@@ -376,7 +400,8 @@ def _finalize(out: str, train_fraction: float | None = None, split_by: str | Non
 
 
 def _finalize_only(args) -> int:
-    given = [f"--{k}" for k in ("input", "cityscapes", "waymo", "shard") if getattr(args, k, None)]
+    given = [f"--{k}" for k in ("input", "cityscapes", "waymo", "kitti", "stf", "points", "shard")
+             if getattr(args, k, None)]
     if given:
         raise ValueError(f"--finalize-only takes --out (and --train-fraction, --split-by) only, not "
                          f"{', '.join(given)}")

@@ -55,16 +55,18 @@ class KittiTree:
     def path(self, folder: str, frame_id: str) -> Path:
         return self.base / folder / f"{frame_id}{FOLDERS[folder]}"
 
-    def frame_complete(self, frame_id: str) -> bool:
-        """Whether all four files of the frame exist (resume skips it)."""
-        return all(self.path(f, frame_id).is_file() for f in FOLDERS)
+    def frame_complete(self, frame_id: str, labels: bool = True) -> bool:
+        """Whether the frame's files exist (all four; three without ``labels``, as in ``testing/``)."""
+        return all(self.path(f, frame_id).is_file() for f in FOLDERS if labels or f != "label_2")
 
     def write_frame(self, frame_id: str, image: np.ndarray | bytes, cloud: PointCloud, calib: KittiCalib,
-                    records: list[dict]) -> None:
+                    records: list[dict] | None) -> None:
         """Write one frame: ``image`` an RGB array (encoded as PNG) or PNG bytes, ``cloud`` the level's
-        scan in the LiDAR frame, ``calib`` its calibration, ``records`` its label records. The label and
-        calibration go first and the image last, so an image means a written frame."""
-        atomic_write_bytes(self.path("label_2", frame_id), kitti_label_text(records).encode("utf-8"))
+        scan in the LiDAR frame, ``calib`` its calibration, ``records`` its label records (None: no
+        ``label_2`` file, as KITTI's ``testing/``). The label and calibration go first and the image last,
+        so an image means a written frame."""
+        if records is not None:
+            atomic_write_bytes(self.path("label_2", frame_id), kitti_label_text(records).encode("utf-8"))
         atomic_write_bytes(self.path("calib", frame_id), format_kitti_calib(calib).encode("utf-8"))
         atomic_write_bytes(self.path("velodyne", frame_id), encode_points(cloud, "kitti"))
         data = image if isinstance(image, (bytes, bytearray)) else encode_image(image, ".png")

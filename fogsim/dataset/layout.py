@@ -8,10 +8,15 @@ Layout under the root::
     meta/<frame>.json            the frame record, written last: its presence marks the frame done
     linear/<level>/<frame>.exr   scene-linear RGB renders (volumetric fog, ``keep_linear``; R, G, B float)
     cityscapes/<kind>/<split>/fogsim/<frame>_<kind>.{png,json}   the stereo pair (``--stereo``)
+    lidar/<level>/<frame>.<ext>  the level's LiDAR scan (``fogsim fog --lidar``: the source's point format)
+    lidar/<level>/<frame>.outcomes.npz   every input point's outcome and row (fogsim.lidar.outcome_file)
+    lidar/<level>/<frame>.label, lidar/sweep/<frame>.{bin,npz}   a render's point labels and clear sweep
+    kitti/<level>/…              each level as a KITTI object tree (fogsim.dataset.kitti)
     coco/<level>.json            COCO detection annotations (objects the filters dropped: iscrowd = 1)
     splits/<level>_{train,val}.txt, splits/all_{train,val}.txt   image lists (absolute paths)
     data/<level>.yaml, data/all.yaml                              Ultralytics data files
     dataset.json                 manifest, counts, levels;       contact_sheet.png
+    cross_sensor.md, lidar_bev.png, lidar_points_vs_distance.png   what fog does to each object, per sensor
 
 Two names mean "every fog level at once", one per side, and both are part of the format:
 
@@ -112,6 +117,22 @@ class DatasetLayout:
         ext = "json" if kind == "camera" else "png"
         return self.cityscapes_root() / kind / split / "fogsim" / f"{frame}_{kind}.{ext}"
 
+    def lidar(self, level_key: str, frame: str, suffix: str = ".bin") -> Path:
+        """One level's LiDAR scan of a frame (``suffix``: its format's, :data:`fogsim.lidar.formats.FORMAT_SUFFIX`)."""
+        return self.root / "lidar" / level_key / f"{frame}{suffix}"
+
+    def lidar_outcomes(self, level_key: str, frame: str) -> Path:
+        """The outcomes beside a level's scan (:mod:`fogsim.lidar.outcome_file`)."""
+        return self.root / "lidar" / level_key / f"{frame}.outcomes.npz"
+
+    def lidar_labels(self, level_key: str, frame: str) -> Path:
+        """A rendered level's per-point labels beside its scan (SemanticKITTI ``.label``, uint32 per point)."""
+        return self.root / "lidar" / level_key / f"{frame}.label"
+
+    def lidar_sweep(self, frame: str, suffix: str = ".bin") -> Path:
+        """A render's clear sweep (the scan every level's outcomes refer to); ``.npz``: what each point hit."""
+        return self.root / "lidar" / "sweep" / f"{frame}{suffix}"
+
     # --- per dataset (written by finalize)
     def split_file(self, level_key: str, part: str) -> Path:
         """The image list of one split: ``splits/<level>_<part>.txt`` (level may be MIXED_SPLIT)."""
@@ -129,6 +150,18 @@ class DatasetLayout:
 
     def contact_sheet(self) -> Path:
         return self.root / "contact_sheet.png"
+
+    def cross_sensor_report(self) -> Path:
+        """The cross-sensor table and the LiDAR outcomes as Markdown."""
+        return self.root / "cross_sensor.md"
+
+    def lidar_bev(self) -> Path:
+        """A bird's-eye view of one frame's scan per level, points coloured by outcome."""
+        return self.root / "lidar_bev.png"
+
+    def lidar_points_plot(self) -> Path:
+        """Points per object against distance, per level."""
+        return self.root / "lidar_points_vs_distance.png"
 
     def relative(self, path: Path) -> str:
         """``path`` relative to the root, with forward slashes (as COCO and the data files hold it)."""

@@ -21,21 +21,20 @@ from fogsim.viz import strip
 def read_level(layout: DatasetLayout, meta: dict, key: str) -> FoggedScan:
     """A level's fogged scan of a frame, from its scan file and outcome file (as ``meta["lidar"]`` names them)."""
     lv = meta["lidar"]["levels"][key]
-    cloud = read_points(layout.root / lv["scan"], lv["format"])
+    cloud = read_points(layout.root / lv["file"], meta["lidar"]["format"])
     outcome, index = read_outcomes(layout.root / lv["outcome_file"])
     return FoggedScan(cloud, outcome, index)
 
 
 def read_sweep(layout: DatasetLayout, meta: dict) -> PointCloud:
-    """A frame's clear sweep (``lidar/sweep/<frame>.npz``), the scan every level's outcomes refer to."""
-    with np.load(layout.root / meta["lidar"]["sweep"]["points_file"], allow_pickle=False) as f:
-        return PointCloud.from_raw(f["xyz"], f["intensity"], str(f["scale"]), meta["lidar"]["sweep"]["points_file"],
-                                   ring=f["beam"], allow_empty=True)
+    """A frame's clear sweep (``meta["lidar"]["input"]``), the scan every level's outcomes refer to."""
+    sweep = meta["lidar"]["input"]
+    return read_points(layout.root / sweep["file"], sweep["format"])
 
 
 def lidar_rows(layout: DatasetLayout, meta: dict, levels, tile_width: int) -> list[np.ndarray]:
     """The two rows of one frame (points on the images; bird's-eye views), or [] without a LiDAR."""
-    if "lidar" not in meta:
+    if "lidar_to_camera" not in (meta.get("lidar") or {}):  # a render's LiDAR (a real dataset's: its own pictures)
         return []
     K = Intrinsics.from_dict(meta["camera"]["intrinsics"])
     l2c = np.asarray(meta["lidar"]["lidar_to_camera"], np.float64)

@@ -22,11 +22,12 @@ import numpy as np
 from fogsim.boxes import yolo_line
 from fogsim.colour import to_uint8
 from fogsim.dataset.coco import coco_dataset
-from fogsim.dataset.kitti import KittiTree
 from fogsim.dataset.layout import MIXED_SPLIT, PARTS, DatasetLayout
+from fogsim.dataset.lidar import lidar_summary
 from fogsim.dataset.lidar_sheet import lidar_rows
 from fogsim.dataset.reader import FrameRecords, frame_records, read_checked_meta
 from fogsim.fileio import atomic_write_bytes, read_image, write_image, write_json
+from fogsim.lidar.objects import MIN_POINTS
 from fogsim.runs import split_key
 from fogsim.scene.classes import LABELLED
 from fogsim.viz import strip
@@ -109,7 +110,8 @@ def _write_lists(layout: DatasetLayout, name: str, split: dict[str, list[Path]],
 
 
 def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: float = TRAIN_FRACTION,
-             seed: int = 0, classes=LABELLED, split_group=None, records: FrameRecords | None = None) -> dict:
+             seed: int = 0, classes=LABELLED, split_group=None, records: FrameRecords | None = None,
+             lidar_min_points: int = MIN_POINTS) -> dict:
     """Write every dataset-level file from the committed frames; returns ``dataset.json``'s content.
 
     ``classes``: the dataset's own class list (YOLO ids index it, COCO ids are index + 1; it is
@@ -117,7 +119,10 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
     ``split_group``: None (split by frame name), or ``(description, meta → group name)`` to keep
     each group's frames on one side (:func:`split_frames`). ``records``: the frames and their
     checked records (default: :func:`~fogsim.dataset.reader.frame_records`); a meta file that
-    fails its schema is left out and named in ``dataset.json``'s ``skipped_frames``."""
+    fails its schema is left out and named in ``dataset.json``'s ``skipped_frames``. Frames with LiDAR
+    records (:mod:`fogsim.dataset.lidar`) add ``dataset.json``'s ``lidar`` block (the cross-sensor table,
+    an object seen by the LiDAR with ≥ ``lidar_min_points`` points in its box), ``cross_sensor.md``, the
+    LiDAR pictures and each KITTI tree's ``ImageSets``."""
     levels = list(levels)
     if any(lv.key == MIXED_SPLIT for lv in levels):
         raise ValueError(f"fog level key {MIXED_SPLIT!r} is reserved for the mixed-level split")
@@ -137,9 +142,6 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
         for part in mixed:
             mixed[part] += split[part]
     _write_lists(layout, MIXED_SPLIT, mixed, "fogsim dataset, every fog level mixed", classes)
-    for lv in levels:  # a dataset with a KITTI tree per level: its ImageSets follow the same split
-        if (tree := KittiTree(layout.root, lv.key)).base.is_dir():
-            tree.write_image_sets({"train": list(train), "val": list(val), "trainval": sorted([*train, *val])})
     summary = dict(manifest) | _summary(metas, levels, train, val, train_fraction, seed, classes)
     if groups is not None and len(set(groups.values())) > 1:
         cut = round(1000 * train_fraction)
@@ -148,6 +150,9 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
         summary["split"]["groups"] = len(set(groups.values()))
     if records.skipped:
         summary["skipped_frames"] = list(records.skipped)
+    lidar = lidar_summary(layout, levels, frames, metas, train, val, lidar_min_points)
+    if lidar is not None:
+        summary["lidar"] = lidar
     write_json(layout.manifest(), summary)
     write_image(layout.contact_sheet(), contact_sheet(layout, levels, frames, metas=metas))
     return summary

@@ -18,6 +18,12 @@ Two output layouts:
   annotations are kept as annotated; ``min_pixels`` > 0 turns kept records with fewer pixels
   into ignore regions.
 
+With ``FogJob.lidar`` (``--lidar``) every sample with a scan source also gets each level's scan,
+outcome file and, for KITTI-style sources, KITTI-tree frame (:mod:`fogsim.fog.lidar_levels`), written
+before the level's sidecar or the frame's meta; per-object counts go into the meta's records and the
+cross-sensor table into ``dataset.json`` at finalize (:mod:`fogsim.dataset.lidar`). :func:`run` also drives
+a LiDAR-only job (:class:`fogsim.fog.points.PointsJob`).
+
 ``OUT/fogsim_run.json`` holds the run parameters (labels: ``"labels": {"classes", "min_pixels"}``;
 no ``labels`` key = images only); a run into an OUT made with other parameters is refused
 rather than mixed.
@@ -55,7 +61,9 @@ from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
 from fogsim.fog.engine import ESTIMATE, FogSettings
 from fogsim.fog.labelled import SPLIT_BY, check_labelled, checked_records, key_folder
 from fogsim.fog.levels import FogLevel
+from fogsim.fog.lidar_levels import FrameLidar, LidarOutput, scan_source
 from fogsim.fog.visibility import attach_visibility
+from fogsim.lidar.objects import MIN_POINTS
 from fogsim.readers.base import Sample
 from fogsim.runs import claim_output, sample_seed
 from fogsim.schema.base import load_json
@@ -83,14 +91,17 @@ class FogJob:
     classes: tuple[str, ...] = ()  # the dataset's own class list (labels only)
     min_pixels: int = 0           # kept annotations with fewer pixels → ignore regions (labels only)
     max_pixels: int = MAX_PIXELS  # an image of more pixels fails (--max-pixels; not a run parameter)
+    lidar: LidarOutput | None = None  # --lidar: each level's scan too (fogsim.fog.lidar_levels)
 
     def parameters(self) -> dict:
         """The run parameters recorded in ``fogsim_run.json`` and compared on resume (the fog record's
-        keys, :meth:`FogSettings.record`, beside the levels and the inputs)."""
+        keys, :meth:`FogSettings.record`, beside the levels and the inputs; ``lidar`` only with ``--lidar``,
+        so a run without it resumes as before)."""
         return {"levels": [lv.to_dict() for lv in self.levels], **self.fog.record(),
                 "airlight_units": "8-bit (255 = white)", "fill": self.fill, "seed": self.seed,
                 "image_format": self.image_format, "inputs": self.inputs} \
-            | ({"labels": {"classes": list(self.classes), "min_pixels": self.min_pixels}} if self.labels else {})
+            | ({"labels": {"classes": list(self.classes), "min_pixels": self.min_pixels}} if self.labels else {}) \
+            | ({"lidar": self.lidar.parameters()} if self.lidar is not None else {})
 
     @property
     def layout(self) -> DatasetLayout:
@@ -108,6 +119,16 @@ class FogJob:
         if self.labels:
             return self.layout.frame_done(frame_from_key(sample.key))
         return all(self.paths(sample, lv)[1].is_file() for lv in self.levels)
+
+    # the interface :func:`run` drives (a LiDAR-only run's job, fogsim.fog.points.PointsJob, has it too)
+    unit = "images"
+
+    def check(self, samples: list[Sample]) -> None:
+        """The run-wide checks (:func:`check_run_wide`), before the output folder is claimed."""
+        check_run_wide(samples, self)
+
+    def fog_one(self, sample: Sample) -> None:
+        fog_sample(self, sample)
 
 
 def fog_sample(job: FogJob, sample: Sample) -> None:
@@ -132,27 +153,50 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
               "fogsim_version": __version__, "bit_depth": _bit_depth(image.dtype, job.image_format)}
     if not job.labels and (sample.meta or {}).get("labels_missing"):
         common["labels_missing"] = sample.meta["labels_missing"]  # why an images-only sidecar has no labels
+    source = scan_source(sample) if job.lidar is not None else None
+    lidar = None if source is None else FrameLidar(fog, job.lidar, source, job.out, job.seed, density, records)
     images = {}
     for level in job.levels:
         img_path, meta_path = job.paths(sample, level)
         foggy = fogger(level.beta)
         if job.image_format == "jpg":  # JPEG is 8-bit: 16-bit input is scaled, never saturated
             foggy = to_8bit(foggy)
-        atomic_write_bytes(img_path, encode_image(foggy, "." + job.image_format))
+        data = encode_image(foggy, "." + job.image_format)
+        atomic_write_bytes(img_path, data)
+        if lidar is not None:  # the level's scan, before the sidecar / meta that mark the sample done
+            fogged = lidar.level(level)
+            lidar.write_kitti(level, data if job.image_format == "png" else encode_image(foggy, ".png"), fogged)
         if job.labels:
             images[level.key] = foggy
         else:
-            write_json(meta_path, {"level": level.to_dict(), **common})
+            extra = {} if lidar is None else {"lidar": {"sensor": lidar.sensor.name, **lidar.levels[level.key]}}
+            write_json(meta_path, {"level": level.to_dict(), **common, **extra})
     if job.labels:
         # per object and level: transmission, box-based contrast, visible (real data has no masks)
         attach_visibility(records, image, images, {lv.key: lv.beta for lv in job.levels})
+        if lidar is not None:
+            lidar.attach(records)
         frame = frame_from_key(sample.key)
         write_frame_labels(job.layout, frame, job.levels, records, w, h)
         coverage = None if dist.record.get("hole_fraction") is None else round(1 - dist.record["hole_fraction"], 6)
         write_json(job.layout.meta(frame), {
             "frame": frame, "width": w, "height": h, "source": sample.source, "classes": list(job.classes),
             "objects": records, "levels": [lv.to_dict() for lv in job.levels], **common,
-            "depth_coverage": coverage, "camera": K, "sample": sample.meta or None})
+            "depth_coverage": coverage, "camera": K, "sample": json_meta(sample.meta)}
+            | ({"lidar": lidar.record()} if lidar is not None else {}))
+
+
+def json_meta(meta: dict | None) -> dict | None:
+    """A sample's meta as a frame record holds it: the JSON values only (a reader's picklable sources,
+    such as the scan source under ``lidar_points``, are left out); None when nothing is left."""
+    def plain(v) -> bool:
+        if v is None or isinstance(v, (str, bool, int, float)):
+            return True
+        if isinstance(v, (list, tuple)):
+            return all(plain(x) for x in v)
+        return isinstance(v, dict) and all(isinstance(k, str) and plain(x) for k, x in v.items())
+    out = {k: v for k, v in (meta or {}).items() if plain(v)}
+    return out or None
 
 
 def _bit_depth(dtype, image_format: str) -> dict:
@@ -171,7 +215,7 @@ class Summary:
     seconds: float = 0.0
 
     def line(self, job: FogJob) -> str:
-        return (f"fogged {self.done} of {self.total} images × {len(job.levels)} levels "
+        return (f"fogged {self.done} of {self.total} {job.unit} × {len(job.levels)} levels "
                 f"({self.skipped} already done, {len(self.failed)} failed) in {self.seconds:.1f} s "
                 f"→ {job.out}")
 
@@ -200,7 +244,7 @@ def check_run_file(job: FogJob, environment: dict) -> None:
 def _worker(args):
     job, sample = args
     try:
-        fog_sample(job, sample)
+        job.fog_one(sample)
         return sample.source, None
     except (InputError, ValueError, OSError) as exc:
         return sample.source, str(exc)
@@ -210,18 +254,21 @@ def _worker(args):
 
 def run(samples: list[Sample], job: FogJob, workers: int = 1, resume: bool = True,
         progress: bool = True, environment: dict | None = None) -> Summary:
-    """Fog ``samples`` (already sharded) under ``job``; never raises for a single bad sample."""
+    """Fog ``samples`` (already sharded) under ``job`` (a :class:`FogJob`, or any job with its ``check``,
+    ``fog_one``, ``done``, ``parameters``, ``out``, ``levels`` and ``unit``); never raises for a single bad
+    sample."""
     from tqdm import tqdm
 
     t0 = time.perf_counter()
-    check_run_wide(samples, job)  # before the folder is claimed: the corrected rerun must be accepted
+    job.check(samples)  # before the folder is claimed: the corrected rerun must be accepted
     Path(job.out).mkdir(parents=True, exist_ok=True)
     check_run_file(job, environment or {})
     remove_stale_parts(job.out)  # a killed run's temporary files
     summary = Summary(total=len(samples))
     todo = [s for s in samples if not (resume and job.done(s))]
     summary.skipped = len(samples) - len(todo)
-    bar = tqdm(total=len(todo), unit="img", disable=not progress, desc="fog")
+    bar = tqdm(total=len(todo), unit="img" if job.unit == "images" else job.unit.rstrip("s"), disable=not progress,
+               desc="fog")
     results = map(_worker, ((job, s) for s in todo))
     pool = None
     if workers > 1 and len(todo) > 1:
@@ -289,6 +336,8 @@ def finalize_dataset(out: str | Path, train_fraction: float | None = None, split
         raise InputError(out, f"no {RUN_FILE} here: not a fogsim fog output to finalize")
     run = load_json(run_file, FogRunFile)
     params = upgrade_parameters(read_json(run_file)["parameters"])  # checked above; today's words for dataset.json
+    if params.get("points"):
+        raise InputError(run_file, "this run fogged scans alone (--points): there is no dataset to finalize")
     if run.parameters.labels is None:
         raise InputError(run_file, "this run wrote images without labels (--no-labels): there is no "
                                    "dataset to finalize")
@@ -305,8 +354,10 @@ def finalize_dataset(out: str | Path, train_fraction: float | None = None, split
                 "inputs": inputs, "seed": run.parameters.seed}
     group = None if split_by == "frame" else ("the sample key's folder", lambda meta: key_folder(meta["key"]))
     records = frame_records(out, FogFrameMeta)
+    lidar = params.get("lidar") or {}
     summary = finalize(DatasetLayout(out), levels, manifest, train_fraction, seed=run.parameters.seed,
-                       classes=classes, split_group=group, records=records)
+                       classes=classes, split_group=group, records=records,
+                       lidar_min_points=lidar.get("min_points", MIN_POINTS))
     if run.samples is not None and len(records.frames) < run.samples:
         summary["absent_frames"] = max(0, run.samples - len(records.frames) - len(records.skipped))
     return summary

@@ -160,7 +160,7 @@ class FogSettings:
         if density is None or uv is None or beta == 0:
             return beta
         row, col, inside = pixel_index(uv, density.shape[1], density.shape[0])
-        return np.where(inside, beta * density[row, col], beta)
+        return np.where(inside, beta * density[row, col].astype(np.float64), float(beta))  # float64: β exact
 
     # ------------------------------------------------------------------ what documents say
     def record(self) -> dict:

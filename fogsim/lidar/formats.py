@@ -39,12 +39,14 @@ from fogsim.lidar.points import PointCloud
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.schema.lidar import SCALES
 
-__all__ = ["FORMATS", "FORMAT_SCALE", "detect_format", "read_points", "write_points", "encode_points"]
+__all__ = ["FORMATS", "FORMAT_SCALE", "FORMAT_SUFFIX", "detect_format", "read_points", "write_points", "encode_points"]
 
 FORMATS = ("kitti", "nuscenes", "stf", "ply", "npy")
 #: the intensity scale each binary format stores (PLY and .npy: the file's comment or the caller's)
 FORMAT_SCALE = {"kitti": "0-1", "nuscenes": "0-255", "stf": "0-255"}
 COLUMNS = {"kitti": 4, "nuscenes": 5, "stf": 5}
+#: the file-name ending of each format (what a folder of scans is searched for, what fogged levels are named)
+FORMAT_SUFFIX = {"kitti": ".bin", "nuscenes": ".pcd.bin", "stf": ".bin", "ply": ".ply", "npy": ".npy"}
 PLY_SCALE_COMMENT = "fogsim intensity_scale"
 
 

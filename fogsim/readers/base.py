@@ -6,7 +6,7 @@ so shards and worker processes can pass samples around; pixels are read on deman
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Protocol
 
 import numpy as np
 
@@ -141,3 +141,44 @@ class Sample:
     intrinsics: Intrinsics | None = None
     meta: dict = field(default_factory=dict, compare=False)
     labels: LabelReader | None = None
+
+
+#: the key of :attr:`Sample.meta` that holds a sample's LiDAR scan source (:class:`ScanSource`)
+SCAN_SOURCE = "lidar_points"
+
+
+class ScanSource(Protocol):
+    """A sample's LiDAR scan, as ``fogsim fog --lidar`` fogs it (``Sample.meta[SCAN_SOURCE]``; picklable):
+    :class:`fogsim.readers.kitti.samples.KittiPoints` (KITTI, STF),
+    :class:`fogsim.readers.waymo.lidar_cloud.WaymoScan`.
+
+    * ``key``: the LiDAR frame's name (a relative POSIX path: file names and seeds derive from it);
+    * ``fmt``: the point format its fogged levels are written in (:data:`fogsim.lidar.formats.FORMATS`);
+    * ``return_mode``: the scan's return mode when the data says it (STF's ``last`` folder), else None;
+    * ``cloud()``: the scan (:class:`fogsim.lidar.points.PointCloud`, sensor frame);
+    * ``sensor(base)``: its sensor (:class:`fogsim.lidar.sensors.LidarSensor`) — ``base`` (a name or a
+      file) or the format's usual one, completed from the data (Waymo: the frame's beams and mount);
+    * ``image_uv(cloud)``: each point's pixel-edge coordinates in the sample's image (N×2, NaN where the
+      camera does not see it), for the camera's patchy-fog field along each ray;
+    * ``boxes(records)``: each label record's 3D box in the sensor frame
+      (:class:`fogsim.lidar.boxes.Box3D`, None where it has none);
+    * ``kitti_calib()``: the frame's :class:`fogsim.readers.kitti.calib.KittiCalib` for a KITTI tree of
+      its levels, or None (not a KITTI-style source);
+    * ``describe()``: a JSON-able record of where the scan was read (``meta["lidar"]["input"]``).
+    """
+
+    key: str
+    fmt: str
+    return_mode: str | None
+
+    def cloud(self): ...
+
+    def sensor(self, base=None): ...
+
+    def image_uv(self, cloud) -> np.ndarray: ...
+
+    def boxes(self, records: list[dict]) -> list: ...
+
+    def kitti_calib(self): ...
+
+    def describe(self) -> dict: ...

@@ -16,10 +16,10 @@ Per frame with a LiDAR (preset key ``lidar``, ``fogsim render --lidar SENSOR``):
 
 Files, per level ``L`` and frame ``F`` (written before the frame's meta, which marks the frame done):
 
-* ``lidar/sweep/F.npz`` — per point of the clear sweep what it hit (:func:`write_sweep`: object, range,
-  azimuth, beam, incidence angle, reflectivity);
+* ``lidar/sweep/F.bin`` — the clear sweep, and ``lidar/sweep/F.npz`` — per point what it hit (:func:`write_sweep`:
+  object, range, azimuth, beam, incidence angle, reflectivity, normal);
 * ``lidar/L/F.bin`` — the scan the sensor reports, in its own format (0–1 intensities: KITTI's
-  4 × float32; 0–255: nuScenes' 5 × float32 with the ring), ``lidar/L/F.outcomes.npz`` — every clear-sweep
+  4 × float32; 0–255: nuScenes' 5 × float32 with the ring, ``.pcd.bin``), ``lidar/L/F.outcomes.npz`` — every clear-sweep
   point's outcome and row (:mod:`fogsim.lidar.outcome_file`), ``lidar/L/F.label`` — SemanticKITTI labels,
   one uint32 per reported point: instance id << 16 | class (:data:`SEMANTIC_CLASSES`; the instance is the
   object's mask id for labelled objects, 0 for scenery and fog clutter);
@@ -39,10 +39,11 @@ import numpy as np
 from fogsim.camera import Intrinsics
 from fogsim.dataset.kitti import KittiTree
 from fogsim.dataset.layout import DatasetLayout
+from fogsim.dataset.lidar import box_record as lidar_box_record
 from fogsim.fileio import atomic_write_bytes
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.fog import CLUTTER, FoggedScan
-from fogsim.lidar.formats import write_points
+from fogsim.lidar.formats import FORMAT_SUFFIX, write_points
 from fogsim.lidar.objects import attach_lidar_points
 from fogsim.lidar.outcome_file import write_outcomes
 from fogsim.lidar.sensors import LidarSensor
@@ -59,8 +60,8 @@ SEMANTIC_ID = {name: i for i, name in enumerate(SEMANTIC_CLASSES)}
 #: fogsim classes as KITTI object types (the others have none and get no label line)
 KITTI_TYPES = {"car": "Car", "van": "Van", "truck": "Truck", "bus": "Misc", "pedestrian": "Pedestrian",
                "cyclist": "Cyclist"}
-#: the scan's file format by the sensor's intensity scale
-SCAN_FORMAT = {"0-1": ("kitti", ".bin"), "0-255": ("nuscenes", ".bin"), "tanh": ("npy", ".npy")}
+#: the scan's point format by the sensor's intensity scale (:data:`fogsim.lidar.formats.FORMAT_SUFFIX`)
+SCAN_FORMAT = {"0-1": "kitti", "0-255": "nuscenes", "tanh": "npy"}
 
 
 def occlusion_level(visible_fraction: float) -> int:
@@ -106,6 +107,7 @@ def lidar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int
         if box is not None:
             box3d[rec["id"]] = rec["box3d"] = box_record(box, w2c, w2l)
             boxes[rec["id"]] = transformed(box, w2l)
+            rec["lidar_box"] = lidar_box_record(boxes[rec["id"]])
     fogger = fog_settings(config).lidar_fogger(scan.cloud, sensor)
     fogged = {lv.key: fogger(lv.beta, np.random.default_rng([seed, i, LIDAR_STREAM]))
               for i, lv in enumerate(config.levels)}
@@ -115,6 +117,7 @@ def lidar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int
     for rec in records:  # the camera's records get the same box and counts
         if rec["id"] in box3d:
             rec["box3d"], rec["lidar_points"] = box3d[rec["id"]], points[rec["id"]]
+            rec["lidar_box"] = lidar_box_record(boxes[rec["id"]])
     return LidarFrame(scan, fogged, boxes, pose, sensor, dict(config.lidar), objects)
 
 
@@ -158,44 +161,48 @@ def kitti_records(records: list[dict]) -> list[dict]:
     return out
 
 
-def write_sweep(path, scan: SyntheticScan) -> None:
-    """``lidar/sweep/F.npz``: the clear sweep — ``xyz`` (N×3 float32, sensor frame, m), ``intensity`` (as the
-    sensor reports it, in its ``scale``) — and per point what it hit: ``object_id``
-    (the mask id, scenery included; 0 = background), ``range_m``, ``azimuth_rad``, ``beam``, ``incidence_deg``,
-    ``reflectivity``, ``normal`` (N×3, sensor frame, towards the sensor) — read with
-    ``numpy.load(allow_pickle=False)``; written atomically."""
+def write_sweep(layout: DatasetLayout, name: str, scan: SyntheticScan, fmt: str) -> tuple[str, str]:
+    """The clear sweep, ``lidar/sweep/F<ext>`` in the sensor's format (the scan every level's outcomes refer
+    to), and beside it ``lidar/sweep/F.npz`` — per point what it hit: ``object_id`` (the mask id, scenery
+    included; 0 = background), ``range_m``, ``azimuth_rad``, ``beam``, ``incidence_deg``, ``reflectivity``,
+    ``normal`` (N×3, sensor frame, towards the sensor), read with ``numpy.load(allow_pickle=False)``; both
+    atomic. Returns their paths relative to the root."""
+    points, attributes = layout.lidar_sweep(name, FORMAT_SUFFIX[fmt]), layout.lidar_sweep(name, ".npz")
+    write_points(points, scan.cloud, fmt)
     buf = io.BytesIO()
-    np.savez(buf, xyz=scan.cloud.xyz, intensity=scan.cloud.raw_intensity, scale=np.array(scan.cloud.scale),
-             object_id=scan.object_id.astype(np.uint16), range_m=scan.cloud.range_m.astype(np.float32),
+    np.savez(buf, object_id=scan.object_id.astype(np.uint16), range_m=scan.cloud.range_m.astype(np.float32),
              azimuth_rad=scan.azimuth, beam=scan.cloud.ring.astype(np.int16), incidence_deg=scan.incidence_deg,
              reflectivity=scan.reflectivity, normal=scan.normal)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_write_bytes(attributes, buf.getvalue())
+    return layout.relative(points), layout.relative(attributes)
 
 
 def write_lidar(layout: DatasetLayout, name: str, lidar: LidarFrame, images: dict, K: Intrinsics,
                 w2c: np.ndarray, records: list[dict], classes: dict[int, str]) -> dict:
-    """Write the frame's LiDAR files (the module docstring) and return ``meta["lidar"]``; ``images``:
+    """Write the frame's LiDAR files (the module docstring) and return ``meta["lidar"]`` — the frame record
+    :mod:`fogsim.dataset.lidar` reads (``format``, per level ``file``, ``outcome_file``, ``outcomes``; the
+    clear sweep as ``input``; ``kitti``), plus the sensor, the poses and the LiDAR's objects; ``images``:
     the final image of every level (what ``image_2`` holds)."""
-    fmt, ext = SCAN_FORMAT[lidar.sensor.intensity_scale]
+    fmt = SCAN_FORMAT[lidar.sensor.intensity_scale]
     l2c = np.asarray(w2c, np.float64) @ lidar.pose
     calib = kitti_calib(K, l2c, f"frame {name}")
     labels_2 = kitti_records(records)
-    sweep_file = layout.root / "lidar" / "sweep" / f"{name}.npz"
-    write_sweep(sweep_file, lidar.scan)
+    sweep_file, attributes_file = write_sweep(layout, name, lidar.scan, fmt)
     levels = {}
     for key, fogged in lidar.fogged.items():
-        base = layout.root / "lidar" / key
-        write_points(base / f"{name}{ext}", fogged.cloud, fmt)
-        write_outcomes(base / f"{name}.outcomes.npz", fogged)
-        atomic_write_bytes(base / f"{name}.label", semantic_labels(lidar.scan, fogged, classes).astype("<u4").tobytes())
+        scan, outcomes, labels = (layout.lidar(key, name, FORMAT_SUFFIX[fmt]), layout.lidar_outcomes(key, name),
+                                  layout.lidar_labels(key, name))
+        write_points(scan, fogged.cloud, fmt)
+        write_outcomes(outcomes, fogged)
+        atomic_write_bytes(labels, semantic_labels(lidar.scan, fogged, classes).astype("<u4").tobytes())
         KittiTree(layout.root, key).write_frame(name, images[key], fogged.cloud, calib, labels_2)
-        levels[key] = {**fogged.record(), "scan": layout.relative(base / f"{name}{ext}"), "format": fmt,
-                       "outcome_file": layout.relative(base / f"{name}.outcomes.npz"),
-                       "labels": layout.relative(base / f"{name}.label")}
-    return {"sensor": lidar.sensor.to_dict(), "sensor_spec": lidar.spec, "lidar_to_world": lidar.pose.tolist(),
-            "lidar_to_camera": l2c.tolist(),
-            "sweep": {**lidar.scan.record(), "points_file": layout.relative(sweep_file)}, "levels": levels,
-            "objects": lidar.objects, "semantic_classes": list(SEMANTIC_CLASSES),
+        levels[key] = {**fogged.record(), "file": layout.relative(scan), "outcome_file": layout.relative(outcomes),
+                       "labels": layout.relative(labels)}
+    return {"format": fmt, "levels": levels, "input": {"file": sweep_file, "format": fmt},
+            "kitti": {"id": name, "part": "training"}, "sweep": {**lidar.scan.record(), "attributes": attributes_file},
+            "objects": lidar.objects, "sensor": lidar.sensor.to_dict(), "sensor_spec": lidar.spec,
+            "lidar_to_world": lidar.pose.tolist(), "lidar_to_camera": l2c.tolist(),
+            "semantic_classes": list(SEMANTIC_CLASSES),
             "label_rule": "uint32 = instance << 16 | class (instance: the mask id of a labelled object, else 0)",
             "noise_seed_rule": "numpy default_rng([frame seed, level index, 0x11DA2])",
             "frame": "sensor: x forward, y left, z up (m); points in the sensor frame",

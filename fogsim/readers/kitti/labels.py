@@ -166,6 +166,11 @@ class KittiLabels:
     height: int
     variant: str = "kitti"
 
+    @property
+    def classes(self) -> tuple[str, ...]:
+        """The class list of every frame's labels (KITTI's or STF's), known without reading a file."""
+        return KITTI_CLASSES if self.variant == "kitti" else STF_CLASSES
+
     def __call__(self) -> Labels:
         path = Path(self.label_path)
         try:

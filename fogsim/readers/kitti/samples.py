@@ -30,18 +30,25 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.errors import InputError
+from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.points import PointCloud
+from fogsim.lidar.sensors import LidarSensor, load_sensor
 from fogsim.readers.base import Sample
 from fogsim.readers.cityscapes_labels import png_size
 from fogsim.readers.files import ImageFile
+from fogsim.readers.kitti.boxes import label_boxes
 from fogsim.readers.kitti.calib import KittiCalib, read_kitti_calib, stf_calib_from_tf
 from fogsim.readers.kitti.labels import KittiLabels
 
-__all__ = ["KITTI_SPLITS", "KittiPoints", "kitti_samples", "read_split", "stf_samples"]
+__all__ = ["KITTI_PARTS", "KITTI_SPLITS", "KittiPoints", "SENSORS", "STF_RETURNS", "kitti_samples", "read_split",
+           "stf_samples"]
 
 KITTI_SPLITS = ("train", "val", "test", "trainval")
+KITTI_PARTS = ("training", "testing")
 STF_RETURNS = ("strongest", "last")
+#: the sensor each scan format's dataset was recorded with (the bundled presets)
+SENSORS = {"kitti": "hdl64e", "stf": "hdl64-s3d"}
 
 
 @dataclass(frozen=True)
@@ -49,11 +56,20 @@ class KittiPoints:
     """Picklable points source of one frame: ``KittiPoints(scan, calib)() → (uv N×2 float64 pixel-edge
     coordinates in image 2, ray N float32 metres from camera 2's centre)`` for the points in front of the
     camera (the image bounds are :class:`fogsim.depth.lidar_source.LidarDepth`'s to apply). ``fmt``:
-    ``kitti`` (4 floats) or ``stf`` (5); ``calib``: a file (or a :class:`KittiCalib`)."""
+    ``kitti`` (4 floats) or ``stf`` (5); ``calib``: a file (or a :class:`KittiCalib`).
+
+    It is also the frame's scan source (:class:`fogsim.readers.base.ScanSource`) for ``fogsim fog --lidar``:
+    ``key`` names the LiDAR frame (the sample key), ``kitti_id`` its id in a KITTI tree (KITTI's own;
+    STF's a 6-digit number, as mmdetection3d's converter reads ids as integers), ``part`` the tree's part
+    it belongs in (``training`` or ``testing``), ``return_mode`` the scan's (STF: the folder read)."""
 
     scan: str
     calib: "str | KittiCalib"
     fmt: str = "kitti"
+    key: str = ""
+    kitti_id: str = ""
+    return_mode: str | None = None
+    part: str = "training"
 
     def calibration(self) -> KittiCalib:
         if isinstance(self.calib, KittiCalib):
@@ -63,6 +79,27 @@ class KittiPoints:
     def cloud(self) -> PointCloud:
         """The scan as a :class:`PointCloud` (the LiDAR frame)."""
         return read_points(self.scan, self.fmt)
+
+    # ------------------------------------------------------------------ the scan source
+    def sensor(self, base: "LidarSensor | str | None" = None) -> LidarSensor:
+        """``base`` (a name, a ``.json`` file or a sensor), default the format's usual sensor."""
+        return load_sensor(base or SENSORS[self.fmt])
+
+    def image_uv(self, cloud: PointCloud) -> np.ndarray:
+        """Each point's pixel-edge coordinates in image 2 (N×2; NaN behind the camera)."""
+        return self.calibration().project_velo(cloud.xyz)[0]
+
+    def boxes(self, records: list[dict]) -> list[Box3D | None]:
+        """The records' label boxes in the LiDAR frame (None for ignore regions)."""
+        return label_boxes(records, self.calibration())
+
+    def kitti_calib(self) -> KittiCalib:
+        """The calibration a KITTI tree of this frame holds."""
+        return self.calibration()
+
+    def describe(self) -> dict:
+        """What the frame record says of the input scan (``lidar.input``)."""
+        return {"file": self.scan, "format": self.fmt, "calibration": self.calibration().source}
 
     def __call__(self) -> tuple[np.ndarray, np.ndarray]:
         uv, depth, ray = self.calibration().project_velo(self.cloud().xyz)
@@ -145,11 +182,14 @@ def kitti_samples(root: str | os.PathLike, split: str | os.PathLike | None = Non
     for fid, files in frames.items():
         w, h = _size(files["image"])
         calib = read_kitti_calib(files["calibration"])
-        points = KittiPoints(str(files["scan"]), str(files["calibration"]))
-        meta = {"dataset": "kitti", "frame": fid, "scan": str(files["scan"]), "calib": str(files["calibration"]),
-                "lidar_points": points, "lidar_format": "kitti", "lidar_sensor": "hdl64e"}
+        key = f"{base.name}/image_2/{fid}"
+        points = KittiPoints(str(files["scan"]), str(files["calibration"]), "kitti", key, fid,
+                             part=base.name if base.name in KITTI_PARTS else part)
+        meta = {"dataset": "kitti", "frame": fid, "part": base.name, "scan": str(files["scan"]),
+                "calib": str(files["calibration"]), "lidar_points": points, "lidar_format": "kitti",
+                "lidar_sensor": SENSORS["kitti"]}
         reader = KittiLabels(str(files["label file"]), str(files["calibration"]), w, h) if labels else None
-        samples.append(Sample(f"{base.name}/image_2/{fid}", str(files["image"]), ImageFile(str(files["image"])),
+        samples.append(Sample(key, str(files["image"]), ImageFile(str(files["image"])),
                               None, calib.intrinsics(w, h), meta, reader))
     return samples
 
@@ -194,14 +234,16 @@ def stf_samples(root: str | os.PathLike, split: str | os.PathLike | None = None,
         frames[fid] = files
     _missing(root, frames)
     samples = []
-    for fid, files in frames.items():
+    for n, (fid, files) in enumerate(frames.items()):
         w, h = _size(files["image"])
         cal = shared if shared is not None else read_kitti_calib(files["calibration"], require_imu=False)
         cal_ref = shared if shared is not None else str(files["calibration"])
+        key = f"cam_stereo_left_lut/{fid}"
+        points = KittiPoints(str(files["scan"]), cal_ref, "stf", key, f"{n:06d}", returns)
         meta = {"dataset": "stf", "frame": fid, "scan": str(files["scan"]), "calib": cal.source,
-                "lidar_points": KittiPoints(str(files["scan"]), cal_ref, "stf"), "lidar_format": "stf",
-                "lidar_sensor": "hdl64-s3d", "return_mode": returns}
+                "lidar_points": points, "lidar_format": "stf", "lidar_sensor": SENSORS["stf"],
+                "return_mode": returns}
         reader = KittiLabels(str(files["label file"]), cal_ref, w, h, "stf") if labels else None
-        samples.append(Sample(f"cam_stereo_left_lut/{fid}", str(files["image"]), ImageFile(str(files["image"])),
+        samples.append(Sample(key, str(files["image"]), ImageFile(str(files["image"])),
                               None, cal.intrinsics(w, h), meta, reader))
     return samples

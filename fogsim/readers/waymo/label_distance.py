@@ -156,12 +156,13 @@ def build_labels(frame: CameraFrameLabels, points: PointsProvider | None = None,
     cloud: list = []  # the points, fetched on first need: [] not yet, [None] none
     objects = []
     for i, (b, box) in enumerate(kept):
-        distance = planar = laser_id = laser_points = None
+        distance = planar = laser_id = laser_points = laser_box = None
         source = SOURCE_UNKNOWN
         if i in laser_of:
             laser_id, source = laser_of[i]
             distance, planar = camera_range(frame.laser[laser_id].center, frame.extrinsic)
             laser_points = frame.laser[laser_id].num_points
+            laser_box = frame.laser[laser_id].record()
         elif points is not None:
             if not cloud:
                 cloud.append(points(frame.camera))
@@ -177,5 +178,5 @@ def build_labels(frame: CameraFrameLabels, points: PointsProvider | None = None,
             "difficulty": b.difficulty,
             "distance_m": None if distance is None else round(distance, 3), "distance_source": source,
             "planar_depth_m": None if planar is None else round(planar, 3), "laser_id": laser_id,
-            "laser_points_in_box": laser_points})
+            "laser_points_in_box": laser_points} | ({"laser_box": laser_box} if laser_box else {}))
     return LabelRead(Labels(WAYMO_CLASSES, objects), {k: v for k, v in dropped.items() if v})

@@ -99,12 +99,22 @@ class Box2D:
 
 @dataclass(frozen=True)
 class LaserBox:
-    """One 3D laser label: its id, type, box centre in the vehicle frame (metres)."""
+    """One 3D laser label: its id, type, box centre in the vehicle frame (metres), and — where the data
+    has them — its size (length along the heading, width, height; metres) and heading (rad about z)."""
 
     id: str
     type: int
     center: tuple[float, float, float]
     num_points: int | None = None
+    size: tuple[float, float, float] | None = None
+    heading: float | None = None
+
+    def record(self) -> dict | None:
+        """``{"center_m", "size_m": [l, w, h], "heading_rad"}`` (vehicle frame), None without a size."""
+        if self.size is None or min(self.size) <= 0:
+            return None
+        return {"center_m": [round(v, 4) for v in self.center], "size_m": [round(v, 4) for v in self.size],
+                "heading_rad": round(self.heading or 0.0, 6)}
 
 
 @dataclass

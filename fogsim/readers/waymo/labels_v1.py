@@ -34,7 +34,7 @@ TRANSFORM_VALUES = 1
 CAMERA_LABELS_NAME, CAMERA_LABELS_LABELS = 1, 2
 LABEL_BOX, LABEL_TYPE, LABEL_ID, LABEL_DIFFICULTY, LABEL_NUM_POINTS, LABEL_ASSOCIATION = 1, 3, 4, 5, 7, 10
 ASSOCIATION_LASER_ID = 1
-BOX_CENTER_X, BOX_CENTER_Y, BOX_CENTER_Z, BOX_WIDTH, BOX_LENGTH = 1, 2, 3, 4, 5
+BOX_CENTER_X, BOX_CENTER_Y, BOX_CENTER_Z, BOX_WIDTH, BOX_LENGTH, BOX_HEIGHT, BOX_HEADING = 1, 2, 3, 4, 5, 6, 7
 
 
 def _v1_double(fields: pw.Fields, number: int, source: str) -> float | None:
@@ -59,8 +59,13 @@ def _v1_laser(label: pw.Fields, source: str) -> LaserBox:
     center = [_v1_double(box, n, source) for n in (BOX_CENTER_X, BOX_CENTER_Y, BOX_CENTER_Z)]
     center = [0.0 if v is None else v for v in center]  # proto2 defaults
     points = pw.integer(label, LABEL_NUM_POINTS, -1, source)
+    size = [_v1_double(box, n, source) for n in (BOX_LENGTH, BOX_WIDTH, BOX_HEIGHT)]
+    size = None if None in size else tuple(finite_floats(size, "laser box size", source))
+    heading = _v1_double(box, BOX_HEADING, source)
+    heading = None if heading is None else finite_floats([heading], "laser box heading", source)[0]
     return LaserBox(pw.string(label, LABEL_ID, source), pw.integer(label, LABEL_TYPE, 0, source),
-                    tuple(finite_floats(center, "laser box centre", source)), None if points < 0 else points)
+                    tuple(finite_floats(center, "laser box centre", source)), None if points < 0 else points,
+                    size, heading)
 
 
 def v1_label_index(data: bytes, source: str, labels: bool = True) -> tuple[set[int], dict[int, list[list[float]]]]:

@@ -51,6 +51,8 @@ V2_ASSOCIATION_COLUMNS = (K_CONTEXT, K_TIME, K_CAMERA, K_CAMERA_OBJECT, K_LASER_
 V2_LIDAR_BOX_COLUMNS = (K_CONTEXT, K_TIME, K_LASER_OBJECT,
                         *(f"{_LB}.box.center.{a}" for a in "xyz"), f"{_LB}.type")
 V2_LIDAR_BOX_POINTS = f"{_LB}.num_lidar_points_in_box"
+#: the 3D box's size (x = length along the heading, y = width, z = height) and heading, where present
+V2_LIDAR_BOX_SHAPE = (*(f"{_LB}.box.size.{a}" for a in "xyz"), f"{_LB}.box.heading")
 V2_PROJECTED_COLUMNS = (K_CONTEXT, K_TIME, K_CAMERA, K_LASER_OBJECT,
                         *(f"{_PB}.{c}" for c in V2_BOX2D), f"{_PB}.type")
 V2_CAL_EXTRINSIC = f"{_CAL}.extrinsic.transform"
@@ -141,7 +143,8 @@ def _v2_table(path: str, stamp, tag: str) -> _Table:
     if tag == V2_ASSOCIATION:
         return _load_table(path, V2_ASSOCIATION_COLUMNS, (), (K_CONTEXT, K_TIME, K_CAMERA))
     if tag == V2_LIDAR_BOX:
-        return _load_table(path, V2_LIDAR_BOX_COLUMNS, (V2_LIDAR_BOX_POINTS,), (K_CONTEXT, K_TIME))
+        return _load_table(path, V2_LIDAR_BOX_COLUMNS, (V2_LIDAR_BOX_POINTS, *V2_LIDAR_BOX_SHAPE),
+                           (K_CONTEXT, K_TIME))
     if tag == V2_PROJECTED:
         return _load_table(path, V2_PROJECTED_COLUMNS, (), (K_CONTEXT, K_TIME, K_CAMERA))
     return _load_table(path, (K_CONTEXT, K_CAMERA), (V2_CAL_EXTRINSIC, *V2_CAL_SIZE), (K_CONTEXT, K_CAMERA))
@@ -207,8 +210,13 @@ def parse_v2_labels(root: str | os.PathLike, file_name: str, context: str, times
         source = f"{lidar.path}#row {n}"
         center = finite_floats([row[f"{_LB}.box.center.{a}"] for a in "xyz"], "laser box centre", source)
         points = row.get(V2_LIDAR_BOX_POINTS)
+        shape = [row.get(c) for c in V2_LIDAR_BOX_SHAPE]
+        size = heading = None
+        if None not in shape:
+            *size, heading = finite_floats(shape, "laser box size and heading", source)
         laser[str(row[K_LASER_OBJECT])] = LaserBox(str(row[K_LASER_OBJECT]), int(row[f"{_LB}.type"] or 0),
-                                                   tuple(center), None if points is None else int(points))
+                                                   tuple(center), None if points is None else int(points),
+                                                   None if size is None else tuple(size), heading)
     projected_table = _table(root, V2_PROJECTED, file_name)
     projected = [_v2_box2d(row, _PB, camera_label_id(str(row[K_LASER_OBJECT]), name), None,
                            f"{projected_table.path}#row {n}")

@@ -1,0 +1,246 @@
+"""``fogsim fog``'s LiDAR side: KITTI and Seeing Through Fog as inputs (``--kitti``, ``--stf``), each
+level's scan (``--lidar`` with ``--kitti``, ``--stf`` or ``--waymo``) and scans without a dataset
+(``--points``). The camera side and the batch options are :mod:`fogsim.cli.fog`'s.
+
+Why ``--stf ROOT`` and not ``--kitti ROOT --layout stf``: STF's tree shares nothing with KITTI's but the
+label fields (``cam_stereo_left_lut/``, ``lidar_hdl64_{strongest,last}/``, ``gt_labels/…``, date-stamped
+ids, ``date,frame`` split lines) and needs what KITTI never does — a calibration from outside the download
+(``--stf-calib``) and a choice of return (``--stf-returns``). One flag per layout keeps each flag's
+meaning whole and the messages plain; both go through the same reader (:mod:`fogsim.readers.kitti`).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from fogsim.errors import EXIT_FAILED, EXIT_OK
+from fogsim.lidar.formats import FORMATS
+from fogsim.lidar.objects import MIN_POINTS
+from fogsim.readers.kitti.samples import KITTI_PARTS, STF_RETURNS
+from fogsim.schema.lidar import LIDAR_FOG_MODELS, SCALES
+
+#: the inputs that have a scan per image (``--lidar`` goes with them)
+SCAN_INPUTS = ("kitti", "stf", "waymo")
+
+
+def add_inputs(src) -> None:
+    """The LiDAR-bearing inputs in the mutually exclusive input group."""
+    src.add_argument("--kitti", help="KITTI object-detection root (training/{image_2,velodyne,calib,label_2}, "
+                                     "ImageSets/): camera fog with depth from the projected scan")
+    src.add_argument("--stf", help="Seeing Through Fog root (cam_stereo_left_lut/, lidar_hdl64_strongest|last/, "
+                                   "gt_labels/cam_left_labels_TMP/); needs --stf-calib")
+    src.add_argument("--points", nargs="+", metavar="FILE_OR_DIR",
+                     help="LiDAR scans without a dataset: files, or folders searched for --point-format's files; "
+                          "writes OUT/<level>/<name>.<ext> + outcomes + a sidecar JSON per scan and level")
+
+
+def add_options(fog: argparse.ArgumentParser) -> None:
+    k = fog.add_argument_group("KITTI and Seeing Through Fog")
+    k.add_argument("--kitti-part", choices=KITTI_PARTS, default=None,
+                   help="--kitti: the part to read (default training; testing has no labels)")
+    k.add_argument("--stf-calib", metavar="FILE_OR_DIR",
+                   help="--stf: the calibration (the repository's kitti_stereo_velodynehdl_calib.txt, or its "
+                        "tools/DatasetViewer/calibs folder); not needed when ROOT/calib/<id>.txt exist")
+    k.add_argument("--stf-returns", choices=STF_RETURNS, default=None,
+                   help="--stf: which scans to read, lidar_hdl64_strongest or _last (default strongest; last "
+                        "also fogs with the sensor in last-return mode)")
+    g = fog.add_argument_group("LiDAR (docs: LiDAR in fog)")
+    g.add_argument("--lidar", action="store_true",
+                   help="with --kitti, --stf or --waymo: also write each level's fogged scan (OUT/lidar/<level>/, "
+                        "in the source's format, + per-point outcomes), count each object's points per level, "
+                        "and (KITTI, STF) each level as a KITTI tree OUT/kitti/<level>/")
+    g.add_argument("--lidar-model", choices=LIDAR_FOG_MODELS, default=None,
+                   help="soft-target (attenuation + the fog's own echo + threshold; default) or attenuation "
+                        "(attenuation + threshold only)")
+    g.add_argument("--lidar-sensor", "--sensor", dest="lidar_sensor", metavar="NAME|FILE",
+                   help="a bundled sensor (hdl64e, hdl64-s3d, hdl32e, waymo-top) or a custom sensor JSON "
+                        "(default: the format's usual one: KITTI hdl64e, STF hdl64-s3d, nuScenes hdl32e, Waymo "
+                        "waymo-top with the frame's beams)")
+    g.add_argument("--lidar-extinction-ratio", type=float, default=None, metavar="K",
+                   help="β at 905 nm / the camera's β (default 1: fog droplets much larger than both wavelengths)")
+    g.add_argument("--lidar-min-points", type=int, default=None, metavar="N",
+                   help=f"an object is seen by the LiDAR with ≥ N points in its 3D box (default {MIN_POINTS})")
+    g.add_argument("--no-kitti-trees", action="store_true",
+                   help="--lidar with --kitti/--stf: do not write OUT/kitti/<level>/ trees")
+    g.add_argument("--point-format", choices=FORMATS,
+                   help="--points: the scans' format (kitti 4×float32, nuscenes/stf 5×float32 .pcd.bin/.bin, "
+                        "ply, npy)")
+    g.add_argument("--point-scale", choices=SCALES,
+                   help="--points ply/npy: the intensity scale when the file does not say (default 0-1)")
+
+
+# ----------------------------------------------------------------------------- checks and records
+def _lidar_flags_given(args) -> list[str]:
+    names = {"lidar_model": "--lidar-model", "lidar_sensor": "--lidar-sensor", "lidar_min_points":
+             "--lidar-min-points", "lidar_extinction_ratio": "--lidar-extinction-ratio"}
+    given = [flag for key, flag in names.items() if getattr(args, key, None) is not None]
+    return given + (["--no-kitti-trees"] if getattr(args, "no_kitti_trees", False) else [])
+
+
+def normalise(args) -> None:
+    """Defaults that depend on the input, and the LiDAR flags checked against it (ValueError: exit 2,
+    before anything is read)."""
+    kitti_like = bool(args.kitti or args.stf)
+    if args.split is None and not kitti_like:
+        args.split = "val"  # Cityscapes' default, as recorded by older runs
+    if args.kitti:
+        args.kitti_part = args.kitti_part or "training"
+    elif args.kitti_part is not None:
+        raise ValueError("--kitti-part goes with --kitti")
+    if args.stf:
+        args.stf_returns = args.stf_returns or "strongest"
+    elif args.stf_returns is not None or args.stf_calib is not None:
+        raise ValueError(f"{'--stf-returns' if args.stf_returns else '--stf-calib'} goes with --stf")
+    if kitti_like:
+        flag = "--kitti" if args.kitti else "--stf"
+        for other in ("depth", "depth_dir", "intrinsics", "hfov"):
+            if getattr(args, other, None):
+                raise ValueError(f"{flag} brings its own camera and its scans for depth: drop "
+                                 f"--{other.replace('_', '-')} (depth: --depth-from lidar[:METHOD] or ila:CHECKPOINT)")
+        args.depth_from = args.depth_from or "lidar"
+    if args.lidar and not any(getattr(args, k, None) for k in SCAN_INPUTS):
+        raise ValueError("--lidar fogs each image's LiDAR scan: it needs --kitti, --stf or --waymo "
+                         "(scans alone: --points FILES --point-format …)")
+    if not args.lidar and (given := _lidar_flags_given(args)):
+        raise ValueError(f"{given[0]} goes with --lidar (or --points)")
+    for flag in ("--point-format", "--point-scale"):
+        if getattr(args, flag[2:].replace("-", "_"), None):
+            raise ValueError(f"{flag} goes with --points")
+
+
+def sensor_choice(given: str | None):
+    """``--lidar-sensor``: None, a bundled name (checked), or a custom block read from its file (checked,
+    one line naming it) — what the run records and the workers load."""
+    if not given:
+        return None
+    from fogsim.lidar.sensors import LidarSensor, load_sensor
+
+    path = Path(given)
+    if path.suffix == ".json" or path.is_file():
+        from fogsim.fileio import read_json
+
+        load_sensor(path)  # the file's problems, one line naming it
+        return read_json(path)
+    LidarSensor.preset(given)  # an unknown name: a ValueError listing the bundled ones
+    return given
+
+
+def fog_spec(args, return_mode: str | None = None):
+    """The fog record's LiDAR part (:class:`~fogsim.schema.lidar.LidarFogSpec`) from the flags."""
+    from fogsim.lidar.fog import lidar_fog_spec
+
+    ratio = args.lidar_extinction_ratio
+    if ratio is not None and not ratio > 0:
+        raise ValueError(f"--lidar-extinction-ratio must be > 0, got {ratio:g}")
+    block = {k: v for k, v in (("model", args.lidar_model), ("extinction_ratio", ratio),
+                               ("return_mode", return_mode)) if v is not None}
+    return lidar_fog_spec(block)
+
+
+def output(args):
+    """The job's :class:`~fogsim.fog.lidar_levels.LidarOutput` (None without --lidar)."""
+    if not args.lidar:
+        return None
+    from fogsim.fog.lidar_levels import LidarOutput
+
+    n = MIN_POINTS if args.lidar_min_points is None else args.lidar_min_points
+    if n < 1:
+        raise ValueError(f"--lidar-min-points must be ≥ 1, got {n}")
+    return LidarOutput(sensor_choice(args.lidar_sensor), n, not args.no_kitti_trees)
+
+
+def inputs(args) -> dict:
+    """What the run records of the KITTI / STF inputs (only when given: older runs resume)."""
+    out = {}
+    if args.kitti:
+        out |= {"kitti": str(Path(args.kitti).resolve()), "kitti_part": args.kitti_part}
+    if args.stf:
+        out |= {"stf": str(Path(args.stf).resolve()), "stf_returns": args.stf_returns}
+        if args.stf_calib:
+            out["stf_calib"] = str(Path(args.stf_calib).resolve())
+    return out
+
+
+# ----------------------------------------------------------------------------- samples
+def samples(args):
+    """The samples of ``--kitti`` / ``--stf`` (depth: their scans, wired by :mod:`fogsim.cli.fog`)."""
+    from fogsim.readers.kitti.samples import kitti_samples, stf_samples
+
+    labels = False if args.no_labels else None
+    if args.kitti:
+        return kitti_samples(args.kitti, args.split, labels, args.kitti_part)
+    root = Path(args.stf)
+    if args.stf_calib is None and (root / "cam_stereo_left_lut").is_dir() and not (root / "calib").is_dir():
+        from fogsim.errors import InputError
+
+        raise InputError(root, "Seeing Through Fog has no calibration in its download: pass --stf-calib FILE "
+                               "(the repository's kitti_stereo_velodynehdl_calib.txt) or --stf-calib DIR (its "
+                               "tools/DatasetViewer/calibs)")
+    return stf_samples(root, args.split, args.stf_returns, args.stf_calib, labels)
+
+
+def with_waymo_scans(samples_, args):
+    """``--waymo … --lidar``: the samples of the first ``--cameras`` camera get their frame's TOP scan
+    (:class:`~fogsim.readers.waymo.lidar_cloud.WaymoScan`, one scan per frame: its patchy-fog field is that
+    camera's); data without any LiDAR is refused here, before the output folder is claimed."""
+    from dataclasses import replace
+
+    from fogsim.depth.lidar_source import waymo_has_lidar
+    from fogsim.errors import InputError
+    from fogsim.readers.base import SCAN_SOURCE
+    from fogsim.readers.waymo.lidar import lidar_points_for_sample
+    from fogsim.readers.waymo.lidar_cloud import WaymoScan
+
+    camera = next(c.strip().upper() for c in args.cameras.split(",") if c.strip())
+    if samples_ and not any(waymo_has_lidar(s) for s in samples_):
+        raise InputError(args.waymo, f"no LiDAR in this data (none of its {len(samples_)} images' frames has "
+                                     "range images), which --lidar fogs: drop --lidar")
+    out = []
+    for s in samples_:
+        if s.meta.get("camera") == camera:
+            scan = WaymoScan(lidar_points_for_sample(s), camera, s.key.rpartition("_")[0])
+            s = replace(s, meta={**s.meta, SCAN_SOURCE: scan})
+        out.append(s)
+    return out
+
+
+# ----------------------------------------------------------------------------- --points
+def cmd_points(args) -> int:
+    """``fogsim fog --points …`` (:mod:`fogsim.fog.points`)."""
+    from fogsim.deps import package_versions
+    from fogsim.fog.batch import run
+    from fogsim.fog.engine import FogSettings
+    from fogsim.fog.levels import parse_levels
+    from fogsim.fog.points import DEFAULT_SENSOR, PointsJob, point_files
+    from fogsim.runs import check_output, parse_shard, select_shard
+
+    fmt = args.point_format
+    if not fmt:
+        raise ValueError(f"--points needs --point-format ({', '.join(FORMATS)})")
+    if args.point_scale and fmt not in ("ply", "npy"):
+        raise ValueError(f"--point-scale is for ply and npy scans; {fmt} scans have their own scale")
+    if args.heterogeneity:
+        raise ValueError("--heterogeneity needs a camera image (its density field): --points fogs homogeneous fog")
+    for flag in ("lidar", "no_kitti_trees", "lidar_min_points"):
+        if getattr(args, flag, None):
+            raise ValueError(f"--{flag.replace('_', '-')} goes with a dataset (--kitti, --stf, --waymo), not --points")
+    if args.workers < 1:
+        raise ValueError("--workers must be ≥ 1")
+    sensor = sensor_choice(args.lidar_sensor) or DEFAULT_SENSOR.get(fmt)
+    if sensor is None:
+        raise ValueError(f"--point-format {fmt} has no usual sensor: give --sensor NAME|FILE")
+    levels = tuple(parse_levels(args.levels, args.visibility))
+    spec = fog_spec(args)
+    for given in args.points:
+        check_output(args.out, {"--points": given})
+    items = point_files(args.points, fmt)
+    recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
+    job = PointsJob(levels, args.out, FogSettings(lidar=spec), sensor, fmt, args.point_scale, args.seed, recorded)
+    shard = parse_shard(args.shard)
+    summary = run(select_shard(items, shard), job, args.workers, not args.no_resume, not args.quiet,
+                  package_versions() | {"samples": len(items)})
+    for source, error in summary.failed:
+        print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
+    print(summary.line(job))
+    return EXIT_FAILED if summary.failed else EXIT_OK

@@ -1,0 +1,136 @@
+"""``fogsim fog --points``: LiDAR scans fogged without a dataset — files or a folder of one point format
+(:data:`fogsim.lidar.formats.FORMATS`; nuScenes samples and sweeps need no devkit: the ``.pcd.bin``
+records are all there is to read).
+
+Layout under ``OUT`` (``<name>`` = the scan's path below the input folder, or its file name, without the
+format's suffix :data:`~fogsim.lidar.formats.FORMAT_SUFFIX`)::
+
+    <level>/<name><suffix>           the level's scan in the input's format (β = 0: the input bit for bit)
+    <level>/<name>.outcomes.npz      every input point's outcome and row (fogsim.lidar.outcome_file)
+    <level>/<name>.json              the sidecar, written last (it marks the scan's level done)
+    fogsim_run.json                  the run's parameters (resume refuses others)
+
+Seeds: the level's generator is ``default_rng(level_seed(run seed, <name>, level key))``
+(:data:`fogsim.runs.LEVEL_SEED_RULE`), so shards and workers give the same scans. Homogeneous fog only
+(there is no camera to give a density field).
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from fogsim._version import __version__
+from fogsim.errors import InputError
+from fogsim.fileio import write_json
+from fogsim.fog.depth_input import SetupError
+from fogsim.fog.engine import FogSettings
+from fogsim.fog.levels import FogLevel
+from fogsim.lidar.formats import FORMAT_SUFFIX, read_points, write_points
+from fogsim.lidar.outcome_file import OUTCOME_SUFFIX, write_outcomes
+from fogsim.lidar.sensors import load_sensor
+from fogsim.runs import LEVEL_SEED_RULE, level_seed
+from fogsim.schema.lidar import LidarFogSpec
+
+__all__ = ["DEFAULT_SENSOR", "PointFile", "PointsJob", "point_files"]
+
+#: the sensor each format's data is usually recorded with (PLY and .npy have none: give --sensor)
+DEFAULT_SENSOR = {"kitti": "hdl64e", "stf": "hdl64-s3d", "nuscenes": "hdl32e"}
+
+
+@dataclass(frozen=True)
+class PointFile:
+    """One scan to fog: ``key`` its name in the output (POSIX, without the suffix), ``source`` the file."""
+
+    key: str
+    source: str
+
+
+def _key(path: Path, suffix: str) -> str:
+    name = path.as_posix()
+    return name[: -len(suffix)] if name.lower().endswith(suffix) else path.with_suffix("").as_posix()
+
+
+def point_files(paths: list[str | os.PathLike], fmt: str) -> list[PointFile]:
+    """The scans of ``paths`` (files, or folders searched recursively for the format's suffix), sorted by
+    name within each folder; a missing path, an empty folder or two scans with one output name is a
+    :class:`~fogsim.fog.depth_input.SetupError` (exit 2, before the output folder is claimed)."""
+    suffix = FORMAT_SUFFIX[fmt]
+    items: list[PointFile] = []
+    for given in paths:
+        path = Path(given)
+        if path.is_dir():
+            found = sorted(p for p in path.rglob("*") if p.is_file() and p.name.lower().endswith(suffix)
+                           and not (fmt in ("kitti", "stf") and p.name.lower().endswith(".pcd.bin")))
+            if not found:
+                raise SetupError(path, f"holds no {suffix} scans (--point-format {fmt})")
+            items += [PointFile(_key(p.relative_to(path), suffix), str(p)) for p in found]
+        elif path.is_file():
+            items.append(PointFile(_key(Path(path.name), suffix), str(path)))
+        else:
+            raise SetupError(path, "no such file or folder")
+    seen: dict[str, str] = {}
+    for item in items:
+        if item.key in seen:
+            raise SetupError(item.source, f"its output name {item.key!r} is also that of {seen[item.key]}: "
+                                          "their outputs would overwrite each other")
+        seen[item.key] = item.source
+    return items
+
+
+@dataclass(frozen=True)
+class PointsJob:
+    """Fog scans at ``levels`` (β in 1/m) with the fog record's LiDAR part (``fog.lidar``), the ``sensor``
+    (a bundled name or a custom block as a dict), reading ``fmt`` files (intensity ``scale`` for PLY/.npy;
+    None: the file's or the format's), into ``out``."""
+
+    levels: tuple[FogLevel, ...]
+    out: str
+    fog: FogSettings
+    sensor: str | dict = field(hash=False)
+    fmt: str = "kitti"
+    scale: str | None = None
+    seed: int = 0
+    inputs: dict = field(default_factory=dict, hash=False)
+
+    unit = "scans"
+
+    def parameters(self) -> dict:
+        """What ``fogsim_run.json`` records (and a resumed run must repeat)."""
+        return {"points": True, "levels": [lv.to_dict() for lv in self.levels],
+                "lidar_fog": (self.fog.lidar or LidarFogSpec()).model_dump(),
+                "sensor": self.sensor, "point_format": self.fmt, "point_scale": self.scale, "seed": self.seed,
+                "seed_rule": LEVEL_SEED_RULE, "inputs": self.inputs}
+
+    def paths(self, item: PointFile, level: FogLevel) -> tuple[Path, Path, Path]:
+        """(scan, outcomes, sidecar) of one scan and level."""
+        base = Path(self.out) / level.key / item.key
+        return (base.with_name(base.name + FORMAT_SUFFIX[self.fmt]), base.with_name(base.name + OUTCOME_SUFFIX),
+                base.with_name(base.name + ".json"))
+
+    def done(self, item: PointFile) -> bool:
+        return all(self.paths(item, lv)[2].is_file() for lv in self.levels)
+
+    def check(self, items: list[PointFile]) -> None:
+        """Nothing run-wide to check beyond :func:`point_files` (each file is read in its turn)."""
+
+    def fog_one(self, item: PointFile) -> None:
+        """Every level of one scan: scan, outcomes, then the sidecar."""
+        scan = read_points(item.source, self.fmt, self.scale)
+        sensor = load_sensor(self.sensor)
+        fogger = self.fog.lidar_fogger(scan, sensor)
+        for level in self.levels:
+            seed = level_seed(self.seed, item.key, level.key)
+            fogged = fogger(level.beta, np.random.default_rng(seed))
+            scan_path, outcome_path, sidecar = self.paths(item, level)
+            try:
+                write_points(scan_path, fogged.cloud, self.fmt)
+            except ValueError as exc:  # a 5-column format without rings (an .npy / PLY scan has none)
+                raise InputError(item.source, str(exc).removeprefix(f"{item.source}: ")) from None
+            write_outcomes(outcome_path, fogged)
+            write_json(sidecar, {"level": level.to_dict(), "source": item.source, "key": item.key,
+                                 "scan": scan_path.name, "outcomes": outcome_path.name, "seed": seed,
+                                 "seed_rule": LEVEL_SEED_RULE, **fogged.record(), "sensor": sensor.to_dict(),
+                                 "fogsim_version": __version__})
