@@ -114,7 +114,6 @@ class RenderJob:
         remove_render_tmp(self.layout, self.mine)  # and its Cycles EXRs of this shard's frames
         self.todo = [k for k in mine if not (self.run.resume and self.layout.frame_done(frame_name(k)))]
         self.skipped = len(mine) - len(self.todo)
-        self.done: list[dict] = []
 
     def step(self) -> dict:
         """Render and commit the next frame; returns its meta record."""
@@ -160,7 +159,6 @@ class RenderJob:
             fog_renders = self._fog_images(name, desc, passes, fog, fog_linear, fog_cycles)
         meta = commit_frame(self.layout, self.config, frame, replace(passes, right_linear=right), fog_renders,
                             timings=timings, render_info=info)
-        self.done.append(meta)
         return meta
 
     def _fog_renders(self, built, fog: dict, seed: int, exr_path) -> tuple[dict, dict]:

@@ -338,7 +338,6 @@ class SceneJob(RenderJob):
         if self.config.lidar:
             passes = replace(passes, geometry=Geometry.from_parts(got.lidar_parts))
         meta = commit_frame(self.layout, self.config, frame, passes, fog_renders, timings=timings, render_info=info)
-        self.done.append(meta)
         return meta
 
     def _lidar_pose(self, world_to_camera) -> dict:
