@@ -237,6 +237,16 @@ def read_text_bounded(path: str | os.PathLike, max_bytes: int, what: str = "file
     return data
 
 
+def read_text_file(path: str | os.PathLike, what: str = "text file", max_bytes: int = MAX_DOCUMENT_BYTES) -> str:
+    """The UTF-8 text of ``path`` (a calibration, a label file …): one line naming it when it is missing,
+    unreadable, larger than ``max_bytes`` or not UTF-8 (``what`` names the kind of file)."""
+    data = read_text_bounded(path, max_bytes, what)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(path, f"not a readable {what} (not UTF-8 text: {exc.reason} at byte {exc.start})") from None
+
+
 def read_json(path: str | os.PathLike, max_bytes: int = MAX_JSON_BYTES):
     """The decoded JSON file ``path`` (one line naming it when missing, unreadable, malformed,
     nested deeper than :data:`MAX_JSON_DEPTH` or larger than ``max_bytes``)."""

@@ -35,17 +35,22 @@ def _frame(scene) -> bytes:
     return lfx.frame_msg(scene, STAMP, image=image) + laser + labels
 
 
-@pytest.fixture(scope="module")
-def waymo_run(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("waymo")
+def _fog_segment(tmp, *flags):
+    """A one-frame segment of the wall scene written under ``tmp/in`` and fogged with ``--lidar`` and ``flags``
+    into ``tmp/out``: (scene, segment, out)."""
     scene = lfx.wall_scene()
     src = tmp / "in" / "seg.tfrecord"
     src.parent.mkdir(parents=True)
     write_tfrecord(src, [_frame(scene)])
     out = tmp / "out"
-    assert main(["fog", "--waymo", str(src), "--depth-from", "lidar", "--lidar", "--levels", "paper", "--quiet",
+    assert main(["fog", "--waymo", str(src), "--depth-from", "lidar", "--lidar", "--quiet", *flags,
                  "--out", str(out)]) == 0
     return scene, src, out
+
+
+@pytest.fixture(scope="module")
+def waymo_run(tmp_path_factory):
+    return _fog_segment(tmp_path_factory.mktemp("waymo"), "--levels", "paper")
 
 
 def test_each_level_is_the_models_scan_in_the_lidar_frame(waymo_run):
@@ -111,13 +116,8 @@ def test_patchy_fog_follows_the_camera_projection(tmp_path):
     from fogsim.fog.engine import FogSettings, Heterogeneity
     from fogsim.runs import sample_seed
 
-    scene = lfx.wall_scene()
-    src = tmp_path / "in" / "seg.tfrecord"
-    src.parent.mkdir(parents=True)
-    write_tfrecord(src, [_frame(scene)])
-    out = tmp_path / "out"
-    assert main(["fog", "--waymo", str(src), "--depth-from", "lidar", "--lidar", "--levels", "0.09", "--quiet",
-                 "--heterogeneity", "0.6", "--heterogeneity-scale", "16", "--out", str(out)]) == 0
+    scene, src, out = _fog_segment(tmp_path, "--levels", "0.09", "--heterogeneity", "0.6", "--heterogeneity-scale",
+                                   "16")
     field = FogSettings(heterogeneity=Heterogeneity(0.6, 16.0)).density(
         (lfx.IMAGE_H, lfx.IMAGE_W), np.random.default_rng(sample_seed(0, f"{lfx.CONTEXT}/{STAMP}_FRONT")))
     laser = scene.lasers[0]

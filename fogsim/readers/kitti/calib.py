@@ -32,6 +32,7 @@ import numpy as np
 
 from fogsim.camera import Intrinsics
 from fogsim.errors import InputError
+from fogsim.fileio import read_text_file
 
 __all__ = ["KEYS", "KittiCalib", "format_kitti_calib", "read_kitti_calib", "stf_calib_from_tf"]
 
@@ -116,12 +117,7 @@ def read_kitti_calib(path: str | os.PathLike, require_imu: bool = True) -> Kitti
     """The calibration in ``path`` (the module docstring's keys; ``require_imu=False`` for STF's files,
     which have no Tr_imu_to_velo)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(path, "file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"not a readable calibration file ({exc})") from None
+    text = read_text_file(path, "calibration file")
     values: dict[str, np.ndarray] = {}
     for n, line in enumerate(text.splitlines(), 1):
         if not line.strip():

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.errors import InputError
+from fogsim.fileio import read_text_file
 from fogsim.readers.base import Labels
 from fogsim.readers.kitti.calib import KittiCalib, read_kitti_calib
 
@@ -173,12 +174,7 @@ class KittiLabels:
 
     def __call__(self) -> Labels:
         path = Path(self.label_path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise InputError(path, "file not found") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(path, f"not a readable label file ({exc})") from None
+        text = read_text_file(path, "label file")
         calib = self.calib
         if isinstance(calib, (str, os.PathLike)):
             calib = read_kitti_calib(calib, require_imu=self.variant == "kitti")
