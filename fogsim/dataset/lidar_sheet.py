@@ -47,8 +47,8 @@ def lidar_rows(layout: DatasetLayout, meta: dict, levels, tile_width: int) -> li
         view = bev_image(clear, f, extent_m=40.0, px_per_m=6.0)
         side = round(tile_width * 2 / 3)  # as tall as an image tile
         bev.append(cv2.resize(view, (side, side), interpolation=cv2.INTER_AREA))
-        c = f.counts()
-        captions.append(f"lidar {key}: lost {c['lost']}, clutter {c['clutter']}")
+        c, n = f.counts(), max(1, len(f.outcome))
+        captions.append(f"lidar {key}: lost {100 * c['lost'] / n:.0f}%, clutter {100 * c['clutter'] / n:.0f}%")
     tiles = [cv2.resize(p, (tile_width, round(p.shape[0] * tile_width / p.shape[1])), interpolation=cv2.INTER_NEAREST)
              for p in projected]
     return [strip(tiles, captions), strip(bev, [f"top view {k}" for k in fogged])]
