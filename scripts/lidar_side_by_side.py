@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.docs and args.scan:
         ap.error("--docs documents the fixture sweep: leave out --scan")
-    sys.path.insert(0, str(ROOT / "tests"))
+    sys.path[:0] = [str(ROOT), str(ROOT / "tests")]  # this repository's fogsim and its fixtures
     import lidar_fixtures as lf
     from fogsim.bench import lidar_side_by_side as sbs
     from fogsim.fileio import atomic_write_bytes

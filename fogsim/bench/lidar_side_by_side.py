@@ -131,7 +131,8 @@ def markdown(result: SideBySide) -> str:
               f"Reference (`fogsim.lidar.hahner`): fed 0–1 × 255 rounded as its KITTI viewer does, "
               f"τ_H {p.pulse_half_power_ns:g} ns, overlap {p.overlap_start_m:g}–{p.overlap_full_m:g} m, "
               f"Γ {p.target_reflectivity:g}, β_b {p.backscatter_per_visibility:g}/MOR, scattered points "
-              f"±{p.scatter_noise_m:g} m, the integral at each β exactly"
+              f"±{p.scatter_noise_m:g} m (its clutter range: the mean signed distance along each ray), the "
+              f"integral at each β exactly"
               f"{' (nearest table)' if p.table_lookup else ''}. Seed {result.seed}. "
               f"Regenerate: `{REGENERATE}`."]
     return "\n".join(lines) + "\n"

@@ -14,14 +14,18 @@ C_A P₀ β₀ e^(−2αR₀) / R₀²; fog in front of it (H_T = β_b for R < R
 
     I(R; R₀) = ∫₀^{2τ_H} sin²(πt / 2τ_H) · ξ(r) e^(−2αr) / r² · [R₁ < r < R₀] dt,   r = R − ct/2   (s/m²)
 
-and a received fog power C_A P₀ β_b I(R; R₀). Per point (their §3.2) with fed intensity i and range R₀:
+and a received fog power C_A P₀ β_b I(R; R₀) — I kept in s/m² (a time integral) against the hard peak's
+1/R₀², as the paper writes them: the units in which Γ = 10⁻⁶ gives the reference's thresholds (below).
+Per point (their §3.2) with fed intensity i and range R₀:
 the clear intensity fixes the point's own system constant, C_A P₀ = i R₀² / β₀, so
 
 * the attenuated hard return is i_hard = round(i · e^(−2αR₀)) (an integer: the reference rounds);
 * the fog's return peaks at i_soft = i R₀² (β_b / β₀) · max_R I(R; R₀), at R_f = argmax (≈ 4.6 m beyond
   a few metres: 4.67 m at α 0.03, 4.58 m at 0.12);
 * if i_soft > i_hard the point is **scattered**: moved along its ray to R_f + δ, δ uniform in ±10 m
-  (the training default), intensity round(i_soft); else it stays where it is with intensity i_hard.
+  (the training default; R_f + δ < 0, which the paper leaves open, puts it at that signed distance on
+  its ray's line, behind the sensor), intensity round(i_soft) (rounded here like i_hard); else it stays
+  where it is with intensity i_hard.
   No point is added or removed. The echo scales with the point's own intensity, so a zero-intensity
   point is never scattered; and the decision does not otherwise depend on i — every return beyond
   r_thr(α) (62 / 36 / 24 / 20 m at α 0.03 / 0.06 / 0.10 / 0.12) becomes a scattered point — except
@@ -32,8 +36,9 @@ Outcomes in fogsim's vocabulary (:data:`fogsim.lidar.fog.OUTCOMES`): scattered �
 return whose integer intensity is unchanged → ``kept``; otherwise ``attenuated``; ``lost`` never occurs.
 
 Numerics (here, not theirs): I is computed for any α on a grid of L/2400 (L = cτ_H, 2.5 mm at 20 ns) from
-running sums (sin² = (1 − cos)/2), the peak refined by a parabola; within 10⁻⁴ of adaptive quadrature
-(tests/test_lidar_hahner.py). The reference code instead reads tables of I for nine α (0.005, 0.01, 0.02,
+running sums (sin² = (1 − cos)/2), the peak refined by a parabola: within 10⁻⁴ of adaptive quadrature
+from 1.5 m (tests/test_lidar_hahner.py); targets nearer than R_f take their peak from a table every 1 cm
+of R₀ (within 2·10⁻³). The reference code instead reads tables of I for nine α (0.005, 0.01, 0.02,
 0.03, 0.06, 0.1, 0.12, 0.15, 0.2) at 0.1 m steps of R₀ and takes the **nearest** α (α = 0.09 runs as
 0.1): ``HahnerParameters(table_lookup=True)`` does that for the integral.
 """
