@@ -39,17 +39,20 @@ def viewer_fields(path: Path) -> dict[str, dict[str, np.ndarray]]:
     return {"open3d": from_o3d, "open3d-legacy": legacy, "pypcd4": from_pypcd}
 
 
-def check_pcd(path: Path, cloud: PointCloud, outcome: np.ndarray, labels: np.ndarray | None = None) -> None:
-    """The PCD at ``path`` holds ``cloud`` (xyz, raw intensity, ring where it has one), one outcome per
-    reported point and, given ``labels``, their lower / upper 16 bits as label / instance — by every reader."""
+def check_pcd(path: Path, cloud: PointCloud, outcome: np.ndarray, labels: np.ndarray | None = None,
+              ring: np.ndarray | None = None) -> None:
+    """The PCD at ``path`` holds ``cloud`` (xyz, raw intensity, ring where it has one — or ``ring``, where
+    the scan file has none but the producer knew it), one outcome per reported point and, given
+    ``labels``, their lower / upper 16 bits as label / instance — by every reader."""
+    ring = cloud.ring if ring is None else ring
     for reader, f in viewer_fields(path).items():
         np.testing.assert_allclose(f["xyz"], cloud.xyz, rtol=0, atol=0, err_msg=reader)
         if reader == "open3d-legacy":
             continue
         np.testing.assert_array_equal(f["intensity"], cloud.raw_intensity, err_msg=reader)
-        assert ("ring" in f) == (cloud.ring is not None), reader
-        if cloud.ring is not None:
-            np.testing.assert_array_equal(f["ring"], cloud.ring, err_msg=reader)
+        assert ("ring" in f) == (ring is not None), reader
+        if ring is not None:
+            np.testing.assert_array_equal(f["ring"], ring, err_msg=reader)
         np.testing.assert_array_equal(f["outcome"], outcome, err_msg=reader)
         assert ("label" in f) == (labels is not None), reader
         if labels is not None:
