@@ -400,3 +400,29 @@ def test_the_renders_semantic_kitti_sequences_and_pcds_read_back(lidar_render):
             ring[index[index >= 0]] = beam[index >= 0]  # the KITTI .bin has no ring; the sweep knew each beam
             check_pcd(out / entry["pcd"], cloud, rows, raw, ring)
     assert json.loads((out / "dataset.json").read_text())["lidar"]["semantic_kitti"]["fog_id"] == FOG_ID
+
+
+@pytest.mark.blender
+@pytest.mark.slow
+def test_the_render_exports_as_nuscenes_samples_with_the_sweeps_beams(lidar_render, tmp_path):
+    """``fogsim export nuscenes`` on the render: each level's samples are its scan (x y z, intensity × 255)
+    and the ring estimated from the sensor's inclinations is the beam the sweep cast (the KITTI .bin of an
+    hdl64e render stores none)."""
+    from fogsim.cli import main
+    from fogsim.lidar.outcome_file import read_outcomes
+    from test_export_nuscenes import read_pcd_bin
+
+    out = lidar_render
+    assert main(["export", "nuscenes", str(out), "--out", str(tmp_path / "nusc"), "--quiet"]) == 0
+    for f in ("000000", "000001"):
+        meta = json.loads((out / "meta" / f"{f}.json").read_text())
+        beam = np.load(out / meta["lidar"]["sweep"]["attributes"], allow_pickle=False)["beam"]
+        for level, entry in meta["lidar"]["levels"].items():
+            got = read_pcd_bin(tmp_path / "nusc" / level / "samples" / "LIDAR_TOP" / f"{f}.pcd.bin")
+            scan = np.frombuffer((out / entry["file"]).read_bytes(), "<f4").reshape(-1, 4)
+            np.testing.assert_array_equal(got[:, :3], scan[:, :3])
+            np.testing.assert_allclose(got[:, 3], 255.0 * scan[:, 3], rtol=1e-6)
+            _, index = read_outcomes(out / entry["outcome_file"])
+            ring = np.zeros(len(scan))
+            ring[index[index >= 0]] = beam[index >= 0]
+            np.testing.assert_array_equal(got[:, 4], ring)
