@@ -158,3 +158,8 @@ def test_a_swept_street_reads_back_through_semantic_kittis_logic(tmp_path):
             p = fr["points"][fr["instance"] == 5, :3]
             assert len(p) and (np.abs(p - [12.0, 0.0, -0.7]) <= np.array([2.0, 0.9, 0.75]) + 1e-3).all()
     assert clutter > 0  # β = 0.06 puts fog echoes in the scan
+    # a frame that failed after its scans (no record): named, since it shifts the API's pose pairing
+    SemanticKittiTree(tmp_path, "clear").write_frame("000001", fogged["clear"].cloud,
+                                                     np.zeros(len(fogged["clear"].cloud), np.uint32))
+    again = write_sequences(DatasetLayout(tmp_path), ["000000"], metas)
+    assert again["uncommitted_scans"] == {"clear": ["000001"]} and "uncommitted_scans" not in summary

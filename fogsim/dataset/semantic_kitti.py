@@ -142,7 +142,10 @@ class SemanticKittiTree:
 def write_sequences(layout: DatasetLayout, frames: list[str], metas: list[dict]) -> dict | None:
     """Each level's ``calib.txt``, ``poses.txt`` and yaml from the committed frames whose record has a
     ``lidar.semantic_kitti`` block (``{"levels": [...], "P": 3×4}``; the camera pose and the LiDAR → camera
-    transform from ``camera.world_to_camera`` and ``lidar.lidar_to_camera``); None when no frame has one."""
+    transform from ``camera.world_to_camera`` and ``lidar.lidar_to_camera``); None when no frame has one.
+    Scans of frames without a record (a frame that failed after writing them) are named in the returned
+    block's ``uncommitted_scans``: they shift the API's pairing of poses with scans (remove them, or render
+    those frames again)."""
     done = [(f, m) for f, m in zip(frames, metas) if (m.get("lidar") or {}).get("semantic_kitti")]
     if not done:
         return None
@@ -152,8 +155,13 @@ def write_sequences(layout: DatasetLayout, frames: list[str], metas: list[dict])
     poses = [np.linalg.inv(c2w[0]) @ c for c in c2w]
     block = first["lidar"]["semantic_kitti"]
     levels = sorted({lv for _, m in done for lv in m["lidar"]["semantic_kitti"]["levels"]})
+    names = {f for f, _ in done}
+    out = {"root": f"{SEMANTIC_KITTI_DIR}/<level>", "sequence": SEQUENCE, "levels": levels, "frames": len(done),
+           "config": YAML_NAME, "fog_id": FOG_ID}
     for level in levels:
-        SemanticKittiTree(layout.root, level).write_sequence(np.asarray(block["P"], np.float64),
-                                                             np.asarray(first["lidar"]["lidar_to_camera"]), poses)
-    return {"root": f"{SEMANTIC_KITTI_DIR}/<level>", "sequence": SEQUENCE, "levels": levels, "frames": len(done),
-            "config": YAML_NAME, "fog_id": FOG_ID}
+        tree = SemanticKittiTree(layout.root, level)
+        tree.write_sequence(np.asarray(block["P"], np.float64), np.asarray(first["lidar"]["lidar_to_camera"]), poses)
+        stray = sorted(p.stem for p in (tree.sequence / "velodyne").glob("*.bin") if p.stem not in names)
+        if stray:  # a frame that failed after its scans: the API pairs poses with the sorted listing
+            out.setdefault("uncommitted_scans", {})[level] = stray
+    return out
