@@ -9,6 +9,8 @@ import sys
 import numpy as np
 import pytest
 
+from fogsim.bench.radar import synthetic_sweep
+from fogsim.cli import main
 from fogsim.errors import InputError, MissingDependency
 from fogsim.fog.engine import FogSettings
 from fogsim.radar.attenuation import attenuation_db_per_km, liquid_water_coefficient, lwc_from_beta
@@ -34,18 +36,9 @@ def p840_k_l(f_ghz: float, t_c: float) -> float:
 
 
 def realistic_sweep(seed: int = 3, n: int = 4000) -> RadarScan:
-    """An ARS 408-like far-range sweep: cars, pedestrians, poles and rails at 1–250 m within ±9°, kept where
-    the radar equation puts them above the threshold in clear air (what the sensor reported), SNR unknown
-    (NaN: a real file's)."""
-    rng = np.random.default_rng(seed)
-    s = RadarSensor.preset("ars408-lr")
-    kind = rng.choice(3, n, p=[0.5, 0.2, 0.3])
-    rcs = np.choose(kind, [rng.normal(10, 5, n), rng.normal(-5, 3, n), rng.normal(0, 5, n)])
-    r = rng.uniform(1, 250, n)
-    az = np.radians(rng.uniform(-9, 9, n))
-    seen = s.snr_db(rcs, r) >= s.detection_threshold_db
-    xyz = np.stack([r * np.cos(az), r * np.sin(az), np.zeros(n)], 1)[seen]
-    return RadarScan.checked(xyz, rcs[seen], source="synthetic")
+    """An ARS 408-like far-range sweep drawn from the radar equation (cars, pedestrians, poles and rails at
+    1–250 m within ±9°, only what clears the threshold in clear air; SNR unknown as in a real file)."""
+    return synthetic_sweep(n, seed)
 
 
 def test_k_l_is_itur_and_the_recommendation():
@@ -177,3 +170,10 @@ def test_missing_itur_says_which_extra(monkeypatch):
             liquid_water_coefficient(33.3, 10.0)
     finally:
         liquid_water_coefficient.cache_clear()
+
+
+def test_the_benchmark_runs(capsys):
+    assert main(["bench", "radar", "--repeat", "1", "--detections", "3000", "--sweeps", "3",
+                 "--loop-detections", "40"]) == 0
+    out = capsys.readouterr().out
+    assert "loop, itur per detection" in out and out.strip().splitlines()[-1].startswith("bench radar: ")
