@@ -11,7 +11,7 @@ content from the camera's extinction β.
   this gives M ≈ 0.05 g/m³ at V ≈ 290 m and ≈ 0.5 g/m³ at V ≈ 38 m — P.840's own guide values (medium fog
   0.05 g/m³ at ≈ 300 m, thick fog 0.5 g/m³ at ≈ 50 m). Kunkel's fit is to advection and radiation fogs'
   drop spectra; other fogs scatter around it by a factor of ≈ 2 in M at a given β.
-* **Temperature**: K_l falls as water warms (at 77 GHz 3.54 at 0 °C, 3.15 at 10 °C, 2.80 at 20 °C); the
+* **Temperature**: K_l falls as water warms (at 77 GHz 3.54 at 0 °C, 3.15 at 10 °C, 2.71 at 20 °C); the
   default 10 °C is a mild fog's (the record's ``temperature_c``).
 """
 from __future__ import annotations
