@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from importlib.metadata import PackageNotFoundError, version
 
 import numpy as np
 
 from fogsim.deps import require
 from fogsim.schema.radar import RadarFogSpec
 
-__all__ = ["attenuation_db_per_km", "liquid_water_coefficient", "lwc_from_beta", "two_way_loss_db",
+__all__ = ["attenuation_db_per_km", "itur_version", "liquid_water_coefficient", "lwc_from_beta", "two_way_loss_db",
            "visibility_m"]
 
 
@@ -34,6 +35,14 @@ def liquid_water_coefficient(frequency_ghz: float, temperature_c: float) -> floa
     itur = require("itur", "radar")
     value = itur.models.itu840.specific_attenuation_coefficients(float(frequency_ghz), float(temperature_c))
     return float(getattr(value, "value", value))
+
+
+def itur_version() -> str | None:
+    """The installed ``itur``'s version (what a record says computed K_l), None when it is absent."""
+    try:
+        return version("itur")
+    except PackageNotFoundError:
+        return None
 
 
 def lwc_from_beta(beta_per_m, spec: RadarFogSpec | None = None) -> np.ndarray:
