@@ -37,6 +37,7 @@ def liquid_water_coefficient(frequency_ghz: float, temperature_c: float) -> floa
     return float(getattr(value, "value", value))
 
 
+@lru_cache(maxsize=1)
 def itur_version() -> str | None:
     """The installed ``itur``'s version (what a record says computed K_l), None when it is absent."""
     try:
