@@ -67,6 +67,9 @@ def _echo_point(s: LidarSensor, sc, qc: float, qf: float, rf: float, wf: float, 
     xi_f = 1.0 if s.overlap_full_m <= 0 else min(1.0, (rf / s.overlap_full_m) ** 2)
     rho_app = qf * s.reference_reflectivity * (rf / s.max_range_m) ** 2 / xi_f
     lin_c = rho_app / s.reflectivity_per_intensity
+    if s.retro_reflective_from is not None and rho_app > s.reflectivity_per_intensity * s.retro_reflective_from:
+        ir, white = s.retro_reflective_from, s.reflectivity_per_intensity * s.retro_reflective_from
+        lin_c = ir + (1.0 - ir) * math.log(rho_app / white) / math.log(s.retro_reflectivity_max / white)
     if s.intensity_range_exponent:
         lin_c *= (rf / s.intensity_reference_range_m) ** -s.intensity_range_exponent
     if sc.name == "tanh":
@@ -110,6 +113,9 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
         r = max(math.sqrt(x * x + y * y + zc * zc), 1e-6)
         lin = raw if sc.name == "tanh" else norm
         rho = s.reflectivity_per_intensity * lin
+        if s.retro_reflective_from is not None and lin > s.retro_reflective_from:
+            ir, white = s.retro_reflective_from, s.reflectivity_per_intensity * s.retro_reflective_from
+            rho = white * (s.retro_reflectivity_max / white) ** ((lin - ir) / (1.0 - ir))
         if s.intensity_range_exponent:
             rho *= (r / s.intensity_reference_range_m) ** s.intensity_range_exponent
         rho = max(rho, spec.reflectivity_floor)

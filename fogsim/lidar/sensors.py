@@ -88,6 +88,8 @@ class LidarSensor:
     mount_xyz_m: tuple[float, float, float]
     mount_rpy_deg: tuple[float, float, float]
     description: str
+    retro_reflective_from: float | None
+    retro_reflectivity_max: float
     fluctuation_sigma: float
     calibration: str = "datasheet"
     sources: dict = field(default_factory=dict, hash=False, compare=False)
@@ -119,7 +121,8 @@ class LidarSensor:
                    intensity_range_exponent=spec.intensity_range_exponent,
                    intensity_reference_range_m=spec.intensity_reference_range_m,
                    mount_xyz_m=tuple(spec.mount.xyz_m), mount_rpy_deg=tuple(spec.mount.rpy_deg),
-                   description=spec.description or "", fluctuation_sigma=spec.fluctuation_sigma,
+                   description=spec.description or "", retro_reflective_from=spec.retro_reflective_from,
+                   retro_reflectivity_max=spec.retro_reflectivity_max, fluctuation_sigma=spec.fluctuation_sigma,
                    sources=dict(spec.sources or {}))
 
     @classmethod
@@ -207,15 +210,32 @@ class LidarSensor:
                     * (self.max_range_m / r) ** 2 * self.overlap(r))
 
     def reflectivity_of(self, linear_intensity, r) -> np.ndarray:
-        """ρ = s·I_linear·(R / R_ref)^k: the reflectivity a reported (linear) intensity implies."""
-        rho = self.reflectivity_per_intensity * np.asarray(linear_intensity, np.float64)
+        """ρ = s·I_linear·(R / R_ref)^k: the reflectivity a reported (linear) intensity implies. Above
+        I_r = ``retro_reflective_from`` (Velodyne's calibrated scale: 0–100 diffuse, 101–255
+        retro-reflectors, 255 an ideal one) ρ rises log-linearly from s·I_r (a white diffuse target) to
+        ρ_max = ``retro_reflectivity_max`` at I = 1: ρ = s·I_r·(ρ_max / (s·I_r))^((I − I_r)/(1 − I_r))."""
+        lin = np.asarray(linear_intensity, np.float64)
+        rho = self.reflectivity_per_intensity * lin
+        if self.retro_reflective_from is not None:
+            ir = self.retro_reflective_from
+            white = self.reflectivity_per_intensity * ir
+            with np.errstate(over="ignore"):
+                retro = white * (self.retro_reflectivity_max / white) ** ((lin - ir) / (1.0 - ir))
+            rho = np.where(lin > ir, retro, rho)
         if self.intensity_range_exponent:
             rho = rho * (np.asarray(r, np.float64) / self.intensity_reference_range_m) ** self.intensity_range_exponent
         return rho
 
     def intensity_of(self, reflectivity, r) -> np.ndarray:
         """The linear intensity the sensor reports for a return of (apparent) reflectivity ρ at R."""
-        lin = np.asarray(reflectivity, np.float64) / self.reflectivity_per_intensity
+        rho = np.asarray(reflectivity, np.float64)
+        lin = rho / self.reflectivity_per_intensity
+        if self.retro_reflective_from is not None:
+            ir = self.retro_reflective_from
+            white = self.reflectivity_per_intensity * ir
+            with np.errstate(divide="ignore", invalid="ignore"):
+                retro = ir + (1.0 - ir) * np.log(rho / white) / math.log(self.retro_reflectivity_max / white)
+            lin = np.where(rho > white, retro, lin)
         if self.intensity_range_exponent:
             lin = lin * (np.asarray(r, np.float64) / self.intensity_reference_range_m) ** -self.intensity_range_exponent
         return lin

@@ -62,7 +62,7 @@ REFERENCE_CALIBRATION = {
 #: the sensor keys a calibration may set
 CALIBRATION_KEYS = ("min_range_m", "max_range_m", "reference_reflectivity", "pulse_half_power_ns", "overlap_full_m",
                     "fluctuation_sigma", "range_noise_m", "range_noise_at_threshold_m", "reflectivity_per_intensity",
-                    "intensity_range_exponent", "intensity_reference_range_m")
+                    "intensity_range_exponent", "intensity_reference_range_m", "retro_reflectivity_max")
 
 _INCLINATIONS = 'a list of beam inclinations in degrees or "calibration" (read from the data)'
 Inclinations = Annotated[Annotated[word("calibration", _INCLINATIONS), Tag("<calibration>")]
@@ -83,7 +83,9 @@ class LidarSensorSpec(Closed):
     threshold (``max_range_m`` reached by a target of ``reference_reflectivity`` in clear air), its pulse
     and overlap, range noise, return mode, and how its intensity relates to reflectivity
     (ρ = ``reflectivity_per_intensity`` · I_linear · (R / ``intensity_reference_range_m``)^k with k =
-    ``intensity_range_exponent``; k = 0: the sensor already reports a range-compensated reflectivity)."""
+    ``intensity_range_exponent``; k = 0: the sensor already reports a range-compensated reflectivity; above
+    ``retro_reflective_from`` the scale is Velodyne's retro-reflector range, log-linear up to
+    ``retro_reflectivity_max``: :meth:`fogsim.lidar.sensors.LidarSensor.reflectivity_of`)."""
 
     name: Text | None = None
     description: Text | None = None
@@ -106,6 +108,9 @@ class LidarSensorSpec(Closed):
     reflectivity_per_intensity: number_in(0, 1e6, lo_open=True) = 1.0
     intensity_range_exponent: number_in(0, 4) = 0.0
     intensity_reference_range_m: number_in(0, 1e4, lo_open=True) = 1.0
+    # Velodyne's calibrated reflectivity: linear intensities above this are retro-reflectors (None: none)
+    retro_reflective_from: number_in(0, 1, lo_open=True, hi_open=True) | None = None
+    retro_reflectivity_max: number_in(1, 1e6) = 100.0  # the equivalent reflectivity of the top of the scale
     # σ of ln g, g the received-signal factor of one ray's pulse (pulse-energy jitter, beam-to-beam gain)
     fluctuation_sigma: number_in(0, 3) = FLUCTUATION_SIGMA
     mount: Mount = Mount()
@@ -147,6 +152,7 @@ class LidarCalibration(Closed):
     reflectivity_per_intensity: number_in(0, 1e6, lo_open=True) | None = None
     intensity_range_exponent: number_in(0, 4) | None = None
     intensity_reference_range_m: number_in(0, 1e4, lo_open=True) | None = None
+    retro_reflectivity_max: number_in(1, 1e6) | None = None
 
     def overrides(self) -> dict:
         """The sensor parameters this calibration sets (the keys given)."""
