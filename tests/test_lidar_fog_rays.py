@@ -227,7 +227,8 @@ def test_the_cli_records_the_calibration_and_the_empty_rays(tmp_path, capsys):
         rays = empty_rays(read_points(src, "kitti"), LidarSensor.preset("hdl64e"))
         assert side["empty_rays"] == len(rays) > 0 and 0 < side["empty_ray_clutter"] <= len(rays)
         got = read_points(out / "beta0.06" / "a.bin", "kitti")
-        assert len(got) == side["points_out"] == side["points_in"] - side["outcomes"]["lost"] + side["empty_ray_clutter"]
+        shown = side["points_in"] - side["outcomes"]["lost"] + side["empty_ray_clutter"]
+        assert len(got) == side["points_out"] == shown
         assert json.loads((out / "clear" / "a.json").read_text())["empty_ray_clutter"] == 0
     capsys.readouterr()
     bad = tmp_path / "bad.json"
