@@ -46,9 +46,10 @@ def clear_signal(rho, r, su=0.0, sigma=0.0):
 def draws(n, seed):
     """(ln g_h, ln g_f) of n points — the hard return's and the fog echo's fluctuations — of a level drawn
     from default_rng(seed): the range noise first, then these."""
-    rng = np.random.default_rng(seed)
-    rng.standard_normal(n)
-    return SIGMA_G * rng.standard_normal(n), SIGMA_G * rng.standard_normal(n)
+    rng = np.random.default_rng(seed)  # float32 standard normals, as the model documents
+    rng.standard_normal(n, np.float32)
+    sigma = np.float32(SIGMA_G)
+    return sigma * rng.standard_normal(n, np.float32), sigma * rng.standard_normal(n, np.float32)
 
 
 _ECHO = {}

@@ -81,9 +81,10 @@ def test_the_fluctuation_is_the_documented_draws(kitti):
     beta, seed = 0.04, 9
     out = LidarFogger(kitti, "hdl64e", {"return_mode": "last"})(beta, np.random.default_rng(seed))
     n = len(kitti)
-    rng = np.random.default_rng(seed)
-    rng.standard_normal(n)
-    sh, sf = SIGMA_G * rng.standard_normal(n), SIGMA_G * rng.standard_normal(n)
+    rng = np.random.default_rng(seed)  # float32 standard normals: range noise, then ln g_h/σ, ln g_f/σ
+    rng.standard_normal(n, np.float32)
+    sigma = np.float32(SIGMA_G)
+    sh, sf = sigma * rng.standard_normal(n, np.float32), sigma * rng.standard_normal(n, np.float32)
     r = kitti.range_m
     rho = np.maximum(2.55 * kitti.intensity.astype(np.float64), 0.02)
     q = rho / 0.8 * (120.0 / r) ** 2 * np.minimum(1.0, (r / 5.0) ** 2)
@@ -162,8 +163,8 @@ def test_k_empty_rays_gain_k_clutter_points_when_the_echo_is_detectable():
     beta = 0.02
     out = LidarFogger(scan, s, empty_rays=dirs)(beta, np.random.default_rng(5))
     rng = np.random.default_rng(5)
-    rng.standard_normal(3 * len(scan))
-    sf = SIGMA_G * rng.standard_normal(k)
+    rng.standard_normal(3 * len(scan), np.float32)
+    sf = np.float32(SIGMA_G) * rng.standard_normal(k, np.float32)
     assert out.empty_ray_clutter == int((fog_echo(s, beta).signal * np.exp(sf) >= 1).sum()) > 0
     # a ray whose (sub-threshold) surface lies in front of the echo cannot return it
     blocked = LidarFogger(scan, s, STEADY, empty_rays=EmptyRays(dirs, range_m=np.full(k, 2.0)))

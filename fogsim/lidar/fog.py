@@ -35,9 +35,9 @@ block), σ = its ``fluctuation_sigma``:
    sees the same fog echo, q_c,k = q_f·g_f,k (when its surface, if any, lies beyond r_f + L/2), and gains
    a clutter point on its ray at r_f + noise when q_c,k ≥ 1; nothing otherwise.
 
-Random draws from the caller's ``numpy.random.Generator``, in this order: z (N standard normals, range
-noise), ln g_h/σ (N), ln g_f/σ (N) for the input points in input order; then, with empty rays, ln g_f/σ
-(K) and z (K) for the empty rays in their order. Same Generator state → the same level, bit for bit.
+Random draws from the caller's ``numpy.random.Generator`` (float32 standard normals), in this order:
+z (N, range noise), ln g_h/σ (N), ln g_f/σ (N) for the input points in input order; then, with empty
+rays, ln g_f/σ (K) and z (K) for the empty rays in their order. Same Generator state → the same level, bit for bit.
 
 ``attenuation`` — steps 0–3 and 6 alone: a point is lost when q_h < 1; no fog echo, no empty-ray clutter.
 
@@ -210,15 +210,15 @@ class LidarFogger:
         if rng is None:
             raise ValueError("fog with β > 0 draws range noise: pass a seeded numpy.random.Generator")
         sg = self.sensor.fluctuation_sigma
-        z = rng.standard_normal(n)  # the draws, in this order (input points): range noise,
-        sh = sg * rng.standard_normal(n)  # ln g_h, the hard return's fluctuation,
-        su = sg * rng.standard_normal(n)  # ln g_f, the fog echo's; then the empty rays' (_empty_ray_clutter)
+        z = rng.standard_normal(n, np.float32)  # the draws, in this order (input points): range noise,
+        sh = sg * rng.standard_normal(n, np.float32)  # ln g_h, the hard return's fluctuation,
+        su = sg * rng.standard_normal(n, np.float32)  # ln g_f, the fog echo's; then the empty rays'
         r, s, scalar = self.range_m, self.sensor, np.ndim(beta) == 0
         log_clear = np.maximum(self.log_signal + sh, sg)  # ln q0 = max(ln(q·g_h), σ) (step 2)
-        t2 = np.exp(r * (-2.0 * self.spec.extinction_ratio * beta))
-        q0 = np.exp(log_clear)
-        qh = q0 * t2
-        hard = qh >= 1.0
+        nb = r * (-2.0 * self.spec.extinction_ratio * beta)  # ln of the two-way transmission
+        t2 = np.exp(nb)
+        log_qh = log_clear + nb
+        hard = log_qh >= 0.0
         half_pulse = 0.5 * s.pulse_length_m
         e = qf = rf = wf = None
         clutter = None
@@ -228,16 +228,17 @@ class LidarFogger:
                 qf, rf, wf = e.signal, e.range_m, e.width_m
                 if rf >= s.min_range_m and qf > 0:
                     separate = r >= rf + half_pulse
-                    echo_seen = separate & (su >= -math.log(qf))  # g·q_f ≥ 1
-                    if self.mode == "strongest":
-                        reported_hard = hard & ((qh >= qf * np.exp(su)) | ~separate)
+                    log_qf = math.log(qf)
+                    echo_seen = separate & (su >= -log_qf)  # q_f·g_f ≥ 1
+                    if self.mode == "strongest":  # q_h ≥ q_f·g_f, in logs
+                        reported_hard = hard & ((log_qh - su >= log_qf) | ~separate)
                     else:
                         reported_hard = hard
                     clutter = echo_seen & ~reported_hard
             else:
                 qf, rf, wf = echo_per_point(s, beta, self.spec)
                 qc = np.where((rf >= s.min_range_m) & (rf <= r - half_pulse), qf * np.exp(su), 0.0)
-                reported_hard = hard & (qh >= qc) if self.mode == "strongest" else hard
+                reported_hard = hard & (np.exp(log_qh) >= qc) if self.mode == "strongest" else hard
                 clutter = (qc >= 1.0) & ~reported_hard
         if clutter is None:
             reported_hard, clutter = hard, None
@@ -250,9 +251,10 @@ class LidarFogger:
         norm_out, raw_out = self.scale.from_linear(self.linear[pick] * t2i)
         kept = rh & (self.normalised[pick] - norm_out < self.spec.kept_tolerance)
         oc = np.where(rh, np.where(kept, KEPT, ATTENUATED), CLUTTER).astype(np.int8)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            qi, q0i = qh[pick], q0[pick]
-            sigma = s.range_noise_at_threshold_m * np.sqrt(np.maximum(1.0 / (qi * qi) - 1.0 / (q0i * q0i), 0.0))
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # σ₁·√(1/q_h² − 1/q0²)
+            inv_t2 = 1.0 / t2i
+            gain = np.sqrt(np.maximum(inv_t2 * inv_t2 - 1.0, 0.0))
+            sigma = (s.range_noise_at_threshold_m * np.exp(-log_clear[pick])) * gain
         new_r = np.where(kept, ri, np.maximum(ri + sigma * zi, MIN_REPORTED_M))
         if clutter is not None and not rh.all():
             c = np.flatnonzero(~rh)
@@ -287,8 +289,8 @@ class LidarFogger:
         if self.empty is None:
             return None
         k = len(self.empty)
-        su = self.sensor.fluctuation_sigma * rng.standard_normal(k)
-        z = rng.standard_normal(k)
+        su = self.sensor.fluctuation_sigma * rng.standard_normal(k, np.float32)
+        z = rng.standard_normal(k, np.float32)
         s = self.sensor
         if self.spec.model != "soft-target":
             return np.zeros(0, np.int64), None

@@ -3,11 +3,11 @@
 
 Written independently of the vectorised code, from its docstring: one Python loop over the points with
 ``math`` functions, the fog echo's integral by a direct convolution (``numpy.convolve``) instead of the
-running sums, the peak found by its own parabola. Same inputs, same random draws (per input point one
-standard normal for the range noise, then one per point for the hard return's fluctuation, then one per
-point for the fog echo's; then per empty ray one for the fluctuation and one for the range noise) → the
-same outcomes, and coordinates and intensities equal to float rounding. Slow on purpose (≈ 10⁵
-points/s); not for production use.
+running sums, the peak found by its own parabola. Same inputs, same random draws (float32 standard
+normals: per input point one for the range noise, then one per point for the hard return's fluctuation,
+then one per point for the fog echo's; then per empty ray one for the fluctuation and one for the range
+noise) → the same outcomes, and coordinates and intensities equal to float rounding. Slow on purpose
+(≈ 10⁵ points/s); not for production use.
 """
 from __future__ import annotations
 
@@ -94,9 +94,9 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
     betas = [float(beta)] * n if np.ndim(beta) == 0 else [float(b) for b in np.asarray(beta).reshape(-1)]
     sigma_g = s.fluctuation_sigma
     fog = any(b > 0 for b in betas)
-    z = rng.standard_normal(n) if fog else np.zeros(n)
-    uh = rng.standard_normal(n) if fog else np.zeros(n)
-    u = rng.standard_normal(n) if fog else np.zeros(n)
+    z = rng.standard_normal(n, np.float32) if fog else np.zeros(n)
+    uh = rng.standard_normal(n, np.float32) if fog else np.zeros(n)
+    u = rng.standard_normal(n, np.float32) if fog else np.zeros(n)
     echoes: dict[float, tuple[float, float, float]] = {}
     outcome = np.zeros(n + k, np.int8)
     xyz_out = np.full((n + k, 3), np.nan)
@@ -120,8 +120,8 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
             rho *= (r / s.intensity_reference_range_m) ** s.intensity_range_exponent
         rho = max(rho, spec.reflectivity_floor)
         xi = 1.0 if s.overlap_full_m <= 0 else min(1.0, (r / s.overlap_full_m) ** 2)
-        g = math.exp(sigma_g * u[i])  # the fog echo's fluctuation
-        gh = math.exp(sigma_g * uh[i])  # the hard return's
+        g = math.exp(float(np.float32(sigma_g) * u[i]))  # the fog echo's fluctuation (ln g in float32)
+        gh = math.exp(float(np.float32(sigma_g) * uh[i]))  # the hard return's
         q0 = max(rho / s.reference_reflectivity * (s.max_range_m / r) ** 2 * xi * gh, math.exp(sigma_g))
         t2 = math.exp(-2.0 * spec.extinction_ratio * b * r)
         qh = q0 * t2
@@ -161,12 +161,12 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
         else:
             outcome[i] = 2
     if k:
-        ue = rng.standard_normal(k)
-        ze = rng.standard_normal(k)
+        ue = rng.standard_normal(k, np.float32)
+        ze = rng.standard_normal(k, np.float32)
         b = sum(betas) / n if n else 0.0
         qf, rf, wf = reference_echo(s, b, spec) if (spec.model == "soft-target" and b > 0) else (0.0, 0.0, 0.0)
         for j, (dx, dy, dz) in enumerate(dirs):
-            qc = qf * math.exp(sigma_g * ue[j])
+            qc = qf * math.exp(float(np.float32(sigma_g) * ue[j]))
             if qf > 0 and rf >= s.min_range_m and qc >= 1.0:
                 rn, norm_out[n + j], raw_out[n + j] = _echo_point(s, sc, qc, qf, rf, wf, ze[j], math.inf)
                 outcome[n + j] = 3
