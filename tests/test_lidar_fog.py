@@ -74,7 +74,8 @@ def expected(rho, r, beta, mode="strongest", model="soft-target", sh=0.0, sf=0.0
     ray's fluctuations ln g_h = ``sh`` (hard return), ln g_f = ``sf`` (fog echo), σ_g = ``sigma``."""
     qh = clear_signal(rho, r, sh, sigma) * math.exp(-2 * beta * r)
     qf, rf = echo(beta) if model == "soft-target" else (0.0, 0.0)
-    qc = qf * math.exp(sf) if (rf >= R_MIN and r >= rf + L / 2) else 0.0
+    w = min(max((r - rf) / (L / 2), 0.0), 1.0)  # the fog echo's share resolved from the target
+    qc = qf * math.exp(sf) * w if rf >= R_MIN else 0.0
     hard = qh >= 1
     report_hard = hard and (qh >= qc if mode == "strongest" else True)
     if report_hard:

@@ -20,9 +20,11 @@ block), σ = its ``fluctuation_sigma``:
    margin ln q0 ≥ σ: β → 0 gives the clear scan back continuously (nothing is lost while 2β₉₀₅R < σ).
 3. Two-way attenuation of the hard return: q_h,i = q0_i · e^(−2 β₉₀₅ R_i), β₉₀₅ = ``extinction_ratio``·β.
    The hard return is detected when q_h,i ≥ 1.
-4. The fog's own echo (:mod:`fogsim.lidar.soft_target`): peak q_f at r_f, width w_f. It is a separate
-   echo in front of point i when min_range ≤ r_f ≤ R_i − L/2 (L = c·τ_H; closer to the target, the two
-   peaks merge): q_c,i = q_f·g_f,i, else 0; it is detected when q_c,i ≥ 1.
+4. The fog's own echo (:mod:`fogsim.lidar.soft_target`): peak q_f at r_f, width w_f, when
+   r_f ≥ min_range. In front of point i it is resolved from the hard return by the share
+   w_i = clip((R_i − r_f)/(L/2), 0, 1) (L = c·τ_H: one when the target lies L/2 or more behind the echo's
+   peak, falling linearly to zero as the two peaks merge — a taper, not a cliff, so a ring of returns at
+   one range does not switch all at once): q_c,i = q_f·g_f,i·w_i; it is detected when q_c,i ≥ 1.
 5. The return mode decides (``return_mode``: the spec's, else the sensor's):
    *strongest*: the hard return if detected and q_h ≥ q_c, else the fog echo if detected;
    *last*: the hard return if detected, else the fog echo if detected. Otherwise nothing: lost.
@@ -32,7 +34,7 @@ block), σ = its ``fluctuation_sigma``:
    gets σ₀² + (σ₁·(w_f / (L/2)) / q_c)² (its echo is w_f wide against the pulse's L/2).
 7. **Empty rays** (``empty_rays``: the sweep's rays that returned nothing in clear air, unit directions
    and the range of what each hit below the threshold, +inf for nothing; :mod:`fogsim.lidar.rays`): each
-   sees the same fog echo, q_c,k = q_f·g_f,k (when its surface, if any, lies beyond r_f + L/2), and gains
+   sees the same fog echo, q_c,k = q_f·g_f,k·w_k (w_k from its surface's range, 1 for none), and gains
    a clutter point on its ray at r_f + noise when q_c,k ≥ 1; nothing otherwise.
 
 Random draws from the caller's ``numpy.random.Generator`` (float32 standard normals), in this order:
@@ -227,17 +229,17 @@ class LidarFogger:
                 e = fog_echo(s, beta, self.spec)
                 qf, rf, wf = e.signal, e.range_m, e.width_m
                 if rf >= s.min_range_m and qf > 0:
-                    separate = r >= rf + half_pulse
-                    log_qf = math.log(qf)
-                    echo_seen = separate & (su >= -log_qf)  # q_f·g_f ≥ 1
-                    if self.mode == "strongest":  # q_h ≥ q_f·g_f, in logs
-                        reported_hard = hard & ((log_qh - su >= log_qf) | ~separate)
-                    else:
-                        reported_hard = hard
-                    clutter = echo_seen & ~reported_hard
+                    log_qc = math.log(qf) + su  # ln(q_f·g_f·w), w the resolvable share (step 4)
+                    near = r < rf + half_pulse
+                    if near.any():
+                        with np.errstate(divide="ignore"):
+                            log_qc[near] += np.log(np.clip((r[near] - rf) / half_pulse, 0.0, 1.0))
+                    reported_hard = hard & (log_qh >= log_qc) if self.mode == "strongest" else hard
+                    clutter = (log_qc >= 0.0) & ~reported_hard
             else:
                 qf, rf, wf = echo_per_point(s, beta, self.spec)
-                qc = np.where((rf >= s.min_range_m) & (rf <= r - half_pulse), qf * np.exp(su), 0.0)
+                w = np.clip((r - rf) / half_pulse, 0.0, 1.0) * (rf >= s.min_range_m)
+                qc = qf * np.exp(su) * w
                 reported_hard = hard & (np.exp(log_qh) >= qc) if self.mode == "strongest" else hard
                 clutter = (qc >= 1.0) & ~reported_hard
         if clutter is None:
@@ -259,7 +261,7 @@ class LidarFogger:
         if clutter is not None and not rh.all():
             c = np.flatnonzero(~rh)
             ic = idx[c]
-            qcc = qf * np.exp(su[ic]) if scalar else qf[ic] * np.exp(su[ic])
+            qcc = np.exp(log_qc[ic]) if scalar else qc[ic]
             rfc, wfc, qfc = (rf, wf, qf) if scalar else (rf[ic], wf[ic], qf[ic])
             new_r[c] = self._echo_range(rfc, wfc, qcc, zi[c], ri[c])
             norm_out[c], raw_out[c] = self._echo_intensity(qfc, rfc, c.shape)
@@ -298,9 +300,11 @@ class LidarFogger:
         e = echo if echo is not None and np.ndim(beta) == 0 else fog_echo(s, b, self.spec)
         if not (e.range_m >= s.min_range_m and e.signal > 0):
             return np.zeros(0, np.int64), None
-        seen = (self.empty.range_m >= e.range_m + 0.5 * s.pulse_length_m) & (su >= -math.log(e.signal))
-        rows = np.flatnonzero(seen)
-        qc = e.signal * np.exp(su[rows])
+        w = np.clip((self.empty.range_m - e.range_m) / (0.5 * s.pulse_length_m), 0.0, 1.0)  # +inf: 1
+        with np.errstate(divide="ignore"):
+            log_qc = math.log(e.signal) + su + np.log(w)
+        rows = np.flatnonzero(log_qc >= 0.0)
+        qc = np.exp(log_qc[rows])
         rr = self._echo_range(e.range_m, e.width_m, qc, z[rows], self.empty.range_m[rows])
         norm, raw = self._echo_intensity(e.signal, e.range_m, rows.shape)
         xyz = self.empty.directions[rows] * rr[:, None]

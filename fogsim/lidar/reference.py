@@ -132,8 +132,8 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
             if b not in echoes:
                 echoes[b] = reference_echo(s, b, spec)
             qf, rf, wf = echoes[b]
-            if s.min_range_m <= rf <= r - half_pulse:
-                qc = qf * g
+            if s.min_range_m <= rf:  # the resolvable share w = clip((R − r_f)/(L/2), 0, 1)
+                qc = qf * g * min(max((r - rf) / half_pulse, 0.0), 1.0)
         fog_seen = qc >= 1.0
         if mode == "strongest":
             report_hard = hard and qh >= qc
@@ -166,7 +166,7 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
         b = sum(betas) / n if n else 0.0
         qf, rf, wf = reference_echo(s, b, spec) if (spec.model == "soft-target" and b > 0) else (0.0, 0.0, 0.0)
         for j, (dx, dy, dz) in enumerate(dirs):
-            qc = qf * math.exp(float(np.float32(sigma_g) * ue[j]))
+            qc = qf * math.exp(float(np.float32(sigma_g) * ue[j]))  # an empty ray: nothing in front, w = 1
             if qf > 0 and rf >= s.min_range_m and qc >= 1.0:
                 rn, norm_out[n + j], raw_out[n + j] = _echo_point(s, sc, qc, qf, rf, wf, ze[j], math.inf)
                 outcome[n + j] = 3
