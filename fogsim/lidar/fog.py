@@ -229,7 +229,7 @@ class LidarFogger:
                 e = fog_echo(s, beta, self.spec)
                 qf, rf, wf = e.signal, e.range_m, e.width_m
                 if rf >= s.min_range_m and qf > 0:
-                    log_qc = math.log(qf) + su  # ln(q_f·g_f·w), w the resolvable share (step 4)
+                    log_qc = np.add(su, math.log(qf), dtype=np.float64)  # ln(q_f·g_f·w), w: step 4
                     near = r < rf + half_pulse
                     if near.any():
                         with np.errstate(divide="ignore"):
