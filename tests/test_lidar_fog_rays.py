@@ -264,3 +264,14 @@ def test_a_nuscenes_sweep_keeps_a_far_field_in_light_fog(nuscenes):
     assert s.reflectivity_of(100 / 255, 40.0) == pytest.approx(1.0, rel=1e-6)
     assert s.reflectivity_of(1.0, 40.0) == pytest.approx(100.0) and s.reflectivity_of(0.1, 40.0) == pytest.approx(0.255)
     assert s.intensity_of(s.reflectivity_of(0.8, 40.0), 40.0) == pytest.approx(0.8)
+
+
+def test_the_birds_eye_view_draws_the_empty_rays_clutter():
+    from fogsim.lidar.pictures import OUTCOME_COLOURS, bev_image
+
+    scan = PointCloud.from_raw(np.array([[30.0, 0, 0]], np.float32), [0.3], "0-1", "one")
+    dirs = lf.ray_directions(40, 90.0, elevation_deg=0.0, spread_deg=40.0)
+    out = LidarFogger(scan, "hdl64e", STEADY, empty_rays=dirs)(0.06, np.random.default_rng(0))
+    assert out.empty_ray_clutter == 40
+    orange = lambda img: int((img == OUTCOME_COLOURS[CLUTTER]).all(axis=2).sum())  # noqa: E731
+    assert orange(bev_image(scan, out)) >= 20 > orange(bev_image(scan, None))
