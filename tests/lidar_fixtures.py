@@ -124,3 +124,47 @@ def kitti_street_cloud(folder: Path, seed: int = 8):
     path = Path(folder) / "street_sweep.bin"
     path.write_bytes(kitti_bin(xyz, refl))
     return read_points(path, "kitti")
+# ----------------------------------------------------------------------------- whole sweeps
+#: the share of a KITTI sweep's points with reflectance exactly 0 (a real KITTI scan, 000008: 19.8 %)
+ZERO_INTENSITY_SHARE = 0.2
+
+
+def kitti_sweep(folder: Path, steps: int = 400, seed: int = 0) -> Path:
+    """A KITTI-format sweep (``sweep.bin``): the ``hdl64e`` preset's 64 beams × ``steps`` azimuths ray-cast
+    against a street (road, buildings, street ends, cars: :func:`fogsim.bench.lidar_fog.synthetic_scan`),
+    every ray a return, reflectances spread like a real KITTI scan's (log-normal about 0.25, two decimals,
+    0.01–0.99), and :data:`ZERO_INTENSITY_SHARE` of the points, drawn at random, at reflectance 0."""
+    from fogsim.bench.lidar_fog import synthetic_scan
+
+    scan = synthetic_scan(seed, steps=steps)
+    rng = np.random.default_rng(seed + 1)
+    # KITTI-like reflectances: log-normal about 0.25 (σ 0.6), two decimals as KITTI stores them, 0.01–0.99
+    i01 = np.clip(np.round(np.exp(np.log(0.25) + 0.6 * rng.standard_normal(len(scan))), 2), 0.01, 0.99)
+    i01[rng.random(len(i01)) < ZERO_INTENSITY_SHARE] = 0.0
+    path = folder / "sweep.bin"
+    path.write_bytes(kitti_bin(scan.xyz, i01))
+    return path
+
+
+def nuscenes_intensities(n: int, rng: np.random.Generator) -> np.ndarray:
+    """0–255 whole-number intensities distributed like a nuScenes LIDAR_TOP sweep's: mostly small
+    (log-normal, median 6, clipped to 0–100: the HDL-32E's diffuse 0–100 %), 2 % retro-reflectors 101–255."""
+    i = np.clip(np.round(np.exp(np.log(6.0) + 0.9 * rng.standard_normal(n))), 0, 100)
+    bright = rng.random(n) < 0.02
+    i[bright] = rng.integers(101, 256, int(bright.sum()))
+    return i.astype(np.float32)
+
+
+def nuscenes_sweep(folder: Path, seed: int = 0) -> Path:
+    """A nuScenes-format sweep (``sweep.pcd.bin``: 5 × float32 x y z intensity(0–255) ring(0–31)): the
+    ``hdl32e`` preset's 32 beams (−30.67° … +10.67°) × 1090 azimuths (0.33°) ray-cast against the street
+    of :func:`kitti_sweep`, intensities :func:`nuscenes_intensities`, ring = the beam (0 = the highest)."""
+    from fogsim.bench.lidar_fog import synthetic_scan
+    from fogsim.lidar.sensors import LidarSensor
+
+    sensor = LidarSensor.preset("hdl32e")
+    scan = synthetic_scan(seed, sensor, steps=1090)
+    ring = scan.estimated_rings(sensor.inclinations_rad).astype(np.float32)
+    path = folder / "sweep.pcd.bin"
+    path.write_bytes(stf_bin(scan.xyz, nuscenes_intensities(len(scan), np.random.default_rng(seed + 1)), ring))
+    return path

@@ -132,11 +132,14 @@ def test_the_fogged_scans_are_the_models_for_the_documented_seed(kitti_run):
 def test_attenuation_model_against_its_closed_form(tmp_path):
     """``--lidar-model attenuation``: a point is lost exactly when q0·e^(−2βR) < 1, with
     q0 = max((ρ/ρ_ref)(R_max/R)²·ξ(R), 1), ρ = max(2.55·I, 0.02), ξ = min(1, (R/5)²) — the hdl64e preset's
-    numbers, computed here; no clutter."""
+    numbers, computed here, with the echo fluctuation off (a ``--lidar-calibration`` file: σ = 0, so the
+    clear-air floor e^σ is 1); no clutter."""
     root = kt.write_kitti(tmp_path / "in" / "kitti")
     out = tmp_path / "out"
-    assert fog("--kitti", root, "--lidar", "--lidar-model", "attenuation", "--levels", "0.06,0.12",
-               "--out", out) == 0
+    steady = tmp_path / "steady.json"
+    steady.write_text(json.dumps({"name": "steady", "fluctuation_sigma": 0.0}))
+    assert fog("--kitti", root, "--lidar", "--lidar-model", "attenuation", "--lidar-calibration", steady,
+               "--levels", "0.06,0.12", "--out", out) == 0
     preset = LidarSensor.preset("hdl64e")
     assert (preset.reference_reflectivity, preset.max_range_m, preset.overlap_full_m) == (0.8, 120.0, 5.0)
     for fid in IDS:

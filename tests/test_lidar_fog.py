@@ -22,8 +22,11 @@ scipy_optimize = pytest.importorskip("scipy.optimize")
 
 C = 299_792_458.0
 PAPER = (0.03, 0.06, 0.09, 0.12)
-# the hdl64e preset, written out: R_max 120 m for ρ_ref 0.8, τ_H 10 ns, ξ = min(1, (R/5)²), ρ = 2.55·I
-R_MAX, RHO_REF, TAU, R_O, S, R_MIN, SIGMA0, SIGMA1 = 120.0, 0.8, 10e-9, 5.0, 2.55, 1.0, 0.02, 0.10
+# the hdl64e preset, written out: R_max 120 m for ρ_ref 0.8, τ_H 10 ns, ξ = min(1, (R/5)²), ρ = 2.55·I,
+# fluctuation σ_g 0.5 (ln g ~ N(0, σ_g²) per ray: the clear signal max(q·g, e^σ_g), the fog echo q_f·g)
+R_MAX, RHO_REF, TAU, R_O, S, R_MIN, SIGMA0, SIGMA1, SIGMA_G = 120.0, 0.8, 10e-9, 5.0, 2.55, 1.0, 0.02, 0.10, 0.5
+#: the fluctuation off (σ_g = 0): the deterministic thresholds, for the closed forms of a shape in ρ, R, β
+STEADY = {"calibration": {"fluctuation_sigma": 0.0}}
 L = C * TAU
 SURFACES = [lfx.Surface(r, rho) for r in (1.5, 3.0, 4.5, 6.0, 9.0, 13.0, 18.0, 25.0, 33.0, 41.0, 52.0, 63.0, 77.0)
             for rho in (0.05, 0.1, 0.3, 0.6, 0.9)]
@@ -34,8 +37,19 @@ def xi(r):
     return min(1.0, (r / R_O) ** 2)
 
 
-def clear_signal(rho, r):
-    return max(max(rho, 0.02) / RHO_REF * (R_MAX / r) ** 2 * xi(r), 1.0)
+def clear_signal(rho, r, su=0.0, sigma=0.0):
+    """The clear-air signal over the threshold of a hard return whose fluctuation is ln g_h = ``su``
+    (σ_g = ``sigma``): max(q·g_h, e^σ_g) — the point was detected in clear air, with a margin of one σ_g."""
+    return max(max(rho, 0.02) / RHO_REF * (R_MAX / r) ** 2 * xi(r) * math.exp(su), math.exp(sigma))
+
+
+def draws(n, seed):
+    """(ln g_h, ln g_f) of n points — the hard return's and the fog echo's fluctuations — of a level drawn
+    from default_rng(seed): the range noise first, then these."""
+    rng = np.random.default_rng(seed)  # float32 standard normals, as the model documents
+    rng.standard_normal(n, np.float32)
+    sigma = np.float32(SIGMA_G)
+    return sigma * rng.standard_normal(n, np.float32), sigma * rng.standard_normal(n, np.float32)
 
 
 _ECHO = {}
@@ -55,11 +69,13 @@ def echo(beta):
     return _ECHO[beta]
 
 
-def expected(rho, r, beta, mode="strongest", model="soft-target"):
-    """The outcome of a point of reflectivity ρ at range r (hard returns: 'hard'), with its q's."""
-    qh = clear_signal(rho, r) * math.exp(-2 * beta * r)
+def expected(rho, r, beta, mode="strongest", model="soft-target", sh=0.0, sf=0.0, sigma=0.0):
+    """The outcome of a point of reflectivity ρ at range r (hard returns: 'hard'), with its q's, for the
+    ray's fluctuations ln g_h = ``sh`` (hard return), ln g_f = ``sf`` (fog echo), σ_g = ``sigma``."""
+    qh = clear_signal(rho, r, sh, sigma) * math.exp(-2 * beta * r)
     qf, rf = echo(beta) if model == "soft-target" else (0.0, 0.0)
-    qc = qf if (rf >= R_MIN and r >= rf + L / 2) else 0.0
+    w = min(max((r - rf) / (L / 2), 0.0), 1.0)  # the fog echo's share resolved from the target
+    qc = qf * math.exp(sf) * w if rf >= R_MIN else 0.0
     hard = qh >= 1
     report_hard = hard and (qh >= qc if mode == "strongest" else True)
     if report_hard:
@@ -115,8 +131,9 @@ def test_the_soft_target_integral_matches_quadrature():
 def test_every_outcome_is_the_closed_form(scans, beta, mode):
     out = fogged(scans["kitti"], beta, return_mode=mode)
     cloud = scans["kitti"]
+    sh, sf = draws(len(cloud), 0)
     for i, (rho, r) in enumerate(zip(scans["rho"], scans["range"])):
-        want, qh, qc = expected(rho, r, beta, mode)
+        want, qh, qc = expected(rho, r, beta, mode, sh=sh[i], sf=sf[i], sigma=SIGMA_G)
         assert abs(math.log(qh)) > 1e-6 and (qc == 0 or abs(math.log(qh / qc)) > 1e-6)  # no point on a boundary
         got = OUTCOMES[out.outcome[i]]
         if want == "hard":
@@ -125,7 +142,12 @@ def test_every_outcome_is_the_closed_form(scans, beta, mode):
         else:
             assert got == want, (i, rho, r, qh, qc)
     seen = set(np.unique(out.outcome).tolist())
-    assert {ATTENUATED, CLUTTER} <= seen and (KEPT in seen) == (beta == 0.03)  # kept: faint points at 1.5 m
+    assert {ATTENUATED, CLUTTER} <= seen
+    steady = fogged(scans["kitti"], beta, return_mode=mode, **STEADY)  # σ_g = 0: the thresholds alone
+    for i, (rho, r) in enumerate(zip(scans["rho"], scans["range"])):
+        want = expected(rho, r, beta, mode)[0]
+        got = OUTCOMES[steady.outcome[i]]
+        assert (got in ("kept", "attenuated")) if want == "hard" else got == want, (i, rho, r)
     assert (out.output_index[out.outcome == LOST] == -1).all()
     kept = out.output_index >= 0
     assert np.array_equal(out.cloud.index, np.flatnonzero(kept))  # input order, traceable
@@ -133,11 +155,12 @@ def test_every_outcome_is_the_closed_form(scans, beta, mode):
 
 
 def test_the_attenuation_model_has_no_clutter_and_loses_below_the_threshold(scans):
+    sh, _ = draws(len(scans["kitti"]), 0)
     for beta in PAPER:
         out = fogged(scans["kitti"], beta, model="attenuation")
         assert not (out.outcome == CLUTTER).any()
         for i, (rho, r) in enumerate(zip(scans["rho"], scans["range"])):
-            lost = clear_signal(rho, r) * math.exp(-2 * beta * r) < 1
+            lost = clear_signal(rho, r, sh[i], SIGMA_G) * math.exp(-2 * beta * r) < 1
             assert (out.outcome[i] == LOST) == lost
 
 
@@ -146,7 +169,7 @@ def test_the_share_of_points_kept_per_range_bin_falls_with_beta_and_range(scans)
     r = scans["range"]
     table = []
     for beta in (0.0,) + PAPER:
-        out = fogged(scans["kitti"], beta, return_mode="last")
+        out = fogged(scans["kitti"], beta, return_mode="last", **STEADY)
         hard = np.isin(out.outcome, (KEPT, ATTENUATED))
         row = []
         for lo, hi in bins:
@@ -165,7 +188,7 @@ def test_the_share_of_points_kept_per_range_bin_falls_with_beta_and_range(scans)
 
 
 def _last_hard_range(scan, rho_of, reflectivity, beta):
-    out = fogged(scan, beta, model="attenuation")
+    out = fogged(scan, beta, model="attenuation", **STEADY)
     pick = (rho_of == reflectivity) & np.isin(out.outcome, (KEPT, ATTENUATED))
     return scan.range_m[pick].max()
 
@@ -187,7 +210,7 @@ def test_a_dark_target_loses_its_points_before_a_bright_one():
     for r, beta in ((40.0, 0.02), (20.0, 0.06)):
         both = PointCloud.from_raw(np.array([[r, 0, 0], [0, r, 0]], np.float32),
                                    np.float32([0.05 / 2.55, 0.9 / 2.55]), "0-1", "car and sign")
-        out = LidarFogger(both, "hdl64e")(beta, np.random.default_rng(0))
+        out = LidarFogger(both, "hdl64e", STEADY)(beta, np.random.default_rng(0))
         assert out.outcome[0] in (LOST, CLUTTER) and out.outcome[1] == ATTENUATED
 
 
@@ -221,7 +244,7 @@ def test_beta_0_09_lies_between_0_06_and_0_12_with_no_plateau():
     ranges = np.arange(5.0, 60.0, 0.01)
     scan = PointCloud.from_raw(np.stack([ranges, 0 * ranges, 0 * ranges], 1).astype(np.float32),
                                np.full(len(ranges), 0.3 / 2.55, np.float32), "0-1", "a long wall")
-    fogger = LidarFogger(scan, "hdl64e", {"model": "attenuation"})
+    fogger = LidarFogger(scan, "hdl64e", {"model": "attenuation", **STEADY})
     grid = np.round(np.arange(0.06, 0.1201, 0.001), 6)
     lost_from = [ranges[fogger(b, np.random.default_rng(0)).outcome != LOST].max() for b in grid]
     assert (np.diff(lost_from) < 0).all()  # strictly falling: every 0.001 1/m moves the loss range
@@ -271,7 +294,9 @@ def test_seeded_and_deterministic(scans):
     a, b = fogged(scans["kitti"], 0.06, seed=11), fogged(scans["kitti"], 0.06, seed=11)
     assert a.cloud.same_as(b.cloud) and np.array_equal(a.outcome, b.outcome)
     c = fogged(scans["kitti"], 0.06, seed=12)
-    assert np.array_equal(a.outcome, c.outcome) and not a.cloud.same_as(c.cloud)  # only the noise differs
+    assert not np.array_equal(a.outcome, c.outcome)  # another seed: other fluctuations, other outcomes
+    a, c = fogged(scans["kitti"], 0.06, seed=11, **STEADY), fogged(scans["kitti"], 0.06, seed=12, **STEADY)
+    assert np.array_equal(a.outcome, c.outcome) and not a.cloud.same_as(c.cloud)  # σ_g = 0: only the noise differs
     with pytest.raises(ValueError, match="Generator"):
         LidarFogger(scans["kitti"], "hdl64e")(0.06)
 
@@ -296,7 +321,7 @@ def test_range_noise_grows_as_the_signal_falls():
     spreads = []
     for r, rho in ((12.0, 0.9), (18.0, 0.3)):
         scan = PointCloud.from_raw((dirs * r).astype(np.float32), np.full(n, rho / 2.55, np.float32), "0-1", "noise")
-        out = LidarFogger(scan, "hdl64e", {"return_mode": "last"})(beta, np.random.default_rng(4))
+        out = LidarFogger(scan, "hdl64e", {"return_mode": "last", **STEADY})(beta, np.random.default_rng(4))
         assert (out.outcome == ATTENUATED).all()
         dr = np.linalg.norm(out.cloud.xyz.astype(np.float64), axis=1) - scan.range_m
         q0 = clear_signal(rho, r)

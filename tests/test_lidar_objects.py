@@ -35,11 +35,14 @@ def _street():
 
 def test_points_per_object_per_level_and_the_cross_sensor_table():
     scan, boxes, n = _street()
-    fogger = LidarFogger(scan, "hdl64e")
+    # the echo fluctuation off (σ = 0): the thresholds alone decide, so every point of a car shares its fate
+    fogger = LidarFogger(scan, "hdl64e", {"calibration": {"fluctuation_sigma": 0.0}})
     levels = {"clear": scan, "b0.03": fogger(0.03, np.random.default_rng(0)).cloud,
               "b0.12": fogger(0.12, np.random.default_rng(0)).cloud}
     counts = object_points(levels, boxes)
     assert counts[2] is None and counts[0] == {"clear": n, "b0.03": n, "b0.12": n}  # the near bright car stays
+    fluctuating = object_points({"b0.12": LidarFogger(scan, "hdl64e")(0.12, np.random.default_rng(0)).cloud}, boxes)
+    assert 0.75 * n < fluctuating[0]["b0.12"] < n and fluctuating[1]["b0.12"] == 0  # a few lose to the fog's echo
     assert counts[1]["clear"] == n and counts[1]["b0.12"] == 0  # the far dark one is gone
     records = [{"kept": True, "distance_m": 10.0, "visibility": {"clear": {"visible": True}, "b0.03": {"visible": True},
                                                                  "b0.12": {"visible": True}}},

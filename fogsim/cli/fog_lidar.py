@@ -63,6 +63,10 @@ def add_options(fog: argparse.ArgumentParser) -> None:
                         "(default: the format's usual one: KITTI hdl64e, STF hdl64-s3d, nuScenes hdl32e, Waymo "
                         "waymo-top with the frame's beams); with --point-format nuscenes-radar a radar (ars408-lr, "
                         "srr-corner, or a JSON; default ars408-lr)")
+    g.add_argument("--lidar-calibration", default=None, metavar="reference|datasheet|FILE",
+                   help="the sensor's parameters: datasheet (the preset's values, each with its source; default), "
+                        "reference (the constants of Hahner et al. 2021: 20 ns pulse, full overlap from 1 m) or a "
+                        "calibration JSON (any of the sensor's radiometric keys, with 'name' and 'sources')")
     g.add_argument("--lidar-extinction-ratio", type=float, default=None, metavar="K",
                    help="β at 905 nm / the camera's β (default 1: fog droplets much larger than both wavelengths)")
     g.add_argument("--lidar-min-points", type=int, default=None, metavar="N",
@@ -83,7 +87,8 @@ def add_options(fog: argparse.ArgumentParser) -> None:
 # ----------------------------------------------------------------------------- checks and records
 def _lidar_flags_given(args) -> list[str]:
     names = {"lidar_model": "--lidar-model", "lidar_sensor": "--lidar-sensor", "lidar_min_points":
-             "--lidar-min-points", "lidar_extinction_ratio": "--lidar-extinction-ratio"}
+             "--lidar-min-points", "lidar_extinction_ratio": "--lidar-extinction-ratio",
+             "lidar_calibration": "--lidar-calibration"}
     given = [flag for key, flag in names.items() if getattr(args, key, None) is not None]
     return given + (["--no-kitti-trees"] if getattr(args, "no_kitti_trees", False) else [])
 
@@ -136,6 +141,22 @@ def sensor_choice(given: str | None):
     return given
 
 
+def calibration_choice(given: str | None):
+    """``--lidar-calibration``: None, ``datasheet``, ``reference``, or a calibration block read from its
+    file (checked: an :class:`~fogsim.errors.InputError` naming it) — what the fog record stores."""
+    from fogsim.schema.lidar import CALIBRATIONS, LidarCalibration
+
+    if given is None or given in CALIBRATIONS:
+        return given
+    path = Path(given)
+    if path.suffix != ".json" and not path.is_file():
+        raise ValueError(f"--lidar-calibration must be {', '.join(CALIBRATIONS)} or a calibration JSON file, "
+                         f"got {given!r}")
+    from fogsim.schema.base import load_json
+
+    return load_json(path, LidarCalibration).model_dump(exclude_none=True)
+
+
 def fog_spec(args, return_mode: str | None = None):
     """The fog record's LiDAR part (:class:`~fogsim.schema.lidar.LidarFogSpec`) from the flags."""
     from fogsim.lidar.fog import lidar_fog_spec
@@ -144,7 +165,9 @@ def fog_spec(args, return_mode: str | None = None):
     if ratio is not None and not ratio > 0:
         raise ValueError(f"--lidar-extinction-ratio must be > 0, got {ratio:g}")
     block = {k: v for k, v in (("model", args.lidar_model), ("extinction_ratio", ratio),
-                               ("return_mode", return_mode)) if v is not None}
+                               ("return_mode", return_mode),
+                               ("calibration", calibration_choice(getattr(args, "lidar_calibration", None))))
+             if v is not None}
     return lidar_fog_spec(block)
 
 

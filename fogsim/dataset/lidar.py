@@ -116,9 +116,11 @@ def _bev(layout: DatasetLayout, levels, frames: list[str], metas: list[dict]) ->
                     continue
                 cloud = read_points(_path(layout, entries[lv.key]["file"]), fmt)
                 outcome, index = read_outcomes(_path(layout, entries[lv.key]["outcome_file"]))
-                if len(outcome) != len(scan) or (index >= 0).sum() != len(cloud):
+                extra = int(entries[lv.key].get("empty_ray_clutter") or 0)  # appended after the input's points
+                if len(outcome) != len(scan) or (index >= 0).sum() + extra != len(cloud):
                     raise InputError(entries[lv.key]["outcome_file"], "outcomes do not match the scans beside them")
-                fogged[lv.key] = FoggedScan(cloud, outcome, index)
+                fogged[lv.key] = FoggedScan(cloud, outcome, index, {}, int(entries[lv.key].get("empty_rays") or 0),
+                                            extra)
         except (InputError, ValueError, KeyError) as exc:
             why = f"frame {frame}: {exc}"
             continue

@@ -158,10 +158,11 @@ class FogSettings:
             return ScatterFogger(image, distance, a, self.blend_space, self.params, intrinsics, up)
         return Fogger(image, distance, a, self.blend_space, self.kernel, density)
 
-    def lidar_fogger(self, scan: PointCloud, sensor) -> LidarFogger:
+    def lidar_fogger(self, scan: PointCloud, sensor, empty_rays=None) -> LidarFogger:
         """The LiDAR's fogger of one scan in this fog: ``fogger(β, rng)`` with the level's β (the camera's;
-        :meth:`point_betas` for patchy fog) gives the scan the sensor reports and every point's outcome."""
-        return LidarFogger(scan, sensor, self.lidar)
+        :meth:`point_betas` for patchy fog) gives the scan the sensor reports and every point's outcome;
+        ``empty_rays``: the sweep's rays without a return (:mod:`fogsim.lidar.rays`), which gain fog clutter."""
+        return LidarFogger(scan, sensor, self.lidar, empty_rays)
 
     def radar_fogger(self, scan: RadarScan, sensor) -> RadarFogger:
         """The radar's fogger of one sweep in this fog: ``fogger(β)`` with the level's β (the camera's; one

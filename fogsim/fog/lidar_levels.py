@@ -4,7 +4,10 @@ record, written beside the camera's level, and counted in each object's 3D box.
 Per sample with a scan source (:class:`fogsim.readers.base.ScanSource`, ``Sample.meta["lidar_points"]``)
 and per level (β in 1/m, the camera level's β):
 
-* the fogger is the run's (:meth:`fogsim.fog.engine.FogSettings.lidar_fogger`: its ``lidar_fog`` spec),
+* the fogger is the run's (:meth:`fogsim.fog.engine.FogSettings.lidar_fogger`: its ``lidar_fog`` spec,
+  its calibration included), with the scan's empty rays when the sensor's grid is known
+  (:func:`fogsim.lidar.rays.empty_rays`: each level's record then counts ``empty_rays`` and
+  ``empty_ray_clutter``, the fog-clutter points appended after the input's),
   the sensor the run's ``--lidar-sensor`` or the source's usual one (completed from the data; a source
   that says its return mode — STF's ``lidar_hdl64_last`` — sets the sensor's);
 * β per point: :meth:`~fogsim.fog.engine.FogSettings.point_betas` — β × the camera's density field at
@@ -39,6 +42,7 @@ from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.formats import FORMAT_SUFFIX, write_points
 from fogsim.lidar.objects import MIN_POINTS
 from fogsim.lidar.outcome_file import write_outcomes
+from fogsim.lidar.rays import empty_rays
 from fogsim.lidar.scan_pcd import PCD_SUFFIX, write_level_pcd
 from fogsim.readers.base import SCAN_SOURCE, Sample
 from fogsim.runs import LEVEL_SEED_RULE, level_seed
@@ -84,8 +88,8 @@ class FrameLidar:
         sensor = source.sensor(output.sensor)
         if source.return_mode is not None and source.return_mode != sensor.return_mode:
             sensor = replace(sensor, return_mode=source.return_mode)
-        self.sensor = sensor
-        self.fogger = fog.lidar_fogger(self.cloud, sensor)
+        self.fogger = fog.lidar_fogger(self.cloud, sensor, empty_rays(self.cloud, sensor))
+        self.sensor = self.fogger.sensor  # under the run's calibration
         self.uv = source.image_uv(self.cloud) if density is not None else None
         self.records = records
         self.boxes = source.boxes(records) if records is not None else []

@@ -8,7 +8,13 @@ format's suffix :data:`~fogsim.lidar.formats.FORMAT_SUFFIX`)::
     <level>/<name><suffix>           the level's scan in the input's format (β = 0: the input bit for bit)
     <level>/<name>.outcomes.npz      every input point's outcome and row (fogsim.lidar.outcome_file)
     <level>/<name>.pcd               the scan with each point's outcome, for viewers (fogsim.lidar.scan_pcd)
-    <level>/<name>.json              the sidecar, written last (it marks the scan's level done)
+    <level>/<name>.json              the sidecar, written last (it marks the scan's level done): the level,
+                                     the fog record's parameters (calibration included), the calibrated
+                                     sensor, the counts per outcome, ``empty_rays`` (the sweep's rays
+                                     without a return, when the sensor's grid is known:
+                                     :func:`fogsim.lidar.rays.empty_rays`; else 0) and
+                                     ``empty_ray_clutter`` (how many gained a fog-clutter point, appended
+                                     to the scan after the input's points)
     fogsim_run.json                  the run's parameters (resume refuses others)
 
 Seeds: the level's generator is ``default_rng(level_seed(run seed, <name>, level key))``
@@ -31,6 +37,7 @@ from fogsim.fog.engine import FogSettings
 from fogsim.fog.levels import FogLevel
 from fogsim.lidar.formats import FORMAT_SUFFIX, read_points, write_points
 from fogsim.lidar.outcome_file import OUTCOME_SUFFIX, write_outcomes
+from fogsim.lidar.rays import empty_rays
 from fogsim.lidar.scan_pcd import PCD_SUFFIX, write_level_pcd
 from fogsim.lidar.sensors import load_sensor
 from fogsim.radar.formats import RADAR_SUFFIX
@@ -130,7 +137,10 @@ class PointsJob:
         """Every level of one scan: scan, outcomes, then the sidecar."""
         scan = read_points(item.source, self.fmt, self.scale)
         sensor = load_sensor(self.sensor)
-        fogger = self.fog.lidar_fogger(scan, sensor)
+        try:
+            fogger = self.fog.lidar_fogger(scan, sensor, empty_rays(scan, sensor))
+        except ValueError as exc:  # a calibration that does not fit this sensor
+            raise InputError(item.source, str(exc)) from None
         for level in self.levels:
             seed = level_seed(self.seed, item.key, level.key)
             fogged = fogger(level.beta, np.random.default_rng(seed))
@@ -144,5 +154,5 @@ class PointsJob:
             write_level_pcd(pcd, fogged)
             write_json(sidecar, {"level": level.to_dict(), "source": item.source, "key": item.key,
                                  "scan": scan_path.name, "outcomes": outcome_path.name, "pcd": pcd.name, "seed": seed,
-                                 "seed_rule": LEVEL_SEED_RULE, **fogged.record(), "sensor": sensor.to_dict(),
+                                 "seed_rule": LEVEL_SEED_RULE, **fogged.record(), "sensor": fogger.sensor.to_dict(),
                                  "fogsim_version": __version__})

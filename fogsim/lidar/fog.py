@@ -3,28 +3,45 @@ extinction β — every input point gets an outcome, and the fogged scan holds w
 
 Models (:class:`fogsim.schema.lidar.LidarFogSpec` ``model``):
 
-``soft-target`` (default) — per point i at range R_i (sensor frame) with normalised intensity I_i:
+``soft-target`` (default) — per point i at range R_i (sensor frame) with normalised intensity I_i, the
+sensor under the spec's ``calibration`` (:meth:`LidarSensor.calibrated`: ``datasheet``, ``reference`` or a
+block), σ = its ``fluctuation_sigma``:
 
+0. **Fluctuation.** Every echo's received power fluctuates from pulse to pulse and beam to beam (speckle
+   of the surface, the droplets' random arrangement, beam-to-beam gain spread, pulse-energy jitter): the
+   hard return of ray i carries a factor g_h,i and its fog echo g_f,i, ln g ~ N(0, σ²), independent.
+   This is what makes outcome shares continuous in β (no single β at which every ray's echo crosses).
 1. Reflectivity from the intensity and the range: ρ_i = max(s·I_lin,i·(R_i/R_ref)^k, ρ_floor)
    (:meth:`LidarSensor.reflectivity_of`; ``reflectivity_floor`` ρ_floor, default 0.02).
-2. Clear-air signal over the detection threshold: q0_i = max(q(ρ_i, R_i), 1) with
-   q(ρ, R) = (ρ/ρ_ref)·(R_max/R)²·ξ(R) (:meth:`LidarSensor.clear_signal`); the floor 1 says the point
-   *was* detected in clear air, whatever its intensity suggests.
+2. Clear-air signal over the detection threshold: q0_i = max(q(ρ_i, R_i)·g_h,i, e^σ) with
+   q(ρ, R) = (ρ/ρ_ref)·(R_max/R)²·ξ(R) (:meth:`LidarSensor.clear_signal`). The floor e^σ: the point
+   *was* detected in clear air, so its signal is taken at least one σ above the threshold (a return at
+   the threshold itself is detected on half its pulses) — whatever its intensity suggests. So a point's
+   margin ln q0 ≥ σ: β → 0 gives the clear scan back continuously (nothing is lost while 2β₉₀₅R < σ).
 3. Two-way attenuation of the hard return: q_h,i = q0_i · e^(−2 β₉₀₅ R_i), β₉₀₅ = ``extinction_ratio``·β.
    The hard return is detected when q_h,i ≥ 1.
-4. The fog's own echo (:mod:`fogsim.lidar.soft_target`): peak q_f at r_f, width w_f. It is a separate
-   echo in front of point i when min_range ≤ r_f ≤ R_i − L/2 (L = c·τ_H; closer to the target, the two
-   peaks merge): q_c,i = q_f, else 0; it is detected when q_c,i ≥ 1.
+4. The fog's own echo (:mod:`fogsim.lidar.soft_target`): peak q_f at r_f, width w_f, when
+   r_f ≥ min_range. In front of point i it is resolved from the hard return by the share
+   w_i = clip((R_i − r_f)/(L/2), 0, 1) (L = c·τ_H: one when the target lies L/2 or more behind the echo's
+   peak, falling linearly to zero as the two peaks merge — a taper, not a cliff, so a ring of returns at
+   one range does not switch all at once): q_c,i = q_f·g_f,i·w_i; it is detected when q_c,i ≥ 1.
 5. The return mode decides (``return_mode``: the spec's, else the sensor's):
    *strongest*: the hard return if detected and q_h ≥ q_c, else the fog echo if detected;
    *last*: the hard return if detected, else the fog echo if detected. Otherwise nothing: lost.
 6. Range noise grows as the signal falls: σ(q)² = σ₀² + (σ₁/q)² (σ₀ = ``range_noise_m``, σ₁ =
    ``range_noise_at_threshold_m``; the timing jitter of a pulse ∝ its width / SNR). The clear scan
    already holds σ(q0), so a hard return gets the difference: δR = σ₁·√(1/q_h² − 1/q0²)·z. A fog echo
-   gets σ₀² + (σ₁·(w_f / (L/2)) / q_c)² (its echo is w_f wide against the pulse's L/2). z ~ N(0, 1)
-   from the caller's ``numpy.random.Generator``, one draw per input point, in input order.
+   gets σ₀² + (σ₁·(w_f / (L/2)) / q_c)² (its echo is w_f wide against the pulse's L/2).
+7. **Empty rays** (``empty_rays``: the sweep's rays that returned nothing in clear air, unit directions
+   and the range of what each hit below the threshold, +inf for nothing; :mod:`fogsim.lidar.rays`): each
+   sees the same fog echo, q_c,k = q_f·g_f,k·w_k (w_k from its surface's range, 1 for none), and gains
+   a clutter point on its ray at r_f + noise when q_c,k ≥ 1; nothing otherwise.
 
-``attenuation`` — steps 1–3 and 6 alone: a point is lost when q_h < 1; no fog echo.
+Random draws from the caller's ``numpy.random.Generator`` (float32 standard normals), in this order:
+z (N, range noise), ln g_h/σ (N), ln g_f/σ (N) for the input points in input order; then, with empty
+rays, ln g_f/σ (K) and z (K) for the empty rays in their order. Same Generator state → the same level, bit for bit.
+
+``attenuation`` — steps 0–3 and 6 alone: a point is lost when q_h < 1; no fog echo, no empty-ray clutter.
 
 Outcomes (per input point, :data:`OUTCOMES`):
 
@@ -34,20 +51,24 @@ Outcomes (per input point, :data:`OUTCOMES`):
   the range noise of step 6 along the same ray.
 * ``lost`` — nothing reported: absent from the fogged scan; ``output_index`` −1.
 * ``clutter`` — the fog echo is reported instead: a point on the same ray at r_f + noise, with the
-  intensity the sensor gives an echo of that strength at that range (ρ_app = q_c·ρ_ref·(r_f/R_max)²/ξ(r_f)).
+  intensity the sensor gives an echo of that strength at that range (its calibrated value, without the
+  fluctuation: ρ_app = q_f·ρ_ref·(r_f/R_max)²/ξ(r_f)).
 
 The fogged scan holds the reported points in input order (``index`` still names the input row; ring and
-return index carried over), intensities in the source's own scale. β = 0 gives the input back bit for bit.
-The same scan stored 0–1 or 0–255 gives the same outcomes (the physics reads normalised intensities).
+return index carried over), then the empty rays' clutter points (``index`` :data:`EMPTY_RAY_INDEX` = −1,
+their ring, return index 1), intensities in the source's own scale; ``FoggedScan.empty_ray_clutter``
+counts them. β = 0 gives the input back bit for bit. The same scan stored 0–1 or 0–255 gives the same
+outcomes (the physics reads normalised intensities).
 
 Heterogeneous fog: β may be an array (one visible β per point: the mean extinction along that point's
 ray, as the camera path's density field gives per pixel); the fog echo is then computed per point
-(exact for few distinct values, else within the bound of :mod:`fogsim.lidar.soft_target`).
+(exact for few distinct values, else within the bound of :mod:`fogsim.lidar.soft_target`); empty rays
+see the mean β.
 
 Assumptions: fixed laser power (real HDL-64s raise it when no echo returns, so recorded intensities fall
-less than e^(−2βR)); one hard target per ray (the input point); rays without a clear-air return (sky)
-get no fog echo; the fog is homogeneous along each ray; outcomes are deterministic thresholds, only the
-range noise is random.
+less than e^(−2βR)); one hard target per ray (the input point); the fog is homogeneous along each ray;
+the fluctuations are independent between rays and between a ray's two echoes (a beam's own gain, common
+to all its pulses, is folded into σ); fog levels drawn from different Generators are different pulses.
 """
 from __future__ import annotations
 
@@ -57,19 +78,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsim.lidar.points import PointCloud
+from fogsim.lidar.rays import EmptyRays
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor, load_sensor
 from fogsim.lidar.soft_target import backscatter_coefficient, echo_per_point, fog_echo
 from fogsim.schema.base import check
 from fogsim.schema.lidar import LidarFogSpec
 
-__all__ = ["ATTENUATED", "CLUTTER", "FoggedScan", "KEPT", "LOST", "LidarFogger", "OUTCOMES", "fog_scan",
-           "lidar_fog_spec"]
+__all__ = ["ATTENUATED", "CLUTTER", "EMPTY_RAY_INDEX", "FoggedScan", "KEPT", "LOST", "LidarFogger", "OUTCOMES",
+           "fog_scan", "lidar_fog_spec"]
 
 OUTCOMES = ("kept", "attenuated", "lost", "clutter")
 KEPT, ATTENUATED, LOST, CLUTTER = range(4)
 #: the smallest range a noisy return is placed at (metres)
 MIN_REPORTED_M = 0.01
+#: the ``index`` of a fogged scan's rows that no input point made (the empty rays' clutter points)
+EMPTY_RAY_INDEX = -1
 
 
 def lidar_fog_spec(spec: LidarFogSpec | dict | None = None) -> LidarFogSpec:
@@ -99,14 +123,18 @@ def _beta(beta, n: int) -> float | np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class FoggedScan:
-    """One fog level of a scan: ``cloud`` (what the sensor reports), per input point ``outcome`` (int8,
-    :data:`OUTCOMES`) and ``output_index`` (int64, its row in ``cloud``, −1 when lost), and the
-    ``parameters`` that made it (:meth:`record`)."""
+    """One fog level of a scan: ``cloud`` (what the sensor reports: the reported input points in input
+    order, then the empty rays' clutter points, ``index`` :data:`EMPTY_RAY_INDEX`), per input point
+    ``outcome`` (int8, :data:`OUTCOMES`) and ``output_index`` (int64, its row in ``cloud``, −1 when lost),
+    the ``parameters`` that made it, ``empty_rays`` (how many were given) and ``empty_ray_clutter`` (how
+    many of them became clutter points) (:meth:`record`)."""
 
     cloud: PointCloud
     outcome: np.ndarray
     output_index: np.ndarray
     parameters: dict = field(default_factory=dict)
+    empty_rays: int = 0
+    empty_ray_clutter: int = 0
 
     def counts(self) -> dict[str, int]:
         """Points per outcome."""
@@ -116,7 +144,8 @@ class FoggedScan:
     def record(self) -> dict:
         """The parameters and the counts per outcome (what a sidecar or a report stores)."""
         return {**self.parameters, "points_in": int(len(self.outcome)), "points_out": int(len(self.cloud)),
-                "outcomes": self.counts()}
+                "outcomes": self.counts(), "empty_rays": int(self.empty_rays),
+                "empty_ray_clutter": int(self.empty_ray_clutter)}
 
 
 class LidarFogger:
@@ -127,11 +156,16 @@ class LidarFogger:
         fogged = fogger(0.06, np.random.default_rng(7))  # β (1/m, scalar or one per point), a Generator
 
     ``spec``: the model's parameters (:class:`~fogsim.schema.lidar.LidarFogSpec`, a dict of it, or None
-    for the defaults). The scan must be in the sensor frame (ranges from the sensor origin).
+    for the defaults; its ``calibration`` is applied to the sensor). ``empty_rays``: the sweep's rays that
+    returned nothing in clear air (:class:`~fogsim.lidar.rays.EmptyRays`, or K×3 directions in the sensor
+    frame; :func:`fogsim.lidar.rays.empty_rays` finds them in a scan): each gains a fog-clutter point when
+    its fog echo is detected. The scan must be in the sensor frame (ranges from the sensor origin).
     """
 
-    def __init__(self, scan: PointCloud, sensor: LidarSensor | str | dict, spec: LidarFogSpec | dict | None = None):
-        self.scan, self.sensor, self.spec = scan, load_sensor(sensor), lidar_fog_spec(spec)
+    def __init__(self, scan: PointCloud, sensor: LidarSensor | str | dict, spec: LidarFogSpec | dict | None = None,
+                 empty_rays: EmptyRays | np.ndarray | None = None):
+        self.scan, self.spec = scan, lidar_fog_spec(spec)
+        self.sensor = load_sensor(sensor).calibrated(self.spec.calibration)
         self.scale = scale_named(scan.scale)
         self.mode = self.spec.return_mode or self.sensor.return_mode
         r = scan.range_m
@@ -140,8 +174,13 @@ class LidarFogger:
         self.linear = self.scale.to_linear(scan.intensity, scan.raw_intensity)
         rho = np.maximum(self.sensor.reflectivity_of(self.linear, self.range_m), self.spec.reflectivity_floor)
         self.reflectivity = rho
-        self.clear_signal = np.maximum(self.sensor.clear_signal(rho, self.range_m), 1.0)
+        #: ln of the modelled clear-air signal over the threshold, before the fluctuation (step 2)
+        with np.errstate(divide="ignore"):
+            self.log_signal = np.log(self.sensor.clear_signal(rho, self.range_m))
         self._xyz = scan.xyz.astype(np.float64)
+        if empty_rays is not None and not isinstance(empty_rays, EmptyRays):
+            empty_rays = EmptyRays(empty_rays)
+        self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
 
     # ------------------------------------------------------------------ the parameters
     def parameters(self, beta, echo=None) -> dict:
@@ -160,7 +199,8 @@ class LidarFogger:
             b = np.asarray(beta)
             beta_rec = {"beta": "per point", "beta_min": float(b.min()), "beta_mean": float(b.mean()),
                         "beta_max": float(b.max())}
-        return {"model": self.spec.model, "sensor": self.sensor.name, "return_mode": self.mode,
+        return {"model": self.spec.model, "sensor": self.sensor.name, "calibration": self.sensor.calibration,
+                "return_mode": self.mode, "fluctuation_sigma": self.sensor.fluctuation_sigma,
                 "source": self.scan.source, **beta_rec, "spec": spec}
 
     # ------------------------------------------------------------------ one level
@@ -171,11 +211,16 @@ class LidarFogger:
             return self._clear()
         if rng is None:
             raise ValueError("fog with β > 0 draws range noise: pass a seeded numpy.random.Generator")
-        z = rng.standard_normal(n)
+        sg = self.sensor.fluctuation_sigma
+        z = rng.standard_normal(n, np.float32)  # the draws, in this order (input points): range noise,
+        sh = sg * rng.standard_normal(n, np.float32)  # ln g_h, the hard return's fluctuation,
+        su = sg * rng.standard_normal(n, np.float32)  # ln g_f, the fog echo's; then the empty rays'
         r, s, scalar = self.range_m, self.sensor, np.ndim(beta) == 0
-        t2 = np.exp(r * (-2.0 * self.spec.extinction_ratio * beta))
-        qh = self.clear_signal * t2
-        hard = qh >= 1.0
+        log_clear = np.maximum(self.log_signal + sh, sg)  # ln q0 = max(ln(q·g_h), σ) (step 2)
+        nb = r * (-2.0 * self.spec.extinction_ratio * beta)  # ln of the two-way transmission
+        t2 = np.exp(nb)
+        log_qh = log_clear + nb
+        hard = log_qh >= 0.0
         half_pulse = 0.5 * s.pulse_length_m
         e = qf = rf = wf = None
         clutter = None
@@ -183,14 +228,19 @@ class LidarFogger:
             if scalar:
                 e = fog_echo(s, beta, self.spec)
                 qf, rf, wf = e.signal, e.range_m, e.width_m
-                separate = r >= rf + half_pulse if (qf >= 1.0 and rf >= s.min_range_m) else None
-                if separate is not None:  # a detectable fog echo in front of the targets beyond r_f + L/2
-                    reported_hard = hard & ((qh >= qf) | ~separate) if self.mode == "strongest" else hard
-                    clutter = separate & ~reported_hard
+                if rf >= s.min_range_m and qf > 0:
+                    log_qc = np.add(su, math.log(qf), dtype=np.float64)  # ln(q_f·g_f·w), w: step 4
+                    near = r < rf + half_pulse
+                    if near.any():
+                        with np.errstate(divide="ignore"):
+                            log_qc[near] += np.log(np.clip((r[near] - rf) / half_pulse, 0.0, 1.0))
+                    reported_hard = hard & (log_qh >= log_qc) if self.mode == "strongest" else hard
+                    clutter = (log_qc >= 0.0) & ~reported_hard
             else:
                 qf, rf, wf = echo_per_point(s, beta, self.spec)
-                qc = np.where((rf >= s.min_range_m) & (rf <= r - half_pulse), qf, 0.0)
-                reported_hard = hard & (qh >= qc) if self.mode == "strongest" else hard
+                w = np.clip((r - rf) / half_pulse, 0.0, 1.0) * (rf >= s.min_range_m)
+                qc = qf * np.exp(su) * w
+                reported_hard = hard & (np.exp(log_qh) >= qc) if self.mode == "strongest" else hard
                 clutter = (qc >= 1.0) & ~reported_hard
         if clutter is None:
             reported_hard, clutter = hard, None
@@ -203,24 +253,67 @@ class LidarFogger:
         norm_out, raw_out = self.scale.from_linear(self.linear[pick] * t2i)
         kept = rh & (self.normalised[pick] - norm_out < self.spec.kept_tolerance)
         oc = np.where(rh, np.where(kept, KEPT, ATTENUATED), CLUTTER).astype(np.int8)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            qi, q0 = qh[pick], self.clear_signal[pick]
-            sigma = s.range_noise_at_threshold_m * np.sqrt(np.maximum(1.0 / (qi * qi) - 1.0 / (q0 * q0), 0.0))
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # σ₁·√(1/q_h² − 1/q0²)
+            inv_t2 = 1.0 / t2i
+            gain = np.sqrt(np.maximum(inv_t2 * inv_t2 - 1.0, 0.0))
+            sigma = (s.range_noise_at_threshold_m * np.exp(-log_clear[pick])) * gain
         new_r = np.where(kept, ri, np.maximum(ri + sigma * zi, MIN_REPORTED_M))
         if clutter is not None and not rh.all():
             c = np.flatnonzero(~rh)
-            qcc, rfc, wfc = (qf, rf, wf) if scalar else (qf[idx[c]], rf[idx[c]], wf[idx[c]])
-            sigma_c = np.sqrt(s.range_noise_m ** 2 + (s.range_noise_at_threshold_m * (wfc / half_pulse) / qcc) ** 2)
-            new_r[c] = np.maximum(np.clip(rfc + sigma_c * zi[c], s.min_range_m, ri[c]), MIN_REPORTED_M)
-            rho_app = qcc * s.reference_reflectivity * (rfc / s.max_range_m) ** 2 / s.overlap(rfc)
-            norm_out[c], raw_out[c] = self.scale.from_linear(np.broadcast_to(s.intensity_of(rho_app, rfc), c.shape))
+            ic = idx[c]
+            qcc = np.exp(log_qc[ic]) if scalar else qc[ic]
+            rfc, wfc, qfc = (rf, wf, qf) if scalar else (rf[ic], wf[ic], qf[ic])
+            new_r[c] = self._echo_range(rfc, wfc, qcc, zi[c], ri[c])
+            norm_out[c], raw_out[c] = self._echo_intensity(qfc, rfc, c.shape)
         outcome = np.full(n, LOST, np.int8)
         outcome[pick] = oc
-        return self._assemble(idx, pick, oc, new_r, norm_out, raw_out, outcome, self.parameters(beta, e))
+        extra = self._empty_ray_clutter(beta, rng, e)
+        return self._assemble(idx, pick, oc, new_r, norm_out, raw_out, outcome, self.parameters(beta, e), extra)
 
-    def _assemble(self, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameters: dict) -> FoggedScan:
+    def _echo_range(self, rf, wf, qc, z, limit):
+        """Where a detected fog echo is reported: r_f + σ_c·z, σ_c² = σ₀² + (σ₁·(w_f/(L/2))/q_c)², kept
+        within [min range, ``limit``] (the ray's target, or +inf)."""
+        s = self.sensor
+        spread = s.range_noise_at_threshold_m * (wf / (0.5 * s.pulse_length_m)) / qc
+        sigma_c = np.sqrt(s.range_noise_m ** 2 + spread ** 2)
+        return np.maximum(np.clip(rf + sigma_c * z, s.min_range_m, limit), MIN_REPORTED_M)
+
+    def _echo_intensity(self, qf, rf, shape):
+        """The intensity the sensor reports for the fog echo (its calibrated value: the echo's apparent
+        reflectivity q_f·ρ_ref·(r_f/R_max)²/ξ(r_f), without the fluctuation) in the scan's scale."""
+        s = self.sensor
+        rho_app = qf * s.reference_reflectivity * (rf / s.max_range_m) ** 2 / s.overlap(rf)
+        return self.scale.from_linear(np.broadcast_to(s.intensity_of(rho_app, rf), shape))
+
+    def _empty_ray_clutter(self, beta, rng, echo):
+        """The clutter points of the empty rays (:attr:`empty`) at ``beta`` (a per-point β: its mean), or
+        None: draws σ·u (fluctuation) then z (range noise), one each per empty ray, after the points'."""
+        if self.empty is None:
+            return None
+        k = len(self.empty)
+        su = self.sensor.fluctuation_sigma * rng.standard_normal(k, np.float32)
+        z = rng.standard_normal(k, np.float32)
+        s = self.sensor
+        if self.spec.model != "soft-target":
+            return np.zeros(0, np.int64), None
+        b = float(beta) if np.ndim(beta) == 0 else float(np.mean(beta))
+        e = echo if echo is not None and np.ndim(beta) == 0 else fog_echo(s, b, self.spec)
+        if not (e.range_m >= s.min_range_m and e.signal > 0):
+            return np.zeros(0, np.int64), None
+        w = np.clip((self.empty.range_m - e.range_m) / (0.5 * s.pulse_length_m), 0.0, 1.0)  # +inf: 1
+        with np.errstate(divide="ignore"):
+            log_qc = math.log(e.signal) + su + np.log(w)
+        rows = np.flatnonzero(log_qc >= 0.0)
+        qc = np.exp(log_qc[rows])
+        rr = self._echo_range(e.range_m, e.width_m, qc, z[rows], self.empty.range_m[rows])
+        norm, raw = self._echo_intensity(e.signal, e.range_m, rows.shape)
+        xyz = self.empty.directions[rows] * rr[:, None]
+        return rows, (xyz, norm, raw)
+
+    def _assemble(self, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameters: dict, extra=None) -> FoggedScan:
         """The fogged cloud of the reported rows ``idx`` (outcomes ``oc``): kept rows bit for bit (their
-        factor R'/R is exactly 1), the others moved along their ray and given their new intensity."""
+        factor R'/R is exactly 1), the others moved along their ray and given their new intensity; then
+        the empty rays' clutter points (``extra``: their rows and (xyz, normalised, raw)), index −1."""
         scan = self.scan
         xyz = self._xyz.copy() if isinstance(pick, slice) else np.take(self._xyz, idx, axis=0)
         factor = new_r / self.range_m[pick]
@@ -232,11 +325,24 @@ class LidarFogger:
 
         def take(a):
             return None if a is None else a[idx]
-        cloud = PointCloud(xyz.astype(np.float32), inten, raw, scan.scale, take(scan.index), scan.source,
-                           take(scan.ring), take(scan.return_index))
-        index = np.full(len(outcome), -1, np.int64)
-        index[idx] = np.arange(len(idx))
-        return FoggedScan(cloud, outcome, index, parameters)
+        ring, ret, index = take(scan.ring), take(scan.return_index), take(scan.index)
+        rows = np.zeros(0, np.int64) if extra is None else extra[0]
+        if len(rows):
+            exyz, enorm, eraw = extra[1]
+            xyz = np.concatenate([xyz, exyz])
+            inten, raw = np.concatenate([inten, enorm]), np.concatenate([raw, eraw])
+            index = np.concatenate([index, np.full(len(rows), EMPTY_RAY_INDEX, np.int64)])
+            if ring is not None:
+                er = self.empty.ring
+                ring = np.concatenate([ring, (np.zeros(len(rows), np.int16) if er is None else er[rows])])
+            if ret is not None:
+                ret = np.concatenate([ret, np.ones(len(rows), ret.dtype)])
+        cloud = PointCloud(xyz.astype(np.float32), inten.astype(np.float32), raw.astype(np.float32), scan.scale,
+                           index, scan.source, ring, ret)
+        out_index = np.full(len(outcome), -1, np.int64)
+        out_index[idx] = np.arange(len(idx))
+        return FoggedScan(cloud, outcome, out_index, parameters, 0 if self.empty is None else len(self.empty),
+                          int(len(rows)))
 
     def _clear(self) -> FoggedScan:
         s = self.scan
@@ -244,10 +350,11 @@ class LidarFogger:
                           None if s.ring is None else s.ring.copy(),
                           None if s.return_index is None else s.return_index.copy())
         n = len(s)
-        return FoggedScan(copy, np.full(n, KEPT, np.int8), np.arange(n, dtype=np.int64), self.parameters(0.0))
+        return FoggedScan(copy, np.full(n, KEPT, np.int8), np.arange(n, dtype=np.int64), self.parameters(0.0),
+                          0 if self.empty is None else len(self.empty), 0)
 
 
 def fog_scan(scan: PointCloud, sensor, beta, rng: np.random.Generator | None = None,
-             spec: LidarFogSpec | dict | None = None) -> FoggedScan:
-    """One level: ``LidarFogger(scan, sensor, spec)(beta, rng)``."""
-    return LidarFogger(scan, sensor, spec)(beta, rng)
+             spec: LidarFogSpec | dict | None = None, empty_rays=None) -> FoggedScan:
+    """One level: ``LidarFogger(scan, sensor, spec, empty_rays)(beta, rng)``."""
+    return LidarFogger(scan, sensor, spec, empty_rays)(beta, rng)

@@ -55,6 +55,10 @@ def bev_image(scan: PointCloud, fogged: FoggedScan | None = None, extent_m: floa
         shown = fogged.output_index >= 0
         xyz = xyz.copy()
         xyz[shown] = fogged.cloud.xyz[fogged.output_index[shown]]
+        extra = fogged.cloud.xyz[int(shown.sum()):].astype(np.float64)  # the empty rays' fog clutter
+        if len(extra):
+            xyz = np.concatenate([xyz, extra])
+            outcome = np.concatenate([outcome, np.full(len(extra), CLUTTER, np.int8)])
     row, col, inside = _to_pixels(xyz, extent_m, px_per_m)
     for kind in ORDER:
         pick = inside & (outcome == kind)

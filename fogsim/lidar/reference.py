@@ -3,9 +3,11 @@
 
 Written independently of the vectorised code, from its docstring: one Python loop over the points with
 ``math`` functions, the fog echo's integral by a direct convolution (``numpy.convolve``) instead of the
-running sums, the peak found by its own parabola. Same inputs, same random draws (one standard normal
-per input point, drawn first) → the same outcomes, and coordinates and intensities equal to float
-rounding. Slow on purpose (≈ 10⁵ points/s); not for production use.
+running sums, the peak found by its own parabola. Same inputs, same random draws (float32 standard
+normals: per input point one for the range noise, then one per point for the hard return's fluctuation,
+then one per point for the fog echo's; then per empty ray one for the fluctuation and one for the range
+noise) → the same outcomes, and coordinates and intensities equal to float rounding. Slow on purpose
+(≈ 10⁵ points/s); not for production use.
 """
 from __future__ import annotations
 
@@ -57,21 +59,49 @@ def reference_echo(sensor: LidarSensor, beta: float, spec: LidarFogSpec) -> tupl
     return signal, pos, right - left
 
 
-def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec: LidarFogSpec = LidarFogSpec()
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(outcome int8 N, output xyz N×3 float64 (NaN where lost), normalised intensity N, raw intensity N)
-    of one level, point by point. ``beta``: a number or one per point (each point's echo exact)."""
-    s = load_sensor(sensor)
+def _echo_point(s: LidarSensor, sc, qc: float, qf: float, rf: float, wf: float, z: float, limit: float):
+    """(range, normalised, raw) of a detected fog echo of signal ``qc`` (peak ``qf`` at ``rf``, width ``wf``)."""
+    half_pulse = s.pulse_length_m / 2
+    sigma = math.sqrt(s.range_noise_m ** 2 + (s.range_noise_at_threshold_m * (wf / half_pulse) / qc) ** 2)
+    rn = max(min(max(rf + sigma * z, s.min_range_m), limit), 0.01)
+    xi_f = 1.0 if s.overlap_full_m <= 0 else min(1.0, (rf / s.overlap_full_m) ** 2)
+    rho_app = qf * s.reference_reflectivity * (rf / s.max_range_m) ** 2 / xi_f
+    lin_c = rho_app / s.reflectivity_per_intensity
+    if s.retro_reflective_from is not None and rho_app > s.reflectivity_per_intensity * s.retro_reflective_from:
+        ir, white = s.retro_reflective_from, s.reflectivity_per_intensity * s.retro_reflective_from
+        lin_c = ir + (1.0 - ir) * math.log(rho_app / white) / math.log(s.retro_reflectivity_max / white)
+    if s.intensity_range_exponent:
+        lin_c *= (rf / s.intensity_reference_range_m) ** -s.intensity_range_exponent
+    if sc.name == "tanh":
+        return rn, math.tanh(lin_c), lin_c
+    norm_c = min(lin_c, 1.0)
+    return rn, norm_c, (norm_c if sc.name == "0-1" else norm_c * 255.0)
+
+
+def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec: LidarFogSpec = LidarFogSpec(),
+                  empty_rays=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(outcome int8, output xyz ×3 float64 (NaN where lost), normalised intensity, raw intensity) of one
+    level, point by point: N rows for the input points, then (``empty_rays``: K×3 directions, +inf range)
+    K rows for the empty rays (outcome clutter or lost). ``beta``: a number or one per point (each point's
+    echo exact; the empty rays use the mean)."""
+    s = load_sensor(sensor).calibrated(spec.calibration)
     sc = scale_named(scan.scale)
     mode = spec.return_mode or s.return_mode
     n = len(scan)
+    dirs = [] if empty_rays is None else [tuple(float(v) / float(np.linalg.norm(d)) for v in d)
+                                          for d in np.asarray(empty_rays, np.float64).reshape(-1, 3)]
+    k = len(dirs)
     betas = [float(beta)] * n if np.ndim(beta) == 0 else [float(b) for b in np.asarray(beta).reshape(-1)]
-    z = rng.standard_normal(n) if any(b > 0 for b in betas) else np.zeros(n)
+    sigma_g = s.fluctuation_sigma
+    fog = any(b > 0 for b in betas)
+    z = rng.standard_normal(n, np.float32) if fog else np.zeros(n)
+    uh = rng.standard_normal(n, np.float32) if fog else np.zeros(n)
+    u = rng.standard_normal(n, np.float32) if fog else np.zeros(n)
     echoes: dict[float, tuple[float, float, float]] = {}
-    outcome = np.zeros(n, np.int8)
-    xyz_out = np.full((n, 3), np.nan)
-    norm_out = np.full(n, np.nan)
-    raw_out = np.full(n, np.nan)
+    outcome = np.zeros(n + k, np.int8)
+    xyz_out = np.full((n + k, 3), np.nan)
+    norm_out = np.full(n + k, np.nan)
+    raw_out = np.full(n + k, np.nan)
     half_pulse = s.pulse_length_m / 2
     for i in range(n):
         x, y, zc = (float(v) for v in scan.xyz[i])
@@ -83,23 +113,28 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
         r = max(math.sqrt(x * x + y * y + zc * zc), 1e-6)
         lin = raw if sc.name == "tanh" else norm
         rho = s.reflectivity_per_intensity * lin
+        if s.retro_reflective_from is not None and lin > s.retro_reflective_from:
+            ir, white = s.retro_reflective_from, s.reflectivity_per_intensity * s.retro_reflective_from
+            rho = white * (s.retro_reflectivity_max / white) ** ((lin - ir) / (1.0 - ir))
         if s.intensity_range_exponent:
             rho *= (r / s.intensity_reference_range_m) ** s.intensity_range_exponent
         rho = max(rho, spec.reflectivity_floor)
         xi = 1.0 if s.overlap_full_m <= 0 else min(1.0, (r / s.overlap_full_m) ** 2)
-        q0 = max(rho / s.reference_reflectivity * (s.max_range_m / r) ** 2 * xi, 1.0)
+        g = math.exp(float(np.float32(sigma_g) * u[i]))  # the fog echo's fluctuation (ln g in float32)
+        gh = math.exp(float(np.float32(sigma_g) * uh[i]))  # the hard return's
+        q0 = max(rho / s.reference_reflectivity * (s.max_range_m / r) ** 2 * xi * gh, math.exp(sigma_g))
         t2 = math.exp(-2.0 * spec.extinction_ratio * b * r)
         qh = q0 * t2
         hard = qh >= 1.0
-        qc = 0.0
+        qc = qf = 0.0
         rf = wf = 0.0
         if spec.model == "soft-target":
             if b not in echoes:
                 echoes[b] = reference_echo(s, b, spec)
             qf, rf, wf = echoes[b]
-            if s.min_range_m <= rf <= r - half_pulse:
-                qc = qf
-        fog = qc >= 1.0
+            if s.min_range_m <= rf:  # the resolvable share w = clip((R − r_f)/(L/2), 0, 1)
+                qc = qf * g * min(max((r - rf) / half_pulse, 0.0), 1.0)
+        fog_seen = qc >= 1.0
         if mode == "strongest":
             report_hard = hard and qh >= qc
         else:
@@ -119,22 +154,23 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
             outcome[i] = 1
             xyz_out[i] = (x / r * rn, y / r * rn, zc / r * rn)
             norm_out[i], raw_out[i] = norm_h, raw_h
-        elif fog:
-            sigma = math.sqrt(s.range_noise_m ** 2 + (s.range_noise_at_threshold_m * (wf / half_pulse) / qc) ** 2)
-            rn = min(max(rf + sigma * z[i], max(s.min_range_m, 0.01)), r)
-            xi_f = 1.0 if s.overlap_full_m <= 0 else min(1.0, (rf / s.overlap_full_m) ** 2)
-            rho_app = qc * s.reference_reflectivity * (rf / s.max_range_m) ** 2 / xi_f
-            lin_c = rho_app / s.reflectivity_per_intensity
-            if s.intensity_range_exponent:
-                lin_c *= (rf / s.intensity_reference_range_m) ** -s.intensity_range_exponent
-            if sc.name == "tanh":
-                norm_c, raw_c = math.tanh(lin_c), lin_c
-            else:
-                norm_c = min(lin_c, 1.0)
-                raw_c = norm_c if sc.name == "0-1" else norm_c * 255.0
+        elif fog_seen:
+            rn, norm_out[i], raw_out[i] = _echo_point(s, sc, qc, qf, rf, wf, z[i], r)
             outcome[i] = 3
             xyz_out[i] = (x / r * rn, y / r * rn, zc / r * rn)
-            norm_out[i], raw_out[i] = norm_c, raw_c
         else:
             outcome[i] = 2
+    if k:
+        ue = rng.standard_normal(k, np.float32)
+        ze = rng.standard_normal(k, np.float32)
+        b = sum(betas) / n if n else 0.0
+        qf, rf, wf = reference_echo(s, b, spec) if (spec.model == "soft-target" and b > 0) else (0.0, 0.0, 0.0)
+        for j, (dx, dy, dz) in enumerate(dirs):
+            qc = qf * math.exp(float(np.float32(sigma_g) * ue[j]))  # an empty ray: nothing in front, w = 1
+            if qf > 0 and rf >= s.min_range_m and qc >= 1.0:
+                rn, norm_out[n + j], raw_out[n + j] = _echo_point(s, sc, qc, qf, rf, wf, ze[j], math.inf)
+                outcome[n + j] = 3
+                xyz_out[n + j] = (dx * rn, dy * rn, dz * rn)
+            else:
+                outcome[n + j] = 2
     return outcome, xyz_out, norm_out, raw_out

@@ -17,14 +17,21 @@ unknown constants cancel):
   ``max_range_m`` is where a target of ``reference_reflectivity`` falls to it);
 * the reflectivity a reported intensity implies: ρ = s · I_linear · (R / R_ref)^k
   (``reflectivity_per_intensity``, ``intensity_range_exponent``, ``intensity_reference_range_m``), and
-  its inverse for a return the fog makes (:meth:`LidarSensor.intensity_of`).
+  its inverse for a return the fog makes (:meth:`LidarSensor.intensity_of`);
+* the per-ray, per-pulse signal fluctuation: ln g ~ N(0, σ²), σ = ``fluctuation_sigma`` (the fog model
+  draws g; :mod:`fogsim.lidar.fog`).
+
+Calibrations (:meth:`LidarSensor.calibrated`): ``datasheet`` is the preset as bundled (each value's source
+in its ``sources`` block), ``reference`` puts the constants of Hahner et al. 2021 over it
+(:data:`fogsim.schema.lidar.REFERENCE_CALIBRATION`: 20 ns pulse, full overlap from 1 m), a
+:class:`~fogsim.schema.lidar.LidarCalibration` block any of its keys.
 """
 from __future__ import annotations
 
 import json
 import math
 import os
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +39,7 @@ import numpy as np
 from fogsim.errors import InputError
 from fogsim.presets import presets_dir
 from fogsim.schema.base import check, load_json
-from fogsim.schema.lidar import LidarSensorSpec
+from fogsim.schema.lidar import REFERENCE_CALIBRATION, LidarCalibration, LidarSensorSpec
 
 __all__ = ["LIGHT_SPEED", "LidarSensor", "load_sensor", "sensor_names"]
 
@@ -81,6 +88,11 @@ class LidarSensor:
     mount_xyz_m: tuple[float, float, float]
     mount_rpy_deg: tuple[float, float, float]
     description: str
+    retro_reflective_from: float | None
+    retro_reflectivity_max: float
+    fluctuation_sigma: float
+    calibration: str = "datasheet"
+    sources: dict = field(default_factory=dict, hash=False, compare=False)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -109,7 +121,9 @@ class LidarSensor:
                    intensity_range_exponent=spec.intensity_range_exponent,
                    intensity_reference_range_m=spec.intensity_reference_range_m,
                    mount_xyz_m=tuple(spec.mount.xyz_m), mount_rpy_deg=tuple(spec.mount.rpy_deg),
-                   description=spec.description or "")
+                   description=spec.description or "", retro_reflective_from=spec.retro_reflective_from,
+                   retro_reflectivity_max=spec.retro_reflectivity_max, fluctuation_sigma=spec.fluctuation_sigma,
+                   sources=dict(spec.sources or {}))
 
     @classmethod
     def preset(cls, name: str) -> "LidarSensor":
@@ -127,10 +141,31 @@ class LidarSensor:
             raise ValueError(f"{self.name} has {self.beams} beams; got {incl.size} inclinations")
         return replace(self, inclinations_deg=tuple(incl.tolist()))
 
+    def calibrated(self, calibration: "str | LidarCalibration | dict" = "datasheet") -> "LidarSensor":
+        """The sensor under a calibration: ``datasheet`` (as it is), ``reference`` (Hahner et al.'s
+        constants over it) or a :class:`~fogsim.schema.lidar.LidarCalibration` (or its dict): its keys
+        replace the sensor's and its ``sources`` join the sensor's. A ValueError when the result is
+        inconsistent (min range ≥ max range, full overlap beyond the max range)."""
+        if calibration == "datasheet":
+            return self
+        if calibration == "reference":
+            calibration = REFERENCE_CALIBRATION
+        if isinstance(calibration, dict):
+            calibration = LidarCalibration.model_validate(calibration)
+        if not isinstance(calibration, LidarCalibration):
+            raise ValueError(f"unknown LiDAR calibration {calibration!r} (datasheet, reference or a block)")
+        out = replace(self, **calibration.overrides(), calibration=calibration.name or "file",
+                      sources={**self.sources, **(calibration.sources or {})})
+        if not out.min_range_m < out.max_range_m or not out.overlap_full_m < out.max_range_m:
+            raise ValueError(f"calibration {out.calibration}: min_range_m and overlap_full_m must be below "
+                             f"max_range_m ({out.min_range_m:g}, {out.overlap_full_m:g}, {out.max_range_m:g})")
+        return out
+
     def to_dict(self) -> dict:
         """The sensor as a record (what a fog sidecar stores)."""
         d = asdict(self)
         d["inclinations_deg"] = None if self.inclinations_deg is None else list(self.inclinations_deg)
+        d["sources"] = dict(self.sources)
         return d
 
     # ------------------------------------------------------------------ geometry
@@ -175,15 +210,32 @@ class LidarSensor:
                     * (self.max_range_m / r) ** 2 * self.overlap(r))
 
     def reflectivity_of(self, linear_intensity, r) -> np.ndarray:
-        """ρ = s·I_linear·(R / R_ref)^k: the reflectivity a reported (linear) intensity implies."""
-        rho = self.reflectivity_per_intensity * np.asarray(linear_intensity, np.float64)
+        """ρ = s·I_linear·(R / R_ref)^k: the reflectivity a reported (linear) intensity implies. Above
+        I_r = ``retro_reflective_from`` (Velodyne's calibrated scale: 0–100 diffuse, 101–255
+        retro-reflectors, 255 an ideal one) ρ rises log-linearly from s·I_r (a white diffuse target) to
+        ρ_max = ``retro_reflectivity_max`` at I = 1: ρ = s·I_r·(ρ_max / (s·I_r))^((I − I_r)/(1 − I_r))."""
+        lin = np.asarray(linear_intensity, np.float64)
+        rho = self.reflectivity_per_intensity * lin
+        if self.retro_reflective_from is not None:
+            ir = self.retro_reflective_from
+            white = self.reflectivity_per_intensity * ir
+            with np.errstate(over="ignore"):
+                retro = white * (self.retro_reflectivity_max / white) ** ((lin - ir) / (1.0 - ir))
+            rho = np.where(lin > ir, retro, rho)
         if self.intensity_range_exponent:
             rho = rho * (np.asarray(r, np.float64) / self.intensity_reference_range_m) ** self.intensity_range_exponent
         return rho
 
     def intensity_of(self, reflectivity, r) -> np.ndarray:
         """The linear intensity the sensor reports for a return of (apparent) reflectivity ρ at R."""
-        lin = np.asarray(reflectivity, np.float64) / self.reflectivity_per_intensity
+        rho = np.asarray(reflectivity, np.float64)
+        lin = rho / self.reflectivity_per_intensity
+        if self.retro_reflective_from is not None:
+            ir = self.retro_reflective_from
+            white = self.reflectivity_per_intensity * ir
+            with np.errstate(divide="ignore", invalid="ignore"):
+                retro = ir + (1.0 - ir) * np.log(rho / white) / math.log(self.retro_reflectivity_max / white)
+            lin = np.where(rho > white, retro, lin)
         if self.intensity_range_exponent:
             lin = lin * (np.asarray(r, np.float64) / self.intensity_reference_range_m) ** -self.intensity_range_exponent
         return lin

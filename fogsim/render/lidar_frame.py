@@ -9,7 +9,8 @@ Per frame with a LiDAR (preset key ``lidar``, ``fogsim render --lidar SENSOR``):
   camera as KITTI writes it, LiDAR frame), and in ``meta["lidar"]["objects"]`` for every labelled object the
   sweep hits (360°: behind the camera too);
 * each fog level's scan from the LiDAR fog model with that level's β — the camera's, also in volumetric
-  renders, whose medium has that β — through the run's fog record
+  renders, whose medium has that β — for every ray of the sweep (the rays without a clear return: sky,
+  dark or far surfaces, gain fog clutter when their fog echo is detected) through the run's fog record
   (:meth:`fogsim.fog.engine.FogSettings.lidar_fogger`), range noise seeded by
   ``numpy.random.default_rng([frame seed, level index, LIDAR_STREAM])``;
 * per object and level the points in its box (``lidar_points``), the cross-sensor table's input.
@@ -112,7 +113,7 @@ def lidar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int
             box3d[rec["id"]] = rec["box3d"] = box_record(box, w2c, w2l)
             boxes[rec["id"]] = transformed(box, w2l)
             rec["lidar_box"] = lidar_box_record(boxes[rec["id"]])
-    fogger = fog_settings(config).lidar_fogger(scan.cloud, sensor)
+    fogger = fog_settings(config).lidar_fogger(scan.cloud, sensor, scan.empty)  # every ray: the empty ones' fog too
     fogged = {lv.key: fogger(lv.beta, np.random.default_rng([seed, i, LIDAR_STREAM]))
               for i, lv in enumerate(config.levels)}
     clouds = {k: f.cloud for k, f in fogged.items()}
@@ -133,7 +134,7 @@ def semantic_labels(scan: SyntheticScan, fogged: FoggedScan, classes: dict[int, 
     oid = scan.object_id.astype(np.int64)
     thing = np.isin(oid, [i for i, c in classes.items() if c in LABELLED])
     clear = ((np.where(thing, oid, 0).astype(np.uint32) << np.uint32(16)) | cls[oid]).astype(np.uint32)
-    out = np.zeros(len(fogged.cloud), np.uint32)
+    out = np.full(len(fogged.cloud), SEMANTIC_ID["fog"], np.uint32)  # the empty rays' clutter, after the points
     rows = np.flatnonzero(fogged.output_index >= 0)
     out[fogged.output_index[rows]] = np.where(fogged.outcome[rows] == CLUTTER, np.uint32(FOG_ID),
                                               clear[rows])

@@ -32,6 +32,7 @@ import numpy as np
 
 from fogsim.colour import LUMINANCE_WEIGHTS
 from fogsim.lidar.points import PointCloud
+from fogsim.lidar.rays import EmptyRays
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor
 from fogsim.scene.materials import MATERIALS
@@ -152,7 +153,9 @@ class SyntheticScan:
     """One sweep's reported points: ``cloud`` (sensor frame; intensity in the sensor's scale, ring = beam,
     ``index`` = the ray's number in the sweep) and per point ``object_id`` (mask id, 0 = background),
     ``azimuth`` (rad), ``incidence_deg``, ``reflectivity`` (ρ of the surface), ``normal`` (the surface's unit
-    normal in the sensor frame, towards the sensor); ``rays`` cast, ``hits`` within range."""
+    normal in the sensor frame, towards the sensor); ``rays`` cast, ``hits`` within range; ``empty`` the
+    rays without a reported point (:class:`~fogsim.lidar.rays.EmptyRays`: their directions, beams, and the
+    range of what each hit, +inf for nothing), which the fog model gives fog clutter."""
 
     cloud: PointCloud
     object_id: np.ndarray
@@ -162,10 +165,12 @@ class SyntheticScan:
     normal: np.ndarray
     rays: int
     hits: int
+    empty: EmptyRays | None = None
 
     def record(self) -> dict:
         return {"rays": self.rays, "hits_in_range": self.hits, "points": len(self.cloud),
-                "below_threshold": self.hits - len(self.cloud)}
+                "below_threshold": self.hits - len(self.cloud),
+                "empty_rays": 0 if self.empty is None else len(self.empty)}
 
 
 def sweep(caster: RayCaster, lidar_to_world: np.ndarray, sensor: LidarSensor, source: str) -> SyntheticScan:
@@ -192,6 +197,9 @@ def sweep(caster: RayCaster, lidar_to_world: np.ndarray, sensor: LidarSensor, so
     xyz = (d[keep] * r[:, None]).astype(np.float32)
     cloud = PointCloud.from_raw(xyz, raw, sensor.intensity_scale, source, ring=beam[keep], index=keep,
                                 allow_empty=True)
+    unreported = np.ones(len(d), bool)
+    unreported[keep] = False
+    empty = EmptyRays(d[unreported], beam[unreported], np.maximum(t[unreported], 1e-6)) if unreported.any() else None
     return SyntheticScan(cloud, caster.geometry.face_id[p], az[keep].astype(np.float32),
                          np.degrees(np.arccos(np.clip(cos_i, 0.0, 1.0))).astype(np.float32), rho.astype(np.float32),
-                         (n_world @ T[:3, :3]).astype(np.float32), rays=len(d), hits=int(hit.sum()))
+                         (n_world @ T[:3, :3]).astype(np.float32), rays=len(d), hits=int(hit.sum()), empty=empty)

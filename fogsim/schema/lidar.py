@@ -26,6 +26,7 @@ from fogsim.schema.base import (
     by_type,
     int_in,
     is_list,
+    is_object,
     items,
     number_in,
     pair,
@@ -43,6 +44,25 @@ BACKSCATTER_RULES = ("visibility", "lidar-ratio")
 BACKSCATTER_PER_VISIBILITY = 0.046
 #: half an 8-bit step of the normalised intensity: a detected return whose intensity falls by less is "kept"
 KEPT_TOLERANCE = 0.5 / 255
+#: the per-ray, per-pulse signal fluctuation's default σ (of its natural log): see LidarSensorSpec
+FLUCTUATION_SIGMA = 0.5
+#: the named calibrations ``--lidar-calibration`` chooses between (or a file: :class:`LidarCalibration`)
+CALIBRATIONS = ("datasheet", "reference")
+#: the constants Hahner et al. (ICCV 2021, "Fog Simulation on Real LiDAR Point Clouds") publish for their
+#: HDL-64, applied over any sensor by the ``reference`` calibration; each with its source
+REFERENCE_CALIBRATION = {
+    "name": "reference",
+    "pulse_half_power_ns": 20.0,
+    "overlap_full_m": 1.0,
+    "sources": {
+        "pulse_half_power_ns": "Hahner et al. 2021, sec. 3 (the transmitted sin² pulse, half-power width 20 ns)",
+        "overlap_full_m": "Hahner et al. 2021, sec. 3 (beam and receiver fully overlap from about 1 m)",
+    },
+}
+#: the sensor keys a calibration may set
+CALIBRATION_KEYS = ("min_range_m", "max_range_m", "reference_reflectivity", "pulse_half_power_ns", "overlap_full_m",
+                    "fluctuation_sigma", "range_noise_m", "range_noise_at_threshold_m", "reflectivity_per_intensity",
+                    "intensity_range_exponent", "intensity_reference_range_m", "retro_reflectivity_max")
 
 _INCLINATIONS = 'a list of beam inclinations in degrees or "calibration" (read from the data)'
 Inclinations = Annotated[Annotated[word("calibration", _INCLINATIONS), Tag("<calibration>")]
@@ -63,7 +83,9 @@ class LidarSensorSpec(Closed):
     threshold (``max_range_m`` reached by a target of ``reference_reflectivity`` in clear air), its pulse
     and overlap, range noise, return mode, and how its intensity relates to reflectivity
     (ρ = ``reflectivity_per_intensity`` · I_linear · (R / ``intensity_reference_range_m``)^k with k =
-    ``intensity_range_exponent``; k = 0: the sensor already reports a range-compensated reflectivity)."""
+    ``intensity_range_exponent``; k = 0: the sensor already reports a range-compensated reflectivity; above
+    ``retro_reflective_from`` the scale is Velodyne's retro-reflector range, log-linear up to
+    ``retro_reflectivity_max``: :meth:`fogsim.lidar.sensors.LidarSensor.reflectivity_of`)."""
 
     name: Text | None = None
     description: Text | None = None
@@ -86,7 +108,13 @@ class LidarSensorSpec(Closed):
     reflectivity_per_intensity: number_in(0, 1e6, lo_open=True) = 1.0
     intensity_range_exponent: number_in(0, 4) = 0.0
     intensity_reference_range_m: number_in(0, 1e4, lo_open=True) = 1.0
+    # Velodyne's calibrated reflectivity: linear intensities above this are retro-reflectors (None: none)
+    retro_reflective_from: number_in(0, 1, lo_open=True, hi_open=True) | None = None
+    retro_reflectivity_max: number_in(1, 1e6) = 100.0  # the equivalent reflectivity of the top of the scale
+    # σ of ln g, g the received-signal factor of one ray's pulse (pulse-energy jitter, beam-to-beam gain)
+    fluctuation_sigma: number_in(0, 3) = FLUCTUATION_SIGMA
     mount: Mount = Mount()
+    sources: dict[str, Text] | None = None  # where each parameter's value comes from (key → source)
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -105,6 +133,37 @@ class LidarSensorSpec(Closed):
         return self
 
 
+class LidarCalibration(Closed):
+    """A calibration file (``--lidar-calibration FILE``): sensor parameters that replace the preset's
+    (any of :data:`CALIBRATION_KEYS`, units as in :class:`LidarSensorSpec`), with a ``name`` and the
+    ``sources`` of its values (key → source)."""
+
+    name: Text | None = None
+    description: Text | None = None
+    sources: dict[str, Text] | None = None
+    min_range_m: number_in(0, 100) | None = None
+    max_range_m: number_in(1, 2000) | None = None
+    reference_reflectivity: number_in(0, 100, lo_open=True) | None = None
+    pulse_half_power_ns: number_in(0.1, 1000) | None = None
+    overlap_full_m: number_in(0, 100) | None = None
+    fluctuation_sigma: number_in(0, 3) | None = None
+    range_noise_m: number_in(0, 10) | None = None
+    range_noise_at_threshold_m: number_in(0, 100) | None = None
+    reflectivity_per_intensity: number_in(0, 1e6, lo_open=True) | None = None
+    intensity_range_exponent: number_in(0, 4) | None = None
+    intensity_reference_range_m: number_in(0, 1e4, lo_open=True) | None = None
+    retro_reflectivity_max: number_in(1, 1e6) | None = None
+
+    def overrides(self) -> dict:
+        """The sensor parameters this calibration sets (the keys given)."""
+        return {k: getattr(self, k) for k in CALIBRATION_KEYS if getattr(self, k) is not None}
+
+
+_CALIBRATION = f'one of {", ".join(CALIBRATIONS)} or a calibration block'
+Calibration = Annotated[Annotated[Literal[CALIBRATIONS], Tag("<name>")] | Annotated[LidarCalibration, Tag("<block>")],
+                        by_type({"<name>": lambda v: isinstance(v, str), "<block>": is_object}, _CALIBRATION)]
+
+
 class LidarFogSpec(Closed):
     """``lidar_fog``: the LiDAR fog model (:mod:`fogsim.lidar.fog`) and its parameters.
 
@@ -114,7 +173,10 @@ class LidarFogSpec(Closed):
     (β_b = β_905 / ``lidar_ratio_sr``). ``extinction_ratio``: β at 905 nm / β in the visible (1 for fog
     droplets much larger than the wavelength). ``return_mode``: overrides the sensor's. ``reflectivity_floor``:
     the darkest reflectivity an estimate may give. ``kept_tolerance``: a detected return whose normalised
-    intensity falls by less than this is reported unchanged (``kept``)."""
+    intensity falls by less than this is reported unchanged (``kept``). ``calibration``: the sensor
+    parameters used — ``datasheet`` (the preset's own values, each with its source), ``reference`` (the
+    constants of Hahner et al. 2021 over them: :data:`REFERENCE_CALIBRATION`) or a
+    :class:`LidarCalibration` block."""
 
     model: Literal[LIDAR_FOG_MODELS] = "soft-target"
     backscatter_rule: Literal[BACKSCATTER_RULES] = "visibility"
@@ -124,6 +186,7 @@ class LidarFogSpec(Closed):
     return_mode: Literal[RETURN_MODES] | None = None
     reflectivity_floor: number_in(0, 10) = 0.02
     kept_tolerance: number_in(0, 1) = KEPT_TOLERANCE
+    calibration: Calibration = "datasheet"
 
 
 class LidarOutcomes(Open):
@@ -139,5 +202,6 @@ class LidarOutcomes(Open):
     output_index: Vector
 
 
-__all__ = ["BACKSCATTER_PER_VISIBILITY", "BACKSCATTER_RULES", "KEPT_TOLERANCE", "LIDAR_FOG_MODELS", "LidarFogSpec",
-           "LidarOutcomes", "LidarSensorSpec", "Mount", "RETURN_MODES", "SCALES"]
+__all__ = ["BACKSCATTER_PER_VISIBILITY", "BACKSCATTER_RULES", "CALIBRATIONS", "CALIBRATION_KEYS", "FLUCTUATION_SIGMA",
+           "KEPT_TOLERANCE", "LIDAR_FOG_MODELS", "LidarCalibration", "LidarFogSpec", "LidarOutcomes", "LidarSensorSpec",
+           "Mount", "REFERENCE_CALIBRATION", "RETURN_MODES", "SCALES"]
