@@ -134,7 +134,7 @@ def semantic_labels(scan: SyntheticScan, fogged: FoggedScan, classes: dict[int, 
     oid = scan.object_id.astype(np.int64)
     thing = np.isin(oid, [i for i, c in classes.items() if c in LABELLED])
     clear = ((np.where(thing, oid, 0).astype(np.uint32) << np.uint32(16)) | cls[oid]).astype(np.uint32)
-    out = np.full(len(fogged.cloud), SEMANTIC_ID["fog"], np.uint32)  # the empty rays' clutter, after the points
+    out = np.full(len(fogged.cloud), FOG_ID, np.uint32)  # the empty rays' clutter, after the points
     rows = np.flatnonzero(fogged.output_index >= 0)
     out[fogged.output_index[rows]] = np.where(fogged.outcome[rows] == CLUTTER, np.uint32(FOG_ID),
                                               clear[rows])
