@@ -282,7 +282,8 @@ def test_finalize_writes_coco_yaml_splits_manifest(tiny_dataset):
             assert ann.get("ignore_reason") == rec["reason"]  # filtered objects: ignore regions
             assert ann["category_id"] == rec["class_id"] + 1 == [c["id"] for c in coco["categories"]
                                                                  if c["name"] == rec["class"]][0]
-            assert ann == coco_annotation(rec, ann["id"], ann["image_id"])
+            assert ann == coco_annotation(rec, ann["id"], ann["image_id"], ann.get("segmentation"))
+            assert ("segmentation" in ann) == (not rec["kept"])  # no mask here: ignore regions get their box
     for name in ["clear", "beta0.06", "all"]:
         data = read_yaml(root / "data" / f"{name}.yaml")
         assert data["path"] == str(root.resolve())

@@ -21,7 +21,7 @@ import numpy as np
 
 from fogsim.boxes import yolo_line
 from fogsim.colour import to_uint8
-from fogsim.dataset.coco import coco_dataset
+from fogsim.dataset.coco import coco_dataset, coco_records, frame_segmentations
 from fogsim.dataset.layout import MIXED_SPLIT, PARTS, DatasetLayout
 from fogsim.dataset.lidar import lidar_summary
 from fogsim.dataset.lidar_sheet import lidar_rows
@@ -134,8 +134,9 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
     groups = None if split_group is None else {f: split_group[1](m) for f, m in zip(frames, metas)}
     train, val = split_frames(frames, train_fraction, seed, groups)
     mixed = {part: [] for part in PARTS}
+    segmentations = [frame_segmentations(layout, m) for m in metas]  # the masks are read once, for every level
     for lv in levels:
-        write_json(layout.coco(lv.key), coco_dataset(metas, lv, layout, classes))
+        write_json(layout.coco(lv.key), coco_dataset(metas, lv, layout, classes, segmentations))
         split = {"train": [layout.image(lv.key, f) for f in train],
                  "val": [layout.image(lv.key, f) for f in val]}
         _write_lists(layout, lv.key, split, f"fogsim dataset, fog level {lv.key}: beta = {lv.beta:g} 1/m", classes)
@@ -162,9 +163,10 @@ def _summary(metas: list[dict], levels, train: list, val: list, train_fraction: 
              classes=LABELLED) -> dict:
     records = [r for m in metas for r in m["objects"]]
     kept = Counter(r["class"] for r in records if r["kept"])
+    ignored = [m["objects"][i] for m in metas for i, _ in coco_records(m["objects"]) if not m["objects"][i]["kept"]]
     return {"frames": len(metas), "classes": list(classes), "levels": [lv.to_dict() for lv in levels],
             "counts": {c: kept.get(c, 0) for c in classes},
-            "filtered": dict(Counter(r["reason"] for r in records if not r["kept"])),
+            "filtered": dict(Counter(r["reason"] for r in ignored)),  # a region of every class: once
             "split": {"train": len(train), "val": len(val), "train_fraction": train_fraction,
                       "rule": f"crc32('{seed}/<frame>') % 1000 < {round(1000 * train_fraction)} → train"}}
 

@@ -165,7 +165,7 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
         atomic_write_bytes(img_path, data)
         if lidar is not None:  # the level's scan, before the sidecar / meta that mark the sample done
             fogged = lidar.level(level)
-            lidar.write_kitti(level, data if job.image_format == "png" else encode_image(foggy, ".png"), fogged)
+            lidar.write_kitti(level, img_path if job.image_format == "png" else encode_image(foggy, ".png"), fogged)
         if job.labels:
             images[level.key] = foggy
         else:
