@@ -21,12 +21,29 @@ __all__ = ["box_mask", "box_rle", "rle_counts", "rle_encode", "rle_string"]
 
 def rle_counts(mask: np.ndarray) -> list[int]:
     """The run lengths of a 2-D mask (non-zero = set), column-major, starting with a 0-run."""
-    flat = np.asarray(mask).astype(bool, copy=False).ravel(order="F")
-    if flat.size == 0:
-        return [0]
-    change = np.flatnonzero(flat[1:] != flat[:-1]) + 1
-    counts = np.diff(np.concatenate(([0], change, [flat.size]))).tolist()
-    return [0] + counts if flat[0] else counts
+    mask = np.asarray(mask).astype(bool, copy=False)
+    h, w = mask.shape
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if h * w == 0 or not len(rows):
+        return [h * w]
+    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    # the set pixels' box, a clear row above and below each column, so no run crosses into the next column
+    pad = np.zeros((r1 - r0 + 2, c1 - c0), np.int8)
+    pad[1:-1] = mask[r0:r1, c0:c1]
+    step = np.diff(pad.ravel(order="F"))
+    q_start, q_end = np.flatnonzero(step == 1) + 1, np.flatnonzero(step == -1) + 1  # in the padded box
+    ph = pad.shape[0]
+
+    def full(q):  # a padded-box index → the image's column-major index
+        return (c0 + q // ph) * h + r0 + q % ph - 1
+
+    start, end = full(q_start), full(q_end)
+    joined = end[:-1] == start[1:]  # a column's run that reaches its last row and goes on at the next's first
+    start, end = start[np.r_[True, ~joined]], end[np.r_[~joined, True]]
+    edges = np.empty(2 * len(start), np.int64)
+    edges[0::2], edges[1::2] = start, end  # alternately: a 1-run starts, it ends (exclusive)
+    counts = np.diff(np.concatenate(([0], edges, [h * w]))).tolist()
+    return counts[:-1] if counts[-1] == 0 else counts  # the mask ends in a 1-run: no empty 0-run after it
 
 
 def rle_string(counts: list[int]) -> str:
