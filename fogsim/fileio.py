@@ -122,7 +122,7 @@ def link_or_copy(source: str | os.PathLike, target: str | os.PathLike) -> str:
     as they were."""
     source, target = Path(source), Path(target)
     try:
-        if target.exists() and os.path.samefile(source, target):
+        if not target.is_symlink() and target.exists() and os.path.samefile(source, target):
             return "link"  # already one file (a resumed run): rename(2) of a link onto its twin does nothing
     except OSError:
         pass

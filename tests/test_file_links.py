@@ -67,6 +67,12 @@ def test_a_symlinked_source_gives_a_real_file_never_a_symlink(tmp_path):
     dst = tmp_path / "out" / "kitti.bin"
     link_or_copy(src, dst)
     assert not dst.is_symlink() and dst.read_bytes() == b"outside"
+    planted = tmp_path / "out" / "planted.bin"  # a target that is a symlink (to the very source) is replaced
+    real = tmp_path / "out" / "real.bin"
+    atomic_write_bytes(real, b"real")
+    planted.symlink_to(real)
+    link_or_copy(real, planted)
+    assert not planted.is_symlink() and planted.read_bytes() == b"real" and outside.read_bytes() == b"outside"
 
 
 @pytest.mark.parametrize("linking", [True, False])
