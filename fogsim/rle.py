@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-__all__ = ["box_mask", "box_rle", "rle_counts", "rle_encode", "rle_string"]
+__all__ = ["box_counts", "box_mask", "box_rle", "rle_counts", "rle_encode", "rle_encode_box", "rle_string"]
 
 
 def rle_counts(mask: np.ndarray) -> list[int]:
@@ -24,25 +24,35 @@ def rle_counts(mask: np.ndarray) -> list[int]:
     mask = np.asarray(mask).astype(bool, copy=False)
     h, w = mask.shape
     rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
-    if h * w == 0 or not len(rows):
+    if not len(rows):
         return [h * w]
-    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-    # the set pixels' box, a clear row above and below each column, so no run crosses into the next column
-    pad = np.zeros((r1 - r0 + 2, c1 - c0), np.int8)
-    pad[1:-1] = mask[r0:r1, c0:c1]
-    step = np.diff(pad.ravel(order="F"))
-    q_start, q_end = np.flatnonzero(step == 1) + 1, np.flatnonzero(step == -1) + 1  # in the padded box
-    ph = pad.shape[0]
+    return box_counts(mask[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1], int(rows[0]), int(cols[0]), h, w)
 
-    def full(q):  # a padded-box index → the image's column-major index
-        return (c0 + q // ph) * h + r0 + q % ph - 1
+
+def box_counts(crop: np.ndarray, top: int, left: int, height: int, width: int) -> list[int]:
+    """:func:`rle_counts` of a ``height`` × ``width`` mask that is clear outside ``crop`` (its pixels from row
+    ``top``, column ``left``): the cost grows with the crop, not the image."""
+    crop = np.asarray(crop).astype(bool, copy=False)
+    ch, cw = crop.shape
+    if not (0 <= top and top + ch <= height and 0 <= left and left + cw <= width):
+        raise ValueError(f"a {ch}×{cw} crop at row {top}, column {left} is not inside a {height}×{width} mask")
+    # a clear row above and below each column of the crop, so no run crosses into the next column
+    pad = np.zeros((ch + 2, cw), np.int8)
+    pad[1:-1] = crop
+    step = np.diff(pad.ravel(order="F"))
+    q_start, q_end = np.flatnonzero(step == 1) + 1, np.flatnonzero(step == -1) + 1  # in the padded crop
+    if not len(q_start):
+        return [height * width]
+
+    def full(q):  # a padded-crop index → the mask's column-major index
+        return (left + q // (ch + 2)) * height + top + q % (ch + 2) - 1
 
     start, end = full(q_start), full(q_end)
     joined = end[:-1] == start[1:]  # a column's run that reaches its last row and goes on at the next's first
     start, end = start[np.r_[True, ~joined]], end[np.r_[~joined, True]]
     edges = np.empty(2 * len(start), np.int64)
     edges[0::2], edges[1::2] = start, end  # alternately: a 1-run starts, it ends (exclusive)
-    counts = np.diff(np.concatenate(([0], edges, [h * w]))).tolist()
+    counts = np.diff(np.concatenate(([0], edges, [height * width]))).tolist()
     return counts[:-1] if counts[-1] == 0 else counts  # the mask ends in a 1-run: no empty 0-run after it
 
 
@@ -66,6 +76,11 @@ def rle_encode(mask: np.ndarray) -> dict:
     if mask.ndim != 2:
         raise ValueError(f"a mask is H×W, got shape {mask.shape}")
     return {"size": [int(mask.shape[0]), int(mask.shape[1])], "counts": rle_string(rle_counts(mask))}
+
+
+def rle_encode_box(crop: np.ndarray, top: int, left: int, height: int, width: int) -> dict:
+    """:func:`rle_encode` of a ``height`` × ``width`` mask that is clear outside ``crop`` (:func:`box_counts`)."""
+    return {"size": [int(height), int(width)], "counts": rle_string(box_counts(crop, top, left, height, width))}
 
 
 def box_mask(bbox, height: int, width: int) -> np.ndarray:

@@ -18,7 +18,7 @@ from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import finalize, write_frame_labels
 from fogsim.fileio import read_uint16_map, write_image, write_json
 from fogsim.render.labels import object_records
-from fogsim.rle import box_mask, box_rle, rle_counts, rle_encode
+from fogsim.rle import box_mask, box_rle, rle_counts, rle_encode, rle_encode_box
 from fogsim.scene.classes import LABELLED
 from test_labels import LEVELS, demo_mask, full_silhouettes
 
@@ -32,6 +32,20 @@ def test_run_lengths_from_the_definition():
     # the string: 1 → '1', 2 → '2'; from the 4th run on, the difference to the run two before
     assert rle_encode(m) == {"size": [3, 2], "counts": "11112"[:3] + chr(48 + (2 - 1)) + chr(48 + (1 - 1))}
     assert rle_encode(np.zeros((1, 40)))["counts"] == chr(48 + (40 & 0x1F) + 0x20) + chr(48 + (40 >> 5))
+
+
+def test_a_crop_placed_in_its_mask_encodes_as_the_whole_mask():
+    rng = np.random.default_rng(2)
+    for _ in range(300):
+        h, w = (int(v) for v in rng.integers(1, 30, 2))
+        ch, cw = int(rng.integers(0, h + 1)), int(rng.integers(0, w + 1))
+        top, left = int(rng.integers(0, h - ch + 1)), int(rng.integers(0, w - cw + 1))
+        crop = rng.random((ch, cw)) < rng.choice([0.1, 0.5, 0.95, 1.0])
+        whole = np.zeros((h, w), bool)
+        whole[top:top + ch, left:left + cw] = crop
+        assert rle_encode_box(crop, top, left, h, w) == rle_encode(whole)
+    with pytest.raises(ValueError, match="not inside"):
+        rle_encode_box(np.ones((3, 3)), 2, 0, 4, 4)
 
 
 def test_box_mask_is_the_pixels_whose_centres_are_inside():

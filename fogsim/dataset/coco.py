@@ -35,7 +35,7 @@ import copy
 from fogsim.boxes import coco_category, xyxy_to_xywh
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.fileio import read_uint16_map
-from fogsim.rle import box_rle, rle_encode
+from fogsim.rle import box_rle, rle_encode, rle_encode_box
 from fogsim.scene.classes import LABELLED
 
 #: optional per-record fields a COCO annotation carries when the record has them (rendered records:
@@ -114,12 +114,24 @@ def frame_segmentations(layout: DatasetLayout, meta: dict) -> list[dict | None]:
         seg = rec.get("segmentation")
         rid = rec.get("id")
         if seg is None and mask is not None and isinstance(rid, int) and not isinstance(rid, bool):
-            inside = mask == rid
-            seg = rle_encode(inside) if inside.any() else None
+            seg = _mask_rle(mask, rid, rec)
         if seg is None and not rec["kept"]:
             seg = box_rle(rec["bbox"], h, w)
         out.append(seg)
     return out
+
+
+def _mask_rle(mask, rid: int, record: dict) -> dict | None:
+    """The RLE of ``mask == rid``, from the record's box when its ``pixels`` are all there (a render's box
+    is its mask's), else from the whole mask; None when the id has no pixel."""
+    h, w = mask.shape
+    x0, y0, x1, y1 = (int(round(float(v))) for v in record["bbox"])
+    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(max(x1, x0), w), min(max(y1, y0), h)
+    crop = mask[y0:y1, x0:x1] == rid
+    if crop.any() and crop.sum() == record.get("pixels"):
+        return rle_encode_box(crop, y0, x0, h, w)
+    inside = mask == rid
+    return rle_encode(inside) if inside.any() else None
 
 
 def expand_every_class(gt: dict) -> dict:
