@@ -2,7 +2,8 @@
 
 Conventions: RGB arrays are H×W×3 in RGB order (OpenCV's BGR never leaves this module);
 depth arrays are H×W float32 in metres. Every writer writes a temporary file beside the
-target and renames it, so a killed job never leaves a half-written output.
+target and renames it, so a killed job never leaves a half-written output — and never writes
+into an existing file, which is what lets one file have two names (:func:`link_or_copy`).
 """
 from __future__ import annotations
 
