@@ -8,6 +8,8 @@ so nothing written inside leaks out later). Two users:
 
 * :func:`fogsim.render.blender.output.blender_output` — around every call into Blender;
 * :func:`summary_only` — ``--quiet`` for the benches, whose report ends with one summary line.
+
+:func:`progress_bar` is the progress display of the long commands (``fogsim render``, ``fogsim fog``).
 """
 from __future__ import annotations
 
@@ -20,6 +22,28 @@ from contextlib import contextmanager
 
 #: a tqdm progress bar as captured (``desc:  50%|█████     | 1/2 [00:05<00:05, …]``)
 PROGRESS_BAR = re.compile(r"^[^|]*\d+%\|.*\|")
+#: the size (columns, lines) of a terminal that reports none: a pseudo-terminal opened without a size, as
+#: ``script``, an IDE or a CI runner opens one, reports 0 × 0, and tqdm then draws nothing at all
+FALLBACK_SIZE = (80, 24)
+
+
+def progress_bar(total: int, desc: str, unit: str, quiet: bool = False):
+    """The progress bar of a long command: a tqdm bar on stderr (``desc: 50%|█████     | 1/2 [00:05<00:05,
+    5.0s/unit]``), redrawn in place on a terminal, one line per update elsewhere; none with ``quiet``. Lines
+    meant to appear above it go through its ``write``. A terminal that reports a size of 0 is taken as
+    ``$COLUMNS`` × ``$LINES`` (default :data:`FALLBACK_SIZE`)."""
+    from tqdm import tqdm
+
+    size = {}
+    try:
+        fd = sys.stderr.fileno()
+        if os.isatty(fd) and 0 in os.get_terminal_size(fd):
+            env = [os.environ.get(k, "") for k in ("COLUMNS", "LINES")]
+            cols, lines = (int(e) if e.isdigit() and int(e) > 0 else d for e, d in zip(env, FALLBACK_SIZE))
+            size = {"ncols": cols, "nrows": lines}
+    except (OSError, ValueError, AttributeError):  # no stderr descriptor (captured, closed)
+        pass
+    return tqdm(total=total, desc=desc, unit=unit, disable=quiet, **size)
 
 
 def last_segment(line: str) -> str:

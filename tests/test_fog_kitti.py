@@ -168,8 +168,9 @@ def test_labels_camera_and_objects(kitti_run):
     root, out = kitti_run
     coco = json.loads((out / "coco" / "beta0.06.json").read_text())
     crowd = [a for a in coco["annotations"] if a["iscrowd"]]
-    assert len(crowd) == len(IDS) * len(KITTI_CLASSES)  # DontCare: an ignore region for every class
-    assert {a["category_id"] for a in crowd} == set(range(1, len(KITTI_CLASSES) + 1))
+    assert len(crowd) == len(IDS)  # DontCare: one ignore region of every class per label line
+    assert {a["category_id"] for a in crowd} == {len(KITTI_CLASSES) + 1} and all(a["every_class"] for a in crowd)
+    assert coco["categories"][-1]["name"] == "DontCare"
     for fid in IDS:
         meta = json.loads((out / "meta" / f"{frame(fid)}.json").read_text())
         car = meta["objects"][0]

@@ -282,7 +282,8 @@ def test_finalize_writes_coco_yaml_splits_manifest(tiny_dataset):
             assert ann.get("ignore_reason") == rec["reason"]  # filtered objects: ignore regions
             assert ann["category_id"] == rec["class_id"] + 1 == [c["id"] for c in coco["categories"]
                                                                  if c["name"] == rec["class"]][0]
-            assert ann == coco_annotation(rec, ann["id"], ann["image_id"])
+            assert ann == coco_annotation(rec, ann["id"], ann["image_id"], ann.get("segmentation"))
+            assert ("segmentation" in ann) == (not rec["kept"])  # no mask here: ignore regions get their box
     for name in ["clear", "beta0.06", "all"]:
         data = read_yaml(root / "data" / f"{name}.yaml")
         assert data["path"] == str(root.resolve())
@@ -330,3 +331,21 @@ def test_finalize_refuses_empty_and_reserved(tmp_path):
         finalize(DatasetLayout(tmp_path), LEVELS, {})
     with pytest.raises(ValueError, match="reserved"):
         finalize(DatasetLayout(tmp_path), [FogLevel("all", "all", 0.0)], {})
+
+
+def test_a_one_frame_dataset_says_its_frame_is_in_both_splits(tiny_dataset):
+    from fogsim.dataset.writer import split_note
+
+    layout = tiny_dataset
+    layout.meta("000001").unlink()
+    summary = finalize(layout, LEVELS, {})
+    assert summary["split"]["train"] == summary["split"]["val"] == 1 and summary["split"]["in_both"] == ["000000"]
+    assert "both train and val" in summary["split"]["note"]
+    assert json.loads(layout.manifest().read_text())["split"] == summary["split"]
+    for part in ("train", "val"):
+        assert layout.split_file("clear", part).read_text().split() == [str(layout.image("clear", "000000").resolve())]
+    note = split_note(summary)
+    assert "\n" not in note and note.startswith("a one-frame dataset: frame 000000 is in both train and val")
+    layout.meta("000001").write_text(json.dumps({"frame": "000001", "width": 96, "height": 64, "objects": []}))
+    two = finalize(layout, LEVELS, {})
+    assert "in_both" not in two["split"] and "note" not in two["split"] and split_note(two) is None

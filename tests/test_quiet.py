@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsim.console import captured_fds
+from fogsim.console import captured_fds, last_segment
 from fogsim.fileio import write_depth, write_json
 from fogsim.render.blender.output import blender_output, classify
 
@@ -138,6 +138,72 @@ def test_fog_quiet_prints_one_line(folder_dataset, tmp_path):
                  "--out", tmp_path / "o", "--levels", "clear,0.05", "--quiet")
     assert res.returncode == 0, res.stderr
     assert len(printed(res)) == 1, printed(res)
+
+
+def on_terminal(*args, size: tuple[int, int] | None = None) -> tuple[int, str]:
+    """``fogsim ARGS`` with stdout and stderr on a pseudo-terminal (``size``: columns × lines set on it; None:
+    left at 0 × 0, as ``script`` or a CI runner opens one); returns (exit code, everything it printed)."""
+    import fcntl
+    import pty
+    import struct
+    import termios
+
+    master, slave = pty.openpty()
+    if size is not None:
+        fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", size[1], size[0], 0, 0))
+    proc = subprocess.Popen([sys.executable, "-m", "fogsim", *map(str, args)], cwd=ROOT, stdin=subprocess.DEVNULL,
+                            stdout=slave, stderr=slave)
+    os.close(slave)
+    chunks = []
+    while True:  # read while it runs (a full pseudo-terminal would block it), until its side closes
+        try:
+            data = os.read(master, 65536)
+        except OSError:  # EIO: every writer has exited
+            break
+        if not data:
+            break
+        chunks.append(data)
+    os.close(master)
+    return proc.wait(timeout=600), b"".join(chunks).decode("utf-8", "replace").replace("\r\n", "\n")  # the tty's
+
+
+@pytest.mark.parametrize("size", [None, (100, 30)])
+def test_fog_draws_its_progress_bar_on_a_terminal_and_nothing_with_quiet(folder_dataset, tmp_path, size):
+    ds = folder_dataset
+    args = ["fog", "--input", ds / "images", "--depth", ds / "depth", "--intrinsics", ds / "K.json", "--levels",
+            "clear,0.05"]
+    rc, text = on_terminal(*args, "--out", tmp_path / "loud", size=size)
+    assert rc == 0, text
+    shown = [last_segment(ln) for ln in text.split("\n") if last_segment(ln)]  # what the terminal keeps
+    bar = [seg for ln in text.split("\n") for seg in ln.split("\r") if seg.startswith("fog: ")]
+    assert bar and bar[-1].startswith("fog: 100%|") and "| 2/2 [" in bar[-1], text  # the bar, as render's
+    assert len(bar[-1].rstrip()) <= (size or (80, 24))[0]  # drawn within the terminal (0 columns: 80)
+    assert shown[-2].startswith("fog: 100%|") and shown[-1].startswith("fogged 2 of 2 images"), shown
+    rc, text = on_terminal(*args, "--out", tmp_path / "quiet", "--quiet", size=size)
+    assert rc == 0, text
+    assert "%|" not in text and [ln for ln in text.splitlines() if ln.strip()] == \
+        [ln for ln in text.splitlines() if ln.startswith("fogged 2 of 2 images")]  # the summary line alone
+    res = fogsim(*args, "--out", tmp_path / "piped")  # no terminal: the bar's lines still reach stderr
+    assert res.returncode == 0 and "fog: 100%|" in res.stderr and "%|" not in res.stdout
+
+
+def test_a_one_frame_dataset_is_one_warning_line_or_said_in_the_quiet_summary(tmp_path):
+    import kitti_tree as kt
+
+    root = kt.write_kitti(tmp_path / "in" / "kitti")
+    args = ["fog", "--kitti", root, "--split", "val", "--levels", "0.06"]  # ImageSets/val.txt: one frame
+    res = fogsim(*args, "--out", tmp_path / "loud")
+    assert res.returncode == 0, res.stderr
+    warnings = [ln for ln in res.stderr.splitlines() if "warning" in ln]
+    assert warnings == ["fogsim: warning: a one-frame dataset: frame training__image_2__000002 is in both train and "
+                        "val, so nothing is held out for validation (add frames for a real split)"]
+    assert "dataset: 1 frame, in both train and val" in res.stdout
+    assert json.loads((tmp_path / "loud" / "dataset.json").read_text())["split"]["in_both"] == [
+        "training__image_2__000002"]
+    res = fogsim(*args, "--out", tmp_path / "quiet", "--quiet")
+    assert res.returncode == 0 and len(printed(res)) == 1 and "in both train and val" in res.stdout, printed(res)
+    res = fogsim("fog", "--finalize-only", "--out", tmp_path / "quiet")
+    assert res.returncode == 0 and res.stderr.count("fogsim: warning: a one-frame dataset") == 1
 
 
 def test_labelled_fog_shards_and_finalize_quiet(tmp_path):

@@ -428,3 +428,28 @@ def test_the_render_exports_as_nuscenes_samples_with_the_sweeps_beams(lidar_rend
             ring = np.zeros(len(scan))
             ring[index[index >= 0]] = beam[index >= 0]
             np.testing.assert_array_equal(got[:, 4], ring)
+
+
+@pytest.mark.detect
+def test_the_renders_coco_masks_are_its_instance_masks(lidar_render):
+    """Every COCO file a render writes, read with pycocotools: annToMask of every annotation is the object's
+    pixels in masks/<frame>.png, and COCOeval ``segm`` gives AP 1.0 for the ground truth fed back."""
+    from fogsim.fileio import read_uint16_map
+    from test_coco_masks import check_coco_masks
+
+    masks = {f: read_uint16_map(lidar_render / "masks" / f"{f}.png") for f in ("000000", "000001")}
+    assert check_coco_masks(lidar_render, masks) >= 2
+
+
+@pytest.mark.blender
+@pytest.mark.slow
+def test_the_renders_kitti_tree_links_the_level_images_and_scans(lidar_render):
+    import os
+
+    for level in ("clear", "beta0.06"):
+        tree = lidar_render / "kitti" / level / "training"
+        for f in ("000000", "000001"):
+            for twin, own in ((tree / "image_2" / f"{f}.png", lidar_render / "images" / level / f"{f}.png"),
+                              (tree / "velodyne" / f"{f}.bin", lidar_render / "lidar" / level / f"{f}.bin")):
+                assert not twin.is_symlink() and twin.read_bytes() == own.read_bytes()
+                assert os.stat(twin).st_ino == os.stat(own).st_ino and os.stat(own).st_nlink >= 2

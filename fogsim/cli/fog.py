@@ -365,7 +365,7 @@ def cmd_fog(args) -> int:
             print(f"fogsim: error: {args.out}: no frame was fogged, so there is no dataset to finalize",
                   file=sys.stderr)
             return EXIT_FAILED
-        line, skipped = _finalize(args.out, job.inputs["train_fraction"], job.inputs["split_by"])
+        line, skipped = _finalize(args.out, job.inputs["train_fraction"], job.inputs["split_by"], args.quiet)
         lines.append(line)
     print("; ".join(lines) if args.quiet else "\n".join(lines))
     return EXIT_FAILED if summary.failed or (labelled and not is_sharded(shard) and skipped) else EXIT_OK
@@ -381,12 +381,18 @@ def _note_unlabelled(samples) -> None:
               "with --cameras, or pass --no-labels", file=sys.stderr)
 
 
-def _finalize(out: str, train_fraction: float | None = None, split_by: str | None = None) -> tuple[str, list]:
+def _finalize(out: str, train_fraction: float | None = None, split_by: str | None = None,
+              quiet: bool = False) -> tuple[str, list]:
     """Write the dataset files (None: the run's own train fraction / split rule); returns the
-    summary line and the meta files skipped (each named on stderr: a per-frame problem)."""
+    summary line and the meta files skipped (each named on stderr: a per-frame problem). A frame in
+    both splits (a one-frame dataset) is one warning line on stderr (``quiet``: said in the summary line)."""
+    from fogsim.dataset.writer import split_note
     from fogsim.fog.batch import finalize_dataset
 
     summary = finalize_dataset(out, train_fraction, split_by)
+    note = split_note(summary)
+    if note and not quiet:
+        print(f"fogsim: warning: {note}", file=sys.stderr)
     skipped = summary.get("skipped_frames", [])
     for line in skipped:
         print(f"  skipped: {line}", file=sys.stderr)
@@ -395,8 +401,9 @@ def _finalize(out: str, train_fraction: float | None = None, split_by: str | Non
     if summary.get("absent_frames"):
         extra += (f"; {summary['absent_frames']} of the run's samples have no frame yet "
                   "(a shard not finished, or samples that failed)")
-    return (f"dataset: {summary['frames']} frames ({summary['split']['train']} train / {summary['split']['val']} "
-            f"val){extra}, objects kept: {counts} → {out}/dataset.json"), skipped
+    split = ("1 frame, in both train and val" if note else
+             f"{summary['frames']} frames ({summary['split']['train']} train / {summary['split']['val']} val)")
+    return f"dataset: {split}{extra}, objects kept: {counts} → {out}/dataset.json", skipped
 
 
 def _finalize_only(args) -> int:
@@ -405,6 +412,6 @@ def _finalize_only(args) -> int:
     if given:
         raise ValueError(f"--finalize-only takes --out (and --train-fraction, --split-by) only, not "
                          f"{', '.join(given)}")
-    line, skipped = _finalize(args.out, args.train_fraction, args.split_by)  # the run file's checks: finalize_dataset's
+    line, skipped = _finalize(args.out, args.train_fraction, args.split_by, args.quiet)  # checks: finalize_dataset
     print(line)
     return EXIT_FAILED if skipped else EXIT_OK

@@ -171,15 +171,15 @@ def _cmd_scene(args) -> int:
 
 
 def _render(job, args, shard) -> int:
-    from tqdm import tqdm
-
+    from fogsim.console import progress_bar
+    from fogsim.dataset.writer import split_note
     from fogsim.render.loop import FrameLoop, frame_log
     from fogsim.runs import is_sharded
 
     loop = FrameLoop(job)
     t0 = time.perf_counter()
     if not args.finalize_only:
-        with tqdm(total=loop.total, unit="frame", desc="render", disable=args.quiet) as bar:
+        with progress_bar(loop.total, "render", "frame", args.quiet) as bar:
             def on_frame(index, meta, error):
                 if error is not None:
                     bar.write(f"error: frame {index}: {error}")
@@ -196,8 +196,11 @@ def _render(job, args, shard) -> int:
     except (OSError, ValueError) as exc:
         print(f"fogsim: error: writing the dataset files of {args.out} failed: {exc}", file=sys.stderr)
         return EXIT_FAILED
+    note = split_note(loop.summary) if loop.summary is not None else None  # a one-frame dataset
+    if note and not args.quiet:
+        print(f"fogsim: warning: {note}", file=sys.stderr)
     print(f"rendered {loop.done} frames ({job.skipped} already done, {len(loop.failed)} failed) "
-          f"in {time.perf_counter() - t0:.1f} s → {args.out}")
+          f"in {time.perf_counter() - t0:.1f} s → {args.out}" + (f"; warning: {note}" if note and args.quiet else ""))
     for index, error in loop.failed:
         print(f"  failed: frame {index}: {error}", file=sys.stderr)
     skipped = (loop.summary or {}).get("skipped_frames", [])

@@ -11,6 +11,12 @@ key (:func:`fogsim.readers.kitti.calib.format_kitti_calib`; STF's missing Tr_imu
 one line per label line read: the per-class copies of a DontCare region are written once), ``image_2`` the
 level's image as PNG. Every file is written atomically (temporary file + rename), so a killed run leaves
 no half-written frame; a frame is complete when its four files exist (:func:`frame_complete`).
+
+``image_2`` and ``velodyne`` hold what the level folders already hold (``images/<level>/<frame>.png``, a
+KITTI-format ``lidar/<level>/<frame>.bin``): given those files, they are **hard links** to them where the
+file system allows, copies otherwise (:func:`fogsim.fileio.link_or_copy`; never a symbolic link), so a
+dataset does not store its images and scans twice. Every writer replaces files instead of writing into
+them, so rewriting one name never changes its twin.
 """
 from __future__ import annotations
 
@@ -19,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsim.fileio import atomic_write_bytes, encode_image
+from fogsim.fileio import atomic_write_bytes, encode_image, link_or_copy
 from fogsim.lidar.formats import encode_points
 from fogsim.lidar.points import PointCloud
 from fogsim.readers.kitti.calib import KittiCalib, format_kitti_calib
@@ -59,18 +65,25 @@ class KittiTree:
         """Whether the frame's files exist (all four; three without ``labels``, as in ``testing/``)."""
         return all(self.path(f, frame_id).is_file() for f in FOLDERS if labels or f != "label_2")
 
-    def write_frame(self, frame_id: str, image: np.ndarray | bytes, cloud: PointCloud, calib: KittiCalib,
-                    records: list[dict] | None) -> None:
-        """Write one frame: ``image`` an RGB array (encoded as PNG) or PNG bytes, ``cloud`` the level's
-        scan in the LiDAR frame, ``calib`` its calibration, ``records`` its label records (None: no
-        ``label_2`` file, as KITTI's ``testing/``). The label and calibration go first and the image last,
-        so an image means a written frame."""
+    def write_frame(self, frame_id: str, image: np.ndarray | bytes | Path, cloud: PointCloud | Path,
+                    calib: KittiCalib, records: list[dict] | None) -> None:
+        """Write one frame: ``image`` an RGB array (encoded as PNG), PNG bytes, or the path of the level's
+        PNG in this output (linked), ``cloud`` the level's scan in the LiDAR frame or the path of its
+        KITTI-format file in this output (linked), ``calib`` its calibration, ``records`` its label records
+        (None: no ``label_2`` file, as KITTI's ``testing/``). The label and calibration go first and the
+        image last, so an image means a written frame."""
         if records is not None:
             atomic_write_bytes(self.path("label_2", frame_id), kitti_label_text(records).encode("utf-8"))
         atomic_write_bytes(self.path("calib", frame_id), format_kitti_calib(calib).encode("utf-8"))
-        atomic_write_bytes(self.path("velodyne", frame_id), encode_points(cloud, "kitti"))
-        data = image if isinstance(image, (bytes, bytearray)) else encode_image(image, ".png")
-        atomic_write_bytes(self.path("image_2", frame_id), bytes(data))
+        if isinstance(cloud, PointCloud):
+            atomic_write_bytes(self.path("velodyne", frame_id), encode_points(cloud, "kitti"))
+        else:
+            link_or_copy(cloud, self.path("velodyne", frame_id))
+        if isinstance(image, (str, os.PathLike)):
+            link_or_copy(image, self.path("image_2", frame_id))
+        else:
+            data = image if isinstance(image, (bytes, bytearray)) else encode_image(image, ".png")
+            atomic_write_bytes(self.path("image_2", frame_id), bytes(data))
 
     def write_image_sets(self, splits: dict[str, list[str]]) -> None:
         """``ImageSets/<name>.txt`` (one id per line) for each split, e.g. {"train": [...], "val": [...]}."""

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.camera import Intrinsics, StereoCamera, planar_to_ray
+from fogsim.dataset.coco import expand_every_class
 from fogsim.dataset.layout import PARTS, DatasetLayout
 from fogsim.errors import InputError
 from fogsim.fileio import read_depth_file, read_image, read_json
@@ -71,7 +72,9 @@ def read_split(dataset: str | Path | DatasetLayout, level: str, part: str) -> li
 
 
 def val_ground_truth(dataset: str | Path | DatasetLayout, level: str) -> dict:
-    """The level's COCO ground truth restricted to its validation frames."""
+    """The level's COCO ground truth restricted to its validation frames, each ignore region of every
+    class (KITTI's DontCare) as one crowd annotation per class (:func:`~fogsim.dataset.coco.expand_every_class`:
+    the study evaluates per category)."""
     layout = as_layout(dataset)
     path = layout.coco(level)
     if not path.is_file():
@@ -82,7 +85,7 @@ def val_ground_truth(dataset: str | Path | DatasetLayout, level: str) -> dict:
     images = [im for im in gt["images"] if Path(im["file_name"]).stem in val]
     ids = {im["id"] for im in images}
     annotations = [a for a in gt["annotations"] if a["image_id"] in ids]
-    return {**gt, "images": images, "annotations": annotations}
+    return expand_every_class({**gt, "images": images, "annotations": annotations})
 
 
 def missing_files(dataset: str | Path | DatasetLayout, levels: list[str]) -> list[Path]:

@@ -6,7 +6,8 @@ the caller. Fog levels are taken as they come (anything with ``key``, ``beta`` a
 
 Split rule: a frame is in train when crc32("<seed>/<frame>") % 1000 < 1000·train_fraction,
 so adding frames never moves existing ones (except that a split left empty takes the frame
-whose hash is nearest the cut, so both lists always hold an image; one frame goes in both). List entries are
+whose hash is nearest the cut, so both lists always hold an image; one frame goes in both: ``dataset.json``'s
+``split`` then names it, ``in_both``, with a ``note``, and the commands warn, :func:`split_note`). List entries are
 absolute because Ultralytics resolves them against the working directory; run
 :func:`finalize` again after moving the dataset.
 """
@@ -21,7 +22,7 @@ import numpy as np
 
 from fogsim.boxes import yolo_line
 from fogsim.colour import to_uint8
-from fogsim.dataset.coco import coco_dataset
+from fogsim.dataset.coco import coco_dataset, coco_records, frame_segmentations
 from fogsim.dataset.layout import MIXED_SPLIT, PARTS, DatasetLayout
 from fogsim.dataset.lidar import lidar_summary
 from fogsim.dataset.lidar_sheet import lidar_rows
@@ -33,7 +34,7 @@ from fogsim.scene.classes import LABELLED
 from fogsim.viz import strip
 
 __all__ = ["PALETTE", "TRAIN_FRACTION", "check_train_fraction", "contact_sheet", "draw_boxes", "data_yaml", "finalize",
-           "frame_split", "split_frames", "write_frame_labels"]
+           "frame_split", "split_frames", "split_note", "write_frame_labels"]
 
 #: the share of frames in the train split unless a preset or ``--train-fraction`` says otherwise
 #: (declared with the preset schema, :data:`fogsim.schema.presets.TRAIN_FRACTION`)
@@ -134,8 +135,9 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
     groups = None if split_group is None else {f: split_group[1](m) for f, m in zip(frames, metas)}
     train, val = split_frames(frames, train_fraction, seed, groups)
     mixed = {part: [] for part in PARTS}
+    segmentations = [frame_segmentations(layout, m) for m in metas]  # the masks are read once, for every level
     for lv in levels:
-        write_json(layout.coco(lv.key), coco_dataset(metas, lv, layout, classes))
+        write_json(layout.coco(lv.key), coco_dataset(metas, lv, layout, classes, segmentations))
         split = {"train": [layout.image(lv.key, f) for f in train],
                  "val": [layout.image(lv.key, f) for f in val]}
         _write_lists(layout, lv.key, split, f"fogsim dataset, fog level {lv.key}: beta = {lv.beta:g} 1/m", classes)
@@ -162,11 +164,30 @@ def _summary(metas: list[dict], levels, train: list, val: list, train_fraction: 
              classes=LABELLED) -> dict:
     records = [r for m in metas for r in m["objects"]]
     kept = Counter(r["class"] for r in records if r["kept"])
+    ignored = [m["objects"][i] for m in metas for i, _ in coco_records(m["objects"]) if not m["objects"][i]["kept"]]
+    split = {"train": len(train), "val": len(val), "train_fraction": train_fraction,
+             "rule": f"crc32('{seed}/<frame>') % 1000 < {round(1000 * train_fraction)} → train"}
+    both = sorted(set(train) & set(val))
+    if both:
+        split |= {"in_both": both, "note": IN_BOTH_NOTE}
     return {"frames": len(metas), "classes": list(classes), "levels": [lv.to_dict() for lv in levels],
             "counts": {c: kept.get(c, 0) for c in classes},
-            "filtered": dict(Counter(r["reason"] for r in records if not r["kept"])),
-            "split": {"train": len(train), "val": len(val), "train_fraction": train_fraction,
-                      "rule": f"crc32('{seed}/<frame>') % 1000 < {round(1000 * train_fraction)} → train"}}
+            "filtered": dict(Counter(r["reason"] for r in ignored)),  # a region of every class: once
+            "split": split}
+
+
+#: what ``dataset.json``'s ``split`` says when its lists share frames (a one-frame dataset)
+IN_BOTH_NOTE = "a one-frame dataset: its frame is in both train and val, so nothing is held out for validation"
+
+
+def split_note(summary: dict) -> str | None:
+    """The one-line warning of a dataset (``dataset.json``'s content) whose train and val lists share a
+    frame — a one-frame dataset, the only case the split rule allows — else None."""
+    both = (summary.get("split") or {}).get("in_both") or []
+    if not both:
+        return None
+    return (f"a one-frame dataset: frame {both[0]} is in both train and val, so nothing is held out for "
+            "validation (add frames for a real split)")
 
 
 def contact_sheet(layout: DatasetLayout, levels, frames: list[str], max_frames: int = 4,

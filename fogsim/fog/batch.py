@@ -42,6 +42,7 @@ import numpy as np
 
 from fogsim._version import __version__
 from fogsim.camera import Intrinsics
+from fogsim.console import progress_bar
 from fogsim.dataset.layout import DatasetLayout, frame_from_key
 from fogsim.dataset.reader import frame_records
 from fogsim.dataset.writer import check_train_fraction, finalize, write_frame_labels
@@ -165,7 +166,7 @@ def fog_sample(job: FogJob, sample: Sample) -> None:
         atomic_write_bytes(img_path, data)
         if lidar is not None:  # the level's scan, before the sidecar / meta that mark the sample done
             fogged = lidar.level(level)
-            lidar.write_kitti(level, data if job.image_format == "png" else encode_image(foggy, ".png"), fogged)
+            lidar.write_kitti(level, img_path if job.image_format == "png" else encode_image(foggy, ".png"), fogged)
         if job.labels:
             images[level.key] = foggy
         else:
@@ -257,8 +258,6 @@ def run(samples: list[Sample], job: FogJob, workers: int = 1, resume: bool = Tru
     """Fog ``samples`` (already sharded) under ``job`` (a :class:`FogJob`, or any job with its ``check``,
     ``fog_one``, ``done``, ``parameters``, ``out``, ``levels`` and ``unit``); never raises for a single bad
     sample."""
-    from tqdm import tqdm
-
     t0 = time.perf_counter()
     job.check(samples)  # before the folder is claimed: the corrected rerun must be accepted
     Path(job.out).mkdir(parents=True, exist_ok=True)
@@ -267,8 +266,7 @@ def run(samples: list[Sample], job: FogJob, workers: int = 1, resume: bool = Tru
     summary = Summary(total=len(samples))
     todo = [s for s in samples if not (resume and job.done(s))]
     summary.skipped = len(samples) - len(todo)
-    bar = tqdm(total=len(todo), unit="img" if job.unit == "images" else job.unit.rstrip("s"), disable=not progress,
-               desc="fog")
+    bar = progress_bar(len(todo), "fog", "img" if job.unit == "images" else job.unit.rstrip("s"), not progress)
     results = map(_worker, ((job, s) for s in todo))
     pool = None
     if workers > 1 and len(todo) > 1:

@@ -30,6 +30,7 @@ that is done has its scans.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -122,12 +123,15 @@ class FrameLidar:
         """The KITTI tree's part of this frame: the source's (KITTI's training / testing), else training."""
         return getattr(self.source, "part", None) or "training"
 
-    def write_kitti(self, level, png: bytes, fogged: FoggedScan) -> None:
-        """The level's KITTI-tree frame (KITTI-style sources only): the fogged image, scan, calibration, labels."""
+    def write_kitti(self, level, png: bytes | Path, fogged: FoggedScan) -> None:
+        """The level's KITTI-tree frame (KITTI-style sources only): the fogged image (PNG bytes, or the level's
+        PNG file: linked), scan (a KITTI-format level scan: linked to its file), calibration, labels."""
         if self.calib is None:
             return
+        fmt = self.source.fmt
+        scan = self.layout.lidar(level.key, self.frame, FORMAT_SUFFIX[fmt]) if fmt == "kitti" else fogged.cloud
         KittiTree(self.layout.root, level.key, self.kitti_part).write_frame(
-            self.source.kitti_id, png, fogged.cloud, self.calib, self.records)
+            self.source.kitti_id, png, scan, self.calib, self.records)
 
     def attach(self, records: list[dict]) -> None:
         """Set ``lidar_points`` ({level: count}) and ``lidar_box`` on every record with a 3D box (in place)."""

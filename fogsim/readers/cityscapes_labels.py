@@ -20,6 +20,8 @@ Ignore regions (``kept = False``, COCO ``iscrowd = 1``, not in YOLO):
 Boxes: the min/max of the mask pixels in fogsim's pixel-edge convention ``[x0, y0, x1 + 1,
 y1 + 1)`` (:mod:`fogsim.boxes`), equal to maskrcnn-benchmark's converter; ``pixels`` = the
 mask's pixel count.
+``segmentation``: the mask itself (the instance's pixels; a group's: its component's) as COCO's
+compressed RLE (:mod:`fogsim.rle`), which the dataset's COCO files carry.
 
 Distance (``distance_m``): the median **ray** distance (metres, camera centre → surface) over
 the instance's pixels with *valid* disparity (p > 0 in ``disparity/``; holes are excluded,
@@ -43,6 +45,7 @@ from fogsim.errors import InputError
 from fogsim.fileio import read_uint16_map
 from fogsim.readers.base import Labels
 from fogsim.readers.cityscapes_files import read_cityscapes_disparity
+from fogsim.rle import rle_encode
 
 #: the 8 detection classes (YOLO id = index), Foggy Cityscapes' domain-adaptation convention
 CITYSCAPES_CLASSES = ("person", "rider", "car", "truck", "bus", "train", "motorcycle", "bicycle")
@@ -82,7 +85,7 @@ def instance_records(ids: np.ndarray, ray: np.ndarray | None, min_valid_pixels: 
     ``ray``: H×W ray distance in metres with NaN where the disparity is invalid (None: every
     distance unknown). Each record: ``id`` (the instanceIds value; groups: the class id),
     ``class``, ``class_id``, ``bbox``, ``pixels``, ``truncated``, ``kept``, ``reason``,
-    ``distance_m``, ``distance_source``, ``valid_disparity_pixels``."""
+    ``distance_m``, ``distance_source``, ``valid_disparity_pixels``, ``segmentation`` (RLE)."""
     h, w = ids.shape
     ids = ids.astype(np.int64, copy=False)  # group labels 100000·k + class id pass 2³¹ at k ≈ 21,475
     if ray is not None and ray.shape != ids.shape:
@@ -114,6 +117,8 @@ def instance_records(ids: np.ndarray, ray: np.ndarray | None, min_valid_pixels: 
             reason = f"ignored class ({ignored})"
         box = boxes[label]
         x0, y0, x1, y1 = box["bbox"]
+        inside = np.zeros((h, w), bool)  # the mask, built in its box
+        inside[y0:y1, x0:x1] = regions[y0:y1, x0:x1] == label
         d = dist.get(label, float("nan"))
         known = np.isfinite(d)
         records.append({"id": int(cid if label >= 100000 else label), "class": name, "class_id": CLASS_INDEX[name],
@@ -122,7 +127,7 @@ def instance_records(ids: np.ndarray, ray: np.ndarray | None, min_valid_pixels: 
                         "kept": reason is None, "reason": reason,
                         "distance_m": round(float(d), 3) if known else None,
                         "distance_source": DISTANCE_SOURCE if known else "unknown",
-                        "valid_disparity_pixels": int(n_valid.get(label, 0))})
+                        "valid_disparity_pixels": int(n_valid.get(label, 0)), "segmentation": rle_encode(inside)})
     return records
 
 

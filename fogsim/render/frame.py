@@ -215,7 +215,8 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
     stereo = None if right_linear is None else write_stereo(layout, config, name, K, rgb,
                                                              linear_to_srgb8(right_linear, config.exposure))
     w2c = desc["camera"]["world_to_camera"]
-    lidar_meta = None if lidar is None else write_lidar(layout, name, lidar, foggy, K, w2c, records, cls)
+    written = {lv.key: layout.image(lv.key, name) for lv in config.levels}  # the KITTI tree links them
+    lidar_meta = None if lidar is None else write_lidar(layout, name, lidar, written, K, w2c, records, cls)
     t3 = time.perf_counter()
     timings = dict(timings or {}, ground_truth=t_truth - t0, fog=t2 - t1, write=t3 - t2)
     if lidar is not None:

@@ -188,7 +188,7 @@ def write_lidar(layout: DatasetLayout, name: str, lidar: LidarFrame, images: dic
     """Write the frame's LiDAR files (the module docstring) and return ``meta["lidar"]`` — the frame record
     :mod:`fogsim.dataset.lidar` reads (``format``, per level ``file``, ``outcome_file``, ``outcomes``; the
     clear sweep as ``input``; ``kitti``), plus the sensor, the poses and the LiDAR's objects; ``images``:
-    the final image of every level (what ``image_2`` holds)."""
+    the final image of every level (what ``image_2`` holds): its written PNG file (linked) or the array."""
     fmt = SCAN_FORMAT[lidar.sensor.intensity_scale]
     l2c = np.asarray(w2c, np.float64) @ lidar.pose
     calib = kitti_calib(K, l2c, f"frame {name}")
@@ -205,7 +205,9 @@ def write_lidar(layout: DatasetLayout, name: str, lidar: LidarFrame, images: dic
         atomic_write_bytes(labels, point_labels.astype("<u4").tobytes())
         write_level_pcd(pcd, fogged, point_labels)
         SemanticKittiTree(layout.root, key).write_frame(name, fogged.cloud, point_labels)
-        KittiTree(layout.root, key).write_frame(name, images[key], fogged.cloud, calib, labels_2)
+        # image_2 and a KITTI-format velodyne: links to the level's files (fogsim.dataset.kitti)
+        KittiTree(layout.root, key).write_frame(name, images[key], scan if fmt == "kitti" else fogged.cloud, calib,
+                                                labels_2)
         levels[key] = {**fogged.record(), "file": layout.relative(scan), "outcome_file": layout.relative(outcomes),
                        "labels": layout.relative(labels), "pcd": layout.relative(pcd)}
     return {"format": fmt, "levels": levels, "input": {"file": sweep_file, "format": fmt},

@@ -20,7 +20,9 @@ Records (the fields of :class:`~fogsim.readers.base.Labels`, plus the label's ow
 * ``difficulty``: KITTI's benchmark level, 1 easy (box height ≥ 40 px, occluded 0, truncated ≤ 0.15),
   2 moderate (≥ 25 px, ≤ 1, ≤ 0.30), 3 hard (≥ 25 px, ≤ 2, ≤ 0.50), 0 none of them.
 * ``DontCare`` rows are ignore regions: one record per class (``kept`` False, reason ``"DontCare region"``),
-  so a detection of any class there is neither a hit nor a false alarm. STF: a type outside
+  so a detection of any class there is neither a hit nor a false alarm; the copies share their ``line``, and
+  the dataset's writers write the region once (``label_2``: one line; COCO: one ``DontCare`` annotation,
+  :mod:`fogsim.dataset.coco`). STF: a type outside
   :data:`STF_CLASSES` is an ignore region the same way (reason ``"unlabelled type …"``), a ``…_is_group``
   type an ignore region of its base class (reason ``"group"``).
 
