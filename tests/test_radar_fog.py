@@ -93,7 +93,7 @@ def test_threshold_per_detection_matches_a_loop():
     fogged = RadarFogger(scan, s)(beta)
     for i in range(len(scan)):
         r = math.sqrt(sum(float(c) ** 2 for c in scan.xyz[i]))
-        snr = max(float(s.snr_db(float(scan.rcs_dbsm[i]), r)), s.detection_threshold_db)
+        snr = max(float(s.snr_db(float(scan.rcs_dbsm[i]), r)), s.detection_threshold_db + 1.0)  # the margin
         keep = snr - 2 * gamma * r / 1000 >= s.detection_threshold_db
         assert fogged.outcome[i] == (KEPT if keep else LOST), i
     kept = fogged.outcome == KEPT
@@ -109,6 +109,18 @@ def test_given_snr_is_used_and_weak_far_detections_go_first():
                              snr_db=[13.4, 13.2, 20.0, 13.5])
     fogged = RadarFogger(scan, s)(0.12)  # 2·γ·R: 0.25 dB at 50 m, 1.0 dB at 200 m, 1.2 dB at 240 m
     assert fogged.outcome.tolist() == [KEPT, LOST, KEPT, LOST]
+
+
+def test_estimated_snr_margin_keeps_outcomes_continuous_as_beta_goes_to_zero():
+    """Detections whose SNR is only estimated (real files: NaN) and falls below the threshold were still
+    made: with the margin none is lost at β → 0, and they go gradually, not all at the first β > 0."""
+    r = np.linspace(20.0, 240.0, 400)
+    scan = RadarScan.checked(np.stack([r, np.zeros_like(r), np.zeros_like(r)], 1), np.full(len(r), -40.0))
+    fogger = RadarFogger(scan, "ars408-lr")
+    assert fogger.at_threshold == len(r)  # −40 dBsm: every estimate is below the threshold
+    assert (fogger(1e-9).outcome == KEPT).all() and (fogger(1e-4).outcome == KEPT).all()
+    lost = [int((fogger(b).outcome == LOST).sum()) for b in np.arange(0.0, 0.5, 0.005)]
+    assert lost == sorted(lost) and lost[-1] > 0 and max(np.diff(lost)) < 0.1 * len(r)
 
 
 def test_realistic_sweep_keeps_95_percent_within_100_m_at_visibility_25_m():

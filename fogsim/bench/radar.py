@@ -72,8 +72,9 @@ def loop_fog(scan: RadarScan, sensor: RadarSensor, beta: float, spec: RadarFogSp
         x, y, z = (float(v) for v in scan.xyz[i])
         r = math.sqrt(x * x + y * y + z * z)
         snr = float(scan.snr_db[i])
-        if math.isnan(snr):
-            snr = const + float(scan.rcs_dbsm[i]) - 40 * math.log10(max(r, 1e-3))
+        if math.isnan(snr):  # an estimate: the detection was made, so at least threshold + margin
+            snr = max(const + float(scan.rcs_dbsm[i]) - 40 * math.log10(max(r, 1e-3)),
+                      sensor.detection_threshold_db + spec.detected_margin_db)
         snr = max(snr, sensor.detection_threshold_db)
         k = k_l if k_l is not None else float(itur.models.itu840.specific_attenuation_coefficients(
             sensor.frequency_ghz, spec.temperature_c))

@@ -4,8 +4,9 @@ Per detection i at range R_i (sensor frame) with RCS σ_i:
 
 1. Clear-air SNR s_i: the record's ``snr_db`` where known, else the sensor's radar equation
    :meth:`RadarSensor.snr_db(σ_i, R_i) <fogsim.radar.sensors.RadarSensor.snr_db>`; floored at the detection
-   threshold T (the detection *was* made in clear air, whatever the estimate says: such a detection sits on
-   the threshold and is the first fog removes).
+   threshold T (a known SNR), T plus ``detected_margin_db`` m (an estimate; default 1 dB): the detection *was* made in clear air, whatever
+   the estimate says, so it had some margin; such a detection is among the first fog removes, at the β where
+   the round trip costs m, so outcomes stay continuous in β and β → 0 gives the clear sweep back.
 2. The fog's liquid water M(β) and its one-way specific attenuation γ = K_l(f, T_fog) · M dB/km
    (:mod:`fogsim.radar.attenuation`: ITU-R P.840 through ``itur``, Kunkel's visibility–LWC relation).
 3. The round trip: s_fog,i = s_i − 2·γ·R_i / 1000. The detection is **kept** when s_fog,i ≥ T, else **lost**.
@@ -108,9 +109,11 @@ class RadarFogger:
         given = np.isfinite(scan.snr_db)
         estimate = self.sensor.snr_db(scan.rcs_dbsm, self.range_m) if not given.all() else None
         snr = scan.snr_db.astype(np.float64) if estimate is None else np.where(given, scan.snr_db, estimate)
-        threshold = self.sensor.detection_threshold_db
-        self.at_threshold = int((snr < threshold).sum())
-        self.clear_snr_db = np.maximum(snr, threshold)
+        # a known SNR (a render's) is what it is (≥ T: it was detected); an estimate gets the margin
+        floor = np.where(given, self.sensor.detection_threshold_db,
+                         self.sensor.detection_threshold_db + self.spec.detected_margin_db)
+        self.at_threshold = int((snr < floor).sum())
+        self.clear_snr_db = np.maximum(snr, floor)
         self.snr_estimated = int((~given).sum())
         self.k_l = liquid_water_coefficient(self.sensor.frequency_ghz, self.spec.temperature_c)
 

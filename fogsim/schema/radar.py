@@ -107,13 +107,16 @@ class RadarFogSpec(Closed):
     ``lwc_relation``: how the camera's β gives the fog's liquid water content M (g/m³) — ``kunkel-1984``:
     β = ``lwc_coefficient`` · M^``lwc_exponent`` (β in 1/km; Kunkel 1984: 144.7 and 0.88).
     ``temperature_c``: the fog's temperature for ITU-R P.840's K_l(f, T). ``lwc_g_m3``: a fixed M that
-    overrides the relation (None: from β)."""
+    overrides the relation (None: from β). ``detected_margin_db``: a detection the sweep holds was made in clear
+    air, so an estimated SNR below threshold + margin is raised to it (a reported detection has some margin
+    over the threshold; with none, every detection estimated at or below it would vanish at the first β > 0)."""
 
     lwc_relation: Text = "kunkel-1984"
     lwc_coefficient: number_in(0, 1e4, lo_open=True) = 144.7
     lwc_exponent: number_in(0, 10, lo_open=True) = 0.88
     temperature_c: number_in(-40, 40) = 10.0
     lwc_g_m3: number_in(0, 50) | None = None
+    detected_margin_db: number_in(0, 30) = 1.0
 
     @model_validator(mode="after")
     def _relation(self):
