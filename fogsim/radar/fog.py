@@ -4,9 +4,10 @@ Per detection i at range R_i (sensor frame) with RCS σ_i:
 
 1. Clear-air SNR s_i: the record's ``snr_db`` where known, else the sensor's radar equation
    :meth:`RadarSensor.snr_db(σ_i, R_i) <fogsim.radar.sensors.RadarSensor.snr_db>`; floored at the detection
-   threshold T (a known SNR), T plus ``detected_margin_db`` m (an estimate; default 1 dB): the detection *was* made in clear air, whatever
-   the estimate says, so it had some margin; such a detection is among the first fog removes, at the β where
-   the round trip costs m, so outcomes stay continuous in β and β → 0 gives the clear sweep back.
+   threshold T (a known SNR), T plus ``detected_margin_db`` m (an estimate; default 1 dB): the detection
+   *was* made in clear air, whatever the estimate says, so it had some margin; such a detection is among
+   the first fog removes, at the β where the round trip costs m, so outcomes stay continuous in β and
+   β → 0 gives the clear sweep back.
 2. The fog's liquid water M(β) and its one-way specific attenuation γ = K_l(f, T_fog) · M dB/km
    (:mod:`fogsim.radar.attenuation`: ITU-R P.840 through ``itur``, Kunkel's visibility–LWC relation).
 3. The round trip: s_fog,i = s_i − 2·γ·R_i / 1000. The detection is **kept** when s_fog,i ≥ T, else **lost**.
