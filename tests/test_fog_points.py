@@ -5,6 +5,7 @@ gives; sidecars, resume, shards, workers, and an output inside the input refused
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -91,6 +92,7 @@ def test_points_in_each_format(scans, fmt):
             side = json.loads((out / level / f"{name}.json").read_text())
             assert side["source"] == str(path) and side["sensor"]["name"] == sensor
             assert side["outcomes"] == expected.counts() and side["seed"] == level_seed(0, name, level)
+            assert side["outcome_file"] == f"{Path(name).name}.outcomes.npz" and side["pcd"] == f"{Path(name).name}.pcd"
             # the physics: a dark surface loses its hard returns (to nothing or to the fog's echo) before a
             # bright one at the same range (12 rays each, every echo fluctuating)
             if beta > 0:
