@@ -176,7 +176,7 @@ def write_radar_files(layout: DatasetLayout, name: str, radar: RadarFrame) -> di
         write_radar(scan, fogged.scan, RADAR_FORMAT)
         order = np.flatnonzero(fogged.output_index >= 0)
         order = order[np.argsort(fogged.output_index[order])]
-        write_labels(labels, radar.sweep, order, np.asarray(fogged.scan.snr_db))
+        write_labels(labels, radar.sweep, order, np.asarray(fogged.snr_fog_db)[order])
         write_outcomes(outcomes, fogged)
         kinds = np.bincount(radar.sweep.kind[order].astype(np.int64), minlength=len(KINDS) - 1)
         levels[key] = {**fogged.record(), "file": layout.relative(scan), "labels": layout.relative(labels),

@@ -10,7 +10,8 @@ The sweep, step by step (:func:`radar_sweep`):
 
 1. **Rays** on a fine grid over the sensor's field of view (:func:`ray_grid`: azimuth steps of
    :data:`RAY_STEP_DEG` or a tenth of the azimuth resolution, whichever is finer; elevation steps of
-   :data:`RAY_STEP_DEG` over the elevation field of view, default ±:data:`DEFAULT_HALF_ELEVATION_DEG`).
+   :data:`ELEVATION_STEP_DEG` over the elevation field of view, default ±:data:`DEFAULT_HALF_ELEVATION_DEG`:
+   a pedestrian 100 m away still meets four rows).
    A hit belongs to the **near scan** when the sensor has one and the hit is within its range and azimuth,
    else to the far scan (within its field); the scan gives the resolutions and accuracies.
 2. **Clusters**: an object's hits are grouped by resolution cell of their scan (range cell ⌊R/ΔR⌋, azimuth
@@ -58,8 +59,8 @@ from fogsim.render.lidar_scan import RayCaster
 from fogsim.render.radar_rcs import AREA_SIGMA0_DB, GROUND_CLASSES, GROUND_SIGMA0_DB, aspect_rad, object_rcs_dbsm
 from fogsim.scene.lights import VEHICLE_CLASSES
 
-#: ray grid step (degrees), the elevation half-FOV of a sensor that gives none
-RAY_STEP_DEG, DEFAULT_HALF_ELEVATION_DEG = 0.1, 7.0
+#: ray grid steps (degrees: azimuth, elevation), the elevation half-FOV of a sensor that gives none
+RAY_STEP_DEG, ELEVATION_STEP_DEG, DEFAULT_HALF_ELEVATION_DEG = 0.1, 0.25, 7.0
 #: multipath ghost: one bounce off the road, dB below the detection it mirrors (stated: asphalt's
 #: reflectivity at 77 GHz and grazing incidence, |Γ|² ≈ −3 … −10 dB)
 GHOST_LOSS_DB = 6.0
@@ -68,8 +69,8 @@ CLUTTER_CELL_PROBABILITY = 0.005
 #: which scan of the sensor a detection comes from
 FAR, NEAR = 0, 1
 
-__all__ = ["CLUTTER_CELL_PROBABILITY", "GHOST_LOSS_DB", "RAY_STEP_DEG", "Motion", "SyntheticRadar", "radar_sweep",
-           "ray_grid"]
+__all__ = ["CLUTTER_CELL_PROBABILITY", "ELEVATION_STEP_DEG", "GHOST_LOSS_DB", "RAY_STEP_DEG", "Motion", "SyntheticRadar",
+           "radar_sweep", "ray_grid"]
 
 
 @dataclass(frozen=True)
@@ -146,7 +147,7 @@ def ray_grid(sensor) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
     if sensor.near_range is not None:
         resolutions.append(float(sensor.near_range["azimuth_resolution_deg"]))
     da = min(RAY_STEP_DEG, min(resolutions) / 10)
-    na, ne = max(1, math.ceil((a1 - a0) / da)), max(1, math.ceil((e1 - e0) / RAY_STEP_DEG))
+    na, ne = max(1, math.ceil((a1 - a0) / da)), max(1, math.ceil((e1 - e0) / ELEVATION_STEP_DEG))
     az = np.radians(a0 + (np.arange(na) + 0.5) * (a1 - a0) / na)
     el = np.radians(e0 + (np.arange(ne) + 0.5) * (e1 - e0) / ne)
     a, e = np.meshgrid(az, el, indexing="ij")
@@ -177,6 +178,16 @@ def _clipped_normal(rng: np.random.Generator, accuracy, n: int) -> np.ndarray:
 
 def _quantised(v: np.ndarray, step: float) -> np.ndarray:
     return np.round(v / step) * step
+
+
+def _cells(oid, scan, rcell, acell) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distinct (object, scan, range cell, azimuth cell) rows (M×4, sorted), each hit's row and the hits
+    per row — np.unique over one int64 key (cells are < 2¹⁶ on either axis: ranges < 2¹⁶ resolution steps,
+    azimuth steps ≥ 0.01°)."""
+    key = ((np.asarray(oid, np.int64) * 2 + scan) << 32) | (np.asarray(rcell, np.int64) << 16) | acell
+    uniq, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    rows = np.stack([(uniq >> 32) // 2, (uniq >> 32) % 2, (uniq >> 16) & 0xFFFF, uniq & 0xFFFF], 1)
+    return rows, inverse.reshape(-1), counts
 
 
 def _peaks(cells: np.ndarray, power: np.ndarray) -> list[tuple[int, float]]:
@@ -221,10 +232,9 @@ def radar_sweep(caster: RayCaster, radar_to_world: np.ndarray, sensor, classes: 
     r, oid, sc = t[hit], caster.geometry.face_id[prim[hit]].astype(np.int64), scan[hit].astype(np.int64)
     p_world = origin + dirs[hit] * r[:, None]
     normal_up = np.abs(caster.normals(prim[hit])[:, 2]) > 0.9
-    cls = np.array([classes.get(int(i), "") for i in oid], dtype=object)
-    ground = np.isin(cls, GROUND_CLASSES) | ((oid == 0) & normal_up)
-    dr = np.array([scans[k]["dr"] for k in sc]) if len(sc) else np.zeros(0)
-    da = np.array([scans[k]["da"] for k in sc]) if len(sc) else np.zeros(0)
+    ground_ids = [i for i, c in classes.items() if c in GROUND_CLASSES]
+    ground = np.isin(oid, ground_ids) | ((oid == 0) & normal_up)
+    dr, da = (np.array([s[key] for s in scans])[sc] for key in ("dr", "da"))
     rcell = np.floor(r / dr).astype(np.int64)
     acell = np.floor((az[hit] + math.pi) / da).astype(np.int64)
     footprint = r ** 2 * dphi * dtheta  # each ray's share of the surface facing it (m²)
@@ -232,10 +242,8 @@ def radar_sweep(caster: RayCaster, radar_to_world: np.ndarray, sensor, classes: 
     rows: list[tuple] = []  # (world point, object id, kind, source id, scan, rcs dBsm)
     # objects: one detection per (object, scan, range cell, azimuth cell)
     target = ~ground
-    keys = np.stack([oid, sc, rcell, acell], 1)[target]
-    if len(keys):
-        uniq, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-        inverse = inverse.reshape(-1)
+    if target.any():
+        uniq, inverse, counts = _cells(oid[target], sc[target], rcell[target], acell[target])
         sums = np.zeros((len(uniq), 3))
         np.add.at(sums, inverse, p_world[target])
         area = np.bincount(inverse, footprint[target], len(uniq))
@@ -255,13 +263,11 @@ def radar_sweep(caster: RayCaster, radar_to_world: np.ndarray, sensor, classes: 
             rows.append((sums[j] / counts[j], i if i != 0 else -1, OBJECT if i != 0 else CLUTTER, -1, k,
                          10 * math.log10(max(total, 1e-12))))
     # ground clutter: one candidate per (scan, range cell, azimuth cell) of ground hits
-    keys = np.stack([sc, rcell, acell], 1)[ground]
-    if len(keys):
-        uniq, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-        inverse = inverse.reshape(-1)
+    if ground.any():
+        uniq, inverse, counts = _cells(np.zeros(int(ground.sum()), np.int64), sc[ground], rcell[ground], acell[ground])
         sums = np.zeros((len(uniq), 3))
         np.add.at(sums, inverse, p_world[ground])
-        for j, (k, _, _) in enumerate(uniq):
+        for j, (_, k, _, _) in enumerate(uniq):
             centre = sums[j] / counts[j]
             rng_m = float(np.linalg.norm(centre - origin))
             cell = scans[int(k)]["dr"] * rng_m * scans[int(k)]["da"]
@@ -318,8 +324,7 @@ def radar_sweep(caster: RayCaster, radar_to_world: np.ndarray, sensor, classes: 
     vr = _quantised(np.einsum("ij,ij->i", u_world, v_obj) - v_ego, vres)
     a_true = np.arctan2(local[:, 1], local[:, 0])
     e_true = np.arcsin(np.clip(local[:, 2] / np.maximum(true_r, 1e-9), -1, 1))
-    acc_r = np.array([scans[k]["acc_r"] for k in which]) if len(which) else np.zeros(0)
-    acc_a = np.array([scans[k]["acc_a"] for k in which]) if len(which) else np.zeros(0)
+    acc_r, acc_a = (np.array([s[key] for s in scans])[which] for key in ("acc_r", "acc_a"))
     meas_r = np.maximum(true_r + _clipped_normal(rng, acc_r, len(true_r)), float(sensor.min_range_m))
     meas_a = a_true + _clipped_normal(rng, acc_a, len(a_true))
     meas_e = e_true
