@@ -64,7 +64,8 @@ def test_rcs_by_class_and_aspect():
     mid = 10 * math.log10((10 ** (front / 10) + 10 ** (side / 10)) / 2)
     assert object_rcs_dbsm("car", math.pi / 4) == pytest.approx(mid)
     assert object_rcs_dbsm("pedestrian", 1.0) == pytest.approx(-8.0)
-    assert aspect_rad([0, 1], [0, -5]) == pytest.approx(0.0) and aspect_rad([1, 0], [0, 3]) == pytest.approx(math.pi / 2)
+    assert aspect_rad([0, 1], [0, -5]) == pytest.approx(0.0)
+    assert aspect_rad([1, 0], [0, 3]) == pytest.approx(math.pi / 2)
 
 
 def _scene(sensor, seed=0, **motion):

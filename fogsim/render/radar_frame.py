@@ -36,7 +36,7 @@ from fogsim.fileio import atomic_write_bytes
 from fogsim.radar.detections import KINDS, OBJECT, RadarScan
 from fogsim.radar.fog import FoggedRadar
 from fogsim.radar.formats import write_radar
-from fogsim.radar.outcome_file import write_outcomes
+from fogsim.radar.outcome_file import write_radar_outcomes
 from fogsim.radar.sensors import RadarSensor
 from fogsim.render.boxes3d import box_record, object_box
 from fogsim.render.lidar_scan import Geometry, RayCaster
@@ -177,7 +177,7 @@ def write_radar_files(layout: DatasetLayout, name: str, radar: RadarFrame) -> di
         order = np.flatnonzero(fogged.output_index >= 0)
         order = order[np.argsort(fogged.output_index[order])]
         write_labels(labels, radar.sweep, order, np.asarray(fogged.snr_fog_db)[order])
-        write_outcomes(outcomes, fogged)
+        write_radar_outcomes(outcomes, fogged)
         kinds = np.bincount(radar.sweep.kind[order].astype(np.int64), minlength=len(KINDS) - 1)
         levels[key] = {**fogged.record(), "file": layout.relative(scan), "labels": layout.relative(labels),
                        "kinds": {KINDS[k]: int(kinds[k]) for k in range(len(KINDS) - 1)},

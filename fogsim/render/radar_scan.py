@@ -69,8 +69,8 @@ CLUTTER_CELL_PROBABILITY = 0.005
 #: which scan of the sensor a detection comes from
 FAR, NEAR = 0, 1
 
-__all__ = ["CLUTTER_CELL_PROBABILITY", "ELEVATION_STEP_DEG", "GHOST_LOSS_DB", "RAY_STEP_DEG", "Motion", "SyntheticRadar",
-           "radar_sweep", "ray_grid"]
+__all__ = ["CLUTTER_CELL_PROBABILITY", "ELEVATION_STEP_DEG", "GHOST_LOSS_DB", "RAY_STEP_DEG", "Motion",
+           "SyntheticRadar", "radar_sweep", "ray_grid"]
 
 
 @dataclass(frozen=True)
