@@ -42,7 +42,7 @@ __all__ = ["KIND_COLOURS", "has_radar", "radar_bev_image", "radar_rows", "radar_
 #: detection colours by kind (RGB): object red, ghost purple, ground clutter brown, false alarm black; a
 #: detection on scenery (an object the table does not count: buildings, poles, trees) slate blue
 KIND_COLOURS = {0: (214, 39, 40), 1: (148, 103, 189), 2: (140, 86, 75), 3: (0, 0, 0)}
-SCENERY_COLOUR, LOST_COLOUR, LIDAR_COLOUR = (70, 110, 160), (150, 150, 150), (190, 200, 215)
+SCENERY_COLOUR, LOST_COLOUR, LIDAR_COLOUR = (70, 110, 160), (150, 150, 150), (150, 165, 185)
 
 
 def has_radar(metas: list[dict]) -> bool:
@@ -139,7 +139,7 @@ def _frame_bev(layout: DatasetLayout, levels, meta: dict) -> np.ndarray:
             points = read_points(layout.root / lidar["levels"][lv.key]["file"], lidar["format"]).xyz
         panels.append(radar_bev_image(xyz, kinds, kept, points, boxes, scenery))
         lost = int((~kept).sum())
-        captions.append(f"radar {lv.key}: {int(kept.sum())} det., lost {100 * lost / max(1, len(kept)):.0f}%")
+        captions.append(f"{lv.key}: {int(kept.sum())} det., lost {100 * lost / max(1, len(kept)):.0f}%")
     return strip(panels, captions, width=360)
 
 
@@ -229,5 +229,5 @@ def radar_rows(layout: DatasetLayout, meta: dict, levels, tile_width: int) -> li
                     cv2.circle(tile, (int(u), int(v)), radius, colour, fill, cv2.LINE_AA)
         tiles.append(tile)
         on = int((kinds == 0).sum() - scenery.sum())
-        captions.append(f"radar {lv.key}: {on} on objects, {int((kinds == 1).sum())} ghosts")
+        captions.append(f"radar {lv.key}: {on} on objects")
     return [strip(tiles, captions)] if tiles else []
