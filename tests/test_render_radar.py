@@ -156,6 +156,30 @@ def test_the_cross_sensor_table_gains_the_radar_column():
     assert "radar" not in table_markdown(cross_sensor_table(lidar_only, ["clear"], (0, 10)))
 
 
+def test_the_preset_key_and_the_flag(tmp_path):
+    """A preset's "radar" (a bundled name or a block) and --radar give the sensor; a bad name or block is
+    refused naming the flag or the file, before anything is written."""
+    from fogsim.errors import InputError
+    from fogsim.render.frame import describe_frame
+    from fogsim.render.preset import load_render_preset
+
+    preset = tmp_path / "p.json"
+    preset.write_text(json.dumps({"style": "urban-canyon", "camera": "waymo-front", "quality": "draft",
+                                  "radar": "srr-corner"}))
+    cfg = load_render_preset(str(preset))
+    assert cfg.radar_sensor.name == "srr-corner" and cfg.to_dict()["radar"]["name"] == "srr-corner"
+    cfg = load_render_preset(str(preset), radar="ars408-lr")
+    desc = describe_frame(cfg, 0)
+    pose = np.asarray(desc["radar"]["radar_to_world"])
+    assert pose[2, 3] == pytest.approx(0.5)  # the ARS 408's mount height above the street
+    with pytest.raises(ValueError, match="--radar"):
+        load_render_preset("default", radar="nope")
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"frequency_ghz": 77}))
+    with pytest.raises(InputError, match="bad.json"):
+        load_render_preset("default", radar=str(bad))
+
+
 # ----------------------------------------------------------------------------- renders (real Blender)
 RENDER = ["--lidar", "hdl64e", "--radar", "ars408-lr", "--frames", "2", "--resolution", "96x64", "--samples", "1",
           "--levels", "clear,0.06", "--seed", "3", "--quiet"]
