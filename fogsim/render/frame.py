@@ -28,7 +28,7 @@ from fogsim.render.fog_settings import fog_settings
 from fogsim.render.labels import object_records
 from fogsim.render.lidar_frame import lidar_stage, write_lidar
 from fogsim.render.lidar_rig import mounted_pose
-from fogsim.render.lidar_scan import Geometry
+from fogsim.render.lidar_scan import Geometry, RayCaster
 from fogsim.render.preset import RenderConfig
 from fogsim.render.radar_frame import radar_stage, write_radar_files
 from fogsim.render.silhouette import silhouette_areas
@@ -193,12 +193,15 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
     records = object_records(mask, ray, desc["objects"], sil, min_pixels=lab.min_pixels,
                              min_visible_fraction=lab.min_visible_fraction)
     lidar, t_truth = None, time.perf_counter()
+    caster = None  # one Embree scene of the frame for the LiDAR and the radar
+    if config.lidar_sensor is not None and config.radar_sensor is not None:
+        caster = RayCaster(passes.geometry if passes.geometry is not None else Geometry.of_frame(desc, meshes))
     if config.lidar_sensor is not None:  # the sweep, 3D boxes, fogged scans (records gain box3d, lidar_points)
-        lidar = lidar_stage(config, desc, meshes, records, int(desc["seed"] or 0), passes.geometry)
+        lidar = lidar_stage(config, desc, meshes, records, int(desc["seed"] or 0), passes.geometry, caster)
     t_lidar = time.perf_counter()
     radar = None
     if config.radar_sensor is not None:  # detections, fogged levels (records gain radar_detections)
-        radar = radar_stage(config, desc, meshes, records, int(desc["seed"] or 0), passes.geometry)
+        radar = radar_stage(config, desc, meshes, records, int(desc["seed"] or 0), passes.geometry, caster)
     t1 = time.perf_counter()
     if fog is None:  # post-process fog (Koschmieder, scatter) from the clear render
         fs = fog_settings(config)

@@ -94,9 +94,9 @@ def _motion(config, desc: dict) -> dict | None:
 
 
 def radar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int,
-                geometry: Geometry | None = None) -> RadarFrame:
+                geometry: Geometry | None = None, caster: RayCaster | None = None) -> RadarFrame:
     """The frame's sweep, fogged detections and per-object counts (into ``records``: ``radar_detections``
-    and, where the LiDAR gave none, ``box3d``)."""
+    and, where the LiDAR gave none, ``box3d``); ``caster``: the frame's ray caster (the LiDAR's), if built."""
     from fogsim.render.fog_settings import fog_settings
 
     sensor = config.radar_sensor
@@ -111,7 +111,7 @@ def radar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int
                 boxes[int(o["id"])] = box
     headings = {i: b.axes[:, 0] for i, b in boxes.items()}
     motion = _motion(config, desc)
-    sweep = radar_sweep(RayCaster(geometry), pose, sensor, classes, headings, Motion.of(motion),
+    sweep = radar_sweep(caster or RayCaster(geometry), pose, sensor, classes, headings, Motion.of(motion),
                         np.random.default_rng([seed, RADAR_STREAM]))
     scan = radar_scan(sweep, f"frame {desc.get('seed')} radar")
     fogger = fog_settings(config).radar_fogger(scan, sensor)
