@@ -177,3 +177,13 @@ def test_the_benchmark_runs(capsys):
                  "--loop-detections", "40"]) == 0
     out = capsys.readouterr().out
     assert "loop, itur per detection" in out and out.strip().splitlines()[-1].startswith("bench radar: ")
+
+
+def test_an_empty_sweep_stays_empty(tmp_path):
+    from fogsim.radar.formats import read_radar, write_radar
+
+    fogged = RadarFogger(RadarScan.empty(), "ars408-lr")(0.12)
+    assert len(fogged.scan) == 0 and fogged.counts() == {"kept": 0, "lost": 0}
+    write_radar(tmp_path / "e.pcd", fogged.scan)
+    assert len(read_radar(tmp_path / "e.pcd")) == 0
+    assert fogged.parameters["k_l_from"].startswith("ITU-R P.840 via itur ")

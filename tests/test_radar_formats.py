@@ -197,3 +197,13 @@ def test_record_checks_and_selects():
     assert part.index.tolist() == [1, 2] and np.allclose(part.range_m, [2, 3])
     assert np.allclose(part.azimuth_rad, [np.pi / 2, 0])
     assert part.copy().same_as(part) and not part.same_as(scan)
+
+
+def test_open3d_reads_the_positions(tmp_path):
+    o3d = pytest.importorskip("open3d")
+    src = tmp_path / "in.pcd"
+    src.write_bytes(spec_bytes(ROWS))
+    out = tmp_path / "out.pcd"
+    write_radar(out, read_radar(src))
+    got = np.asarray(o3d.io.read_point_cloud(str(out)).points)
+    assert np.allclose(got, np.array([r[:3] for r in ROWS], np.float32))

@@ -78,3 +78,4 @@ def test_field_of_view_far_and_near():
     r = np.array([200.0, 200.0, 50.0, 50.0, 100.0])
     az = np.radians([5.0, 20.0, 20.0, 59.0, 30.0])
     assert s.in_view(r, az).tolist() == [True, False, True, True, False]
+    assert s.sweep_bandwidth_mhz == pytest.approx(299_792_458.0 / (2 * 1.79) / 1e6)  # ≈ 84 MHz far scan

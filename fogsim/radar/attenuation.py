@@ -11,20 +11,21 @@ content from the camera's extinction β.
   this gives M ≈ 0.05 g/m³ at V ≈ 290 m and ≈ 0.5 g/m³ at V ≈ 38 m — P.840's own guide values (medium fog
   0.05 g/m³ at ≈ 300 m, thick fog 0.5 g/m³ at ≈ 50 m). Kunkel's fit is to advection and radiation fogs'
   drop spectra; other fogs scatter around it by a factor of ≈ 2 in M at a given β.
-* **Temperature**: K_l falls as water warms (at 77 GHz 3.54 at 0 °C, 3.15 at 10 °C, 2.80 at 20 °C); the
+* **Temperature**: K_l falls as water warms (at 77 GHz 3.54 at 0 °C, 3.15 at 10 °C, 2.71 at 20 °C); the
   default 10 °C is a mild fog's (the record's ``temperature_c``).
 """
 from __future__ import annotations
 
 import math
 from functools import lru_cache
+from importlib.metadata import PackageNotFoundError, version
 
 import numpy as np
 
 from fogsim.deps import require
 from fogsim.schema.radar import RadarFogSpec
 
-__all__ = ["attenuation_db_per_km", "liquid_water_coefficient", "lwc_from_beta", "two_way_loss_db",
+__all__ = ["attenuation_db_per_km", "itur_version", "liquid_water_coefficient", "lwc_from_beta", "two_way_loss_db",
            "visibility_m"]
 
 
@@ -34,6 +35,15 @@ def liquid_water_coefficient(frequency_ghz: float, temperature_c: float) -> floa
     itur = require("itur", "radar")
     value = itur.models.itu840.specific_attenuation_coefficients(float(frequency_ghz), float(temperature_c))
     return float(getattr(value, "value", value))
+
+
+@lru_cache(maxsize=1)
+def itur_version() -> str | None:
+    """The installed ``itur``'s version (what a record says computed K_l), None when it is absent."""
+    try:
+        return version("itur")
+    except PackageNotFoundError:
+        return None
 
 
 def lwc_from_beta(beta_per_m, spec: RadarFogSpec | None = None) -> np.ndarray:

@@ -30,7 +30,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fogsim.radar.attenuation import attenuation_db_per_km, liquid_water_coefficient, lwc_from_beta, visibility_m
+from fogsim.radar.attenuation import (
+    attenuation_db_per_km,
+    itur_version,
+    liquid_water_coefficient,
+    lwc_from_beta,
+    visibility_m,
+)
 from fogsim.radar.detections import RadarScan
 from fogsim.radar.sensors import RadarSensor, load_radar_sensor
 from fogsim.schema.base import check
@@ -113,6 +119,7 @@ class RadarFogger:
         s = self.sensor
         common = {"sensor": s.name, "frequency_ghz": s.frequency_ghz, "source": self.scan.source,
                   "temperature_c": self.spec.temperature_c, "k_l_db_per_km_per_g_m3": self.k_l,
+                  "k_l_from": f"ITU-R P.840 via itur {itur_version()}",
                   "detection_threshold_db": s.detection_threshold_db, "snr_estimated": self.snr_estimated,
                   "clear_snr_at_threshold": self.at_threshold, "spec": self.spec.model_dump()}
         if np.ndim(beta) == 0:

@@ -140,6 +140,11 @@ class RadarSensor:
         return LIGHT_SPEED / (self.frequency_ghz * 1e9)
 
     @property
+    def sweep_bandwidth_mhz(self) -> float:
+        """The FMCW sweep bandwidth the range resolution implies, B = c / (2·ΔR) (MHz; the far scan's)."""
+        return LIGHT_SPEED / (2.0 * self.range_resolution_m) / 1e6
+
+    @property
     def mount_height_m(self) -> float:
         """The antenna's height above the ego frame's origin (m; nuScenes' ego origin is on the ground)."""
         return float(self.mount_xyz_m[2])
