@@ -50,6 +50,8 @@ def test_addon_sources_sky_assets_and_panel_errors(tmp_path):
     assert beams == 64 and r["no_lidar"] == {}
     assert choices[:2] == ["PRESET", "NONE"] and "hdl64e" in choices and "waymo-top" not in choices  # beams known
     assert r["assets"] == {"car": ["estate.glb", "hatch.glb"], "pedestrian": ["walker.obj"]}
+    name, choices = r["radar"]
+    assert name == "ars408-lr" and r["no_radar"] == {} and choices == ["PRESET", "NONE", "ars408-lr", "srr-corner"]
 
     # refusals: Blender's report (a RuntimeError for a script caller) and the panel's status line
     for key, text in (("missing_hdri", "HDRI file: no such file"), ("night_sky", "is a day sky"),

@@ -47,6 +47,9 @@ def add_parsers(sub) -> None:
                              "ray casters (Embree vs Blender's BVHTree in a Python loop) on one core")
     render.add_argument("--lidar-steps", type=int, default=2048,
                         help="azimuth steps per sweep of --lidar (default 2048: 64 beams × 2048 = 131 k rays)")
+    render.add_argument("--radar", metavar="SENSOR",
+                        help="also sweep this radar (e.g. ars408-lr) in every frame: its stage (rays, clusters, "
+                             "fogged levels) beside Cycles' render, and its detections per frame")
     _quiet_option(render)
     render.set_defaults(run=lambda args: _render(args))
 

@@ -65,6 +65,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "per-point labels, 3D boxes in meta and COCO, and a KITTI tree per level (kitti/<level>/). "
                         "Scene mode: an object with the custom property fogsim_lidar is the sensor, else the "
                         "camera's pose plus KITTI's offset")
+    p.add_argument("--radar", metavar="SENSOR",
+                   help="also sweep a radar in every frame and fog its detections per level: a bundled sensor "
+                        "(ars408-lr, srr-corner) or a sensor .json (overrides the preset's radar); writes "
+                        "radar/<level>/<frame>.pcd (nuScenes radar) with per-detection labels, and the radar column "
+                        "of the cross-sensor table. Scene mode: an object with the custom property fogsim_radar is "
+                        "the sensor, else the camera's pose plus nuScenes' radar offset")
     p.add_argument("--train-fraction", type=float, help="share of frames in the train split (default: the "
                    f"preset's, else {TRAIN_FRACTION}; the paper's 8,100/4,800: 0.628); --finalize-only re-splits "
                    "without rendering")
@@ -118,7 +124,7 @@ def cmd_render(args) -> int:
                                 resolution=args.resolution, samples=args.samples, levels=args.levels,
                                 stereo=True if args.stereo else None, max_pixels=args.max_pixels,
                                 fog=args.fog, fog_medium=args.fog_medium, fog_scale=args.fog_scale, assets=args.assets,
-                                lidar=args.lidar)
+                                lidar=args.lidar, radar=args.radar)
     shard = parse_shard(args.shard)
     require_bpy()
     from fogsim.render.blender.job import RUN_FILE, RenderJob
@@ -144,13 +150,14 @@ def _cmd_scene(args) -> int:
         if given is not None:
             raise ValueError(f"{flag} is not available with --scene (scene mode renders the scene's own objects: "
                              "--frame-range, --camera, --class-map, --levels, --samples, --resolution, --seed, "
-                             "--fog, --fog-medium, --fog-scale, --lidar)")
+                             "--fog, --fog-medium, --fog-scale, --lidar, --radar)")
     blend = None if args.scene == "current" else args.scene
     check_output(args.out, {"--scene": blend})
     options = SceneOptions(camera=args.camera, frame_range=args.frame_range, class_map=load_class_map(args.class_map),
                            levels=args.levels, samples=args.samples, resolution=args.resolution, seed=args.seed or 0,
                            max_pixels=args.max_pixels, fog=args.fog, fog_medium=args.fog_medium,
-                           fog_scale=args.fog_scale, lidar=args.lidar).check()  # a usage error before Blender
+                           fog_scale=args.fog_scale, lidar=args.lidar,
+                           radar=args.radar).check()  # a usage error before Blender
     shard = parse_shard(args.shard)
     require_bpy()
     from fogsim.render.blender.job import RUN_FILE

@@ -12,13 +12,16 @@ Layout under the root::
     lidar/<level>/<frame>.outcomes.npz   every input point's outcome and row (fogsim.lidar.outcome_file)
     lidar/<level>/<frame>.pcd    the level's scan for viewers (fogsim.lidar.scan_pcd)
     lidar/<level>/<frame>.label, lidar/sweep/<frame>.{bin,npz}   a render's point labels and clear sweep
+    radar/<level>/<frame>.pcd    a render's radar detections (nuScenes radar PCD), beside them .npz labels and
+                                 .outcomes.npz; radar/sweep/<frame>.{pcd,npz} the clear sweep
     kitti/<level>/…              each level as a KITTI object tree (fogsim.dataset.kitti)
     semantic_kitti/<level>/…     a render's levels as SemanticKITTI sequences (fogsim.dataset.semantic_kitti)
     coco/<level>.json            COCO detection annotations (objects the filters dropped: iscrowd = 1)
     splits/<level>_{train,val}.txt, splits/all_{train,val}.txt   image lists (absolute paths)
     data/<level>.yaml, data/all.yaml                              Ultralytics data files
     dataset.json                 manifest, counts, levels;       contact_sheet.png
-    cross_sensor.md, lidar_bev.png, lidar_points_vs_distance.png   what fog does to each object, per sensor
+    cross_sensor.md, lidar_bev.png, lidar_points_vs_distance.png, radar_bev.png   what fog does to each object,
+                                 per sensor
 
 Two names mean "every fog level at once", one per side, and both are part of the format:
 
@@ -135,6 +138,15 @@ class DatasetLayout:
         """A render's clear sweep (the scan every level's outcomes refer to); ``.npz``: what each point hit."""
         return self.root / "lidar" / "sweep" / f"{frame}{suffix}"
 
+    def radar(self, level_key: str, frame: str, suffix: str = ".pcd") -> Path:
+        """One level's radar detections of a frame (``.pcd``), their labels (``.npz``) or outcomes
+        (``.outcomes.npz``)."""
+        return self.root / "radar" / level_key / f"{frame}{suffix}"
+
+    def radar_sweep(self, frame: str, suffix: str = ".pcd") -> Path:
+        """A render's clear radar sweep (what every level's outcomes refer to); ``.npz``: its labels."""
+        return self.root / "radar" / "sweep" / f"{frame}{suffix}"
+
     # --- per dataset (written by finalize)
     def split_file(self, level_key: str, part: str) -> Path:
         """The image list of one split: ``splits/<level>_<part>.txt`` (level may be MIXED_SPLIT)."""
@@ -160,6 +172,10 @@ class DatasetLayout:
     def lidar_bev(self) -> Path:
         """A bird's-eye view of one frame's scan per level, points coloured by outcome."""
         return self.root / "lidar_bev.png"
+
+    def radar_bev(self) -> Path:
+        """A bird's-eye view of one frame's radar detections per level over its LiDAR points."""
+        return self.root / "radar_bev.png"
 
     def lidar_points_plot(self) -> Path:
         """Points per object against distance, per level."""

@@ -151,10 +151,14 @@ def _kitti_image_sets(layout: DatasetLayout, frames: list[str], metas: list[dict
 
 
 def lidar_summary(layout: DatasetLayout, levels, frames: list[str], metas: list[dict], train: list[str],
-                  val: list[str], min_points: int = MIN_POINTS, bins=DISTANCE_BINS) -> dict | None:
+                  val: list[str], min_points: int = MIN_POINTS, bins=DISTANCE_BINS,
+                  radar: dict | None = None) -> dict | None:
     """Write the LiDAR files of the dataset (the module docstring) and return ``dataset.json``'s ``lidar``
-    block; None when no frame has LiDAR records."""
-    if not has_lidar(metas):
+    block; None when no frame has LiDAR records (nor radar counts). ``radar``: the radar block
+    (:func:`fogsim.dataset.radar.radar_summary`) whose ``markdown`` and ``pictures`` the report gains; the
+    table gets its radar column from the records' ``radar_detections``."""
+    lidar = has_lidar(metas)
+    if not lidar and radar is None:
         return None
     keys = [lv.key for lv in levels]
     records = [r for m in metas for r in m["objects"]]
@@ -163,23 +167,30 @@ def lidar_summary(layout: DatasetLayout, levels, frames: list[str], metas: list[
         row["bin"] = _json_bins(row["bin"])
     totals = _totals(metas, keys)
     bev_frame, bev_missing = _bev(layout, levels, frames, metas)
-    write_png(layout.lidar_points_plot(), points_vs_distance(records, keys, min_points))
+    if lidar:
+        write_png(layout.lidar_points_plot(), points_vs_distance(records, keys, min_points))
     counted = sum(1 for r in records if r.get("kept", True) and r.get("distance_m") is not None
-                  and "lidar_points" in r)
+                  and ("lidar_points" in r or "radar_detections" in r))
+    radar_rule = "the radar with ≥ 1 detection on the object, " if radar is not None else ""
     md = ["# What fog does to each object, seen by each sensor", "",
           f"Share of the kept objects with a 3D box and a distance ({counted} in {len(metas)} frames) that each "
           f"sensor still sees, per fog level and distance bin: the LiDAR with ≥ {min_points} points in the box, "
-          "the camera with a contrast ≥ 5 % (n = objects in the bin).", "", table_markdown(rows)]
+          f"{radar_rule}the camera with a contrast ≥ 5 % (n = objects in the bin).", "", table_markdown(rows)]
     if totals:
         md += ["", "## LiDAR outcomes per level", "", "| level | points | kept | attenuated | lost | clutter |",
                "|---|---|---|---|---|---|"]
         md += [f"| {k} | {t['points']} | " + " | ".join(f"{100 * t['shares'][o]:.1f} %" for o in OUTCOMES) + " |"
                for k, t in totals.items()]
-    pictures = [layout.relative(layout.lidar_points_plot())]
+    pictures = [layout.relative(layout.lidar_points_plot())] if lidar else []
     if bev_frame is not None:
         pictures.insert(0, layout.relative(layout.lidar_bev()))
         md += ["", f"![bird's-eye view of frame {bev_frame} per level]({layout.relative(layout.lidar_bev())})"]
-    md += ["", f"![points per object against distance]({layout.relative(layout.lidar_points_plot())})", ""]
+    if lidar:
+        md += ["", f"![points per object against distance]({layout.relative(layout.lidar_points_plot())})"]
+    if radar is not None:
+        md += radar["markdown"]
+        pictures += radar["pictures"]
+    md += [""]
     atomic_write_bytes(layout.cross_sensor_report(), "\n".join(md).encode())
     out = {"min_points": min_points, "distance_bins_m": _json_bins(bins), "objects_counted": counted,
            "frames_with_scans": sum(1 for m in metas if (m.get("lidar") or {}).get("levels")),

@@ -26,6 +26,7 @@ from fogsim.dataset.coco import coco_dataset, coco_records, frame_segmentations
 from fogsim.dataset.layout import MIXED_SPLIT, PARTS, DatasetLayout
 from fogsim.dataset.lidar import lidar_summary
 from fogsim.dataset.lidar_sheet import lidar_rows
+from fogsim.dataset.radar import radar_rows, radar_summary
 from fogsim.dataset.reader import FrameRecords, frame_records, read_checked_meta
 from fogsim.fileio import atomic_write_bytes, read_image, write_image, write_json
 from fogsim.lidar.objects import MIN_POINTS
@@ -123,7 +124,8 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
     fails its schema is left out and named in ``dataset.json``'s ``skipped_frames``. Frames with LiDAR
     records (:mod:`fogsim.dataset.lidar`) add ``dataset.json``'s ``lidar`` block (the cross-sensor table,
     an object seen by the LiDAR with ≥ ``lidar_min_points`` points in its box), ``cross_sensor.md``, the
-    LiDAR pictures and each KITTI tree's ``ImageSets``."""
+    LiDAR pictures and each KITTI tree's ``ImageSets``; frames with radar records (:mod:`fogsim.dataset.radar`)
+    add the radar column, ``dataset.json``'s ``radar`` block and ``radar_bev.png``."""
     levels = list(levels)
     if any(lv.key == MIXED_SPLIT for lv in levels):
         raise ValueError(f"fog level key {MIXED_SPLIT!r} is reserved for the mixed-level split")
@@ -152,9 +154,12 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
         summary["split"]["groups"] = len(set(groups.values()))
     if records.skipped:
         summary["skipped_frames"] = list(records.skipped)
-    lidar = lidar_summary(layout, levels, frames, metas, train, val, lidar_min_points)
+    radar = radar_summary(layout, levels, frames, metas)
+    lidar = lidar_summary(layout, levels, frames, metas, train, val, lidar_min_points, radar=radar)
     if lidar is not None:
         summary["lidar"] = lidar
+    if radar is not None:
+        summary["radar"] = {k: v for k, v in radar.items() if k != "markdown"}
     write_json(layout.manifest(), summary)
     write_image(layout.contact_sheet(), contact_sheet(layout, levels, frames, metas=metas))
     return summary
@@ -202,6 +207,7 @@ def contact_sheet(layout: DatasetLayout, levels, frames: list[str], max_frames: 
         captions = [(f"frame {frame}: " if i == 0 else "") + _caption(lv) for i, lv in enumerate(levels)]
         rows.append(strip(tiles, captions))
         rows += lidar_rows(layout, meta, levels, tile_width)  # a frame with a LiDAR: its scans too
+        rows += radar_rows(layout, meta, levels, tile_width)  # and with a radar: its detections
     width = max(r.shape[1] for r in rows)
     gap = np.full((4, width, 3), 255, np.uint8)
     padded = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=255) for r in rows]

@@ -153,6 +153,7 @@ class PointsJob:
             pcd = self.pcd_path(item, level)
             write_level_pcd(pcd, fogged)
             write_json(sidecar, {"level": level.to_dict(), "source": item.source, "key": item.key,
-                                 "scan": scan_path.name, "outcome_file": outcome_path.name, "pcd": pcd.name, "seed": seed,
+                                 "scan": scan_path.name, "outcome_file": outcome_path.name, "pcd": pcd.name,
+                                 "seed": seed,
                                  "seed_rule": LEVEL_SEED_RULE, **fogged.record(), "sensor": fogger.sensor.to_dict(),
                                  "fogsim_version": __version__})

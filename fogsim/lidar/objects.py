@@ -1,6 +1,6 @@
 """What fog does to each object, seen by each sensor: the LiDAR points in every object's 3D box per fog
 level, and the cross-sensor table (per level and distance bin: the share of objects the LiDAR still sees
-beside the share the camera still sees).
+beside the share the camera still sees — and the radar, where the records have radar counts).
 
 * LiDAR: an object is **seen** at a level when its box (LiDAR frame, :class:`~fogsim.lidar.boxes.Box3D`)
   holds at least ``min_points`` (default :data:`MIN_POINTS` = 5) of that level's reported points —
@@ -8,8 +8,10 @@ beside the share the camera still sees).
   counts as ``record["lidar_points"] = {level key: count}`` (:func:`attach_lidar_points`).
 * Camera: ``record["visibility"][level]["visible"]`` as :func:`fogsim.fog.visibility.attach_visibility`
   sets it (contrast ≥ 5 %); an object whose visibility is unknown (None) is left out of the camera share.
-* The table counts the kept records (not ignore regions) with a known ``distance_m`` and a box, by bins of
-  that distance (metres, ``[low, high)``; default :data:`DISTANCE_BINS`).
+* Radar (a render with a radar): seen at a level with ≥ 1 detection on the object,
+  ``record["radar_detections"] = {level key: count}`` (:mod:`fogsim.render.radar_frame`).
+* The table counts the kept records (not ignore regions) with a known ``distance_m`` and a box (LiDAR
+  counts) or radar counts, by bins of that distance (metres, ``[low, high)``; default :data:`DISTANCE_BINS`).
 """
 from __future__ import annotations
 
@@ -51,18 +53,21 @@ def _bin_label(lo: float, hi: float) -> str:
 
 def cross_sensor_table(records: list[dict], levels: list[str], bins=DISTANCE_BINS,
                        min_points: int = MIN_POINTS) -> list[dict]:
-    """One row per level and distance bin: ``objects`` (counted), ``lidar_seen`` / ``lidar_share``
-    (≥ ``min_points`` in the box), ``camera_objects`` (visibility known), ``camera_seen`` /
-    ``camera_share``; shares are None for an empty bin."""
+    """One row per level and distance bin: ``objects`` (counted by the LiDAR), ``lidar_seen`` /
+    ``lidar_share`` (≥ ``min_points`` in the box), ``camera_objects`` (visibility known), ``camera_seen`` /
+    ``camera_share``, and where any record has radar counts ``radar_objects``, ``radar_seen`` /
+    ``radar_share`` (≥ 1 detection); shares are None for an empty bin."""
     edges = [float(b) for b in bins]
     if len(edges) < 2 or any(b <= a for a, b in zip(edges, edges[1:])):
         raise ValueError(f"distance bins must be increasing edges, got {bins}")
-    usable = [r for r in records if r.get("kept", True) and r.get("distance_m") is not None and "lidar_points" in r]
+    usable = [r for r in records if r.get("kept", True) and r.get("distance_m") is not None
+              and ("lidar_points" in r or "radar_detections" in r)]
+    with_radar = any("radar_detections" in r for r in usable)
     rows = []
     for level in levels:
         for lo, hi in zip(edges, edges[1:]):
             inside = [r for r in usable if lo <= r["distance_m"] < hi]
-            lidar = [r["lidar_points"].get(level) for r in inside]
+            lidar = [(r.get("lidar_points") or {}).get(level) for r in inside]
             lidar = [c for c in lidar if c is not None]
             seen = sum(c >= min_points for c in lidar)
             cam = [((r.get("visibility") or {}).get(level) or {}).get("visible") for r in inside]
@@ -71,21 +76,33 @@ def cross_sensor_table(records: list[dict], levels: list[str], bins=DISTANCE_BIN
                          "lidar_seen": int(seen), "lidar_share": seen / len(lidar) if lidar else None,
                          "camera_objects": len(cam), "camera_seen": int(sum(cam)),
                          "camera_share": sum(cam) / len(cam) if cam else None, "min_points": min_points})
+            if with_radar:
+                radar = [c for c in ((r.get("radar_detections") or {}).get(level) for r in inside) if c is not None]
+                seen = sum(c >= 1 for c in radar)
+                rows[-1].update(radar_objects=len(radar), radar_seen=int(seen),
+                                radar_share=seen / len(radar) if radar else None)
     return rows
 
 
 def table_markdown(rows: list[dict]) -> str:
-    """The table as Markdown: a row per level, per bin a "LiDAR % / camera %" cell (— for an empty bin)."""
+    """The table as Markdown: a row per level, per bin a "LiDAR % / camera %" cell — "LiDAR % / radar % /
+    camera %" when the rows have a radar column (— for an empty bin)."""
     bins = list(dict.fromkeys(r["bin_label"] for r in rows))
     levels = list(dict.fromkeys(r["level"] for r in rows))
+    radar = any("radar_share" in r for r in rows)
 
     def pct(v):
         return "—" if v is None else f"{100 * v:.0f} %"
-    head = "| level | " + " | ".join(f"{b} (LiDAR / camera)" for b in bins) + " |"
+
+    def cell(r):
+        shares = [r["lidar_share"], *([r["radar_share"]] if radar else []), r["camera_share"]]
+        n = max(r["objects"], r.get("radar_objects", 0))
+        return " / ".join(pct(v) for v in shares) + f" (n={n})"
+    sensors = "LiDAR / radar / camera" if radar else "LiDAR / camera"
+    head = "| level | " + " | ".join(f"{b} ({sensors})" for b in bins) + " |"
     lines = [head, "|" + "---|" * (len(bins) + 1)]
     for level in levels:
-        cells = [f"{pct(r['lidar_share'])} / {pct(r['camera_share'])} (n={r['objects']})"
-                 for r in rows if r["level"] == level]
+        cells = [cell(r) for r in rows if r["level"] == level]
         lines.append(f"| {level} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 

@@ -28,8 +28,9 @@ from fogsim.render.fog_settings import fog_settings
 from fogsim.render.labels import object_records
 from fogsim.render.lidar_frame import lidar_stage, write_lidar
 from fogsim.render.lidar_rig import mounted_pose
-from fogsim.render.lidar_scan import Geometry
+from fogsim.render.lidar_scan import Geometry, RayCaster
 from fogsim.render.preset import RenderConfig
+from fogsim.render.radar_frame import radar_stage, write_radar_files
 from fogsim.render.silhouette import silhouette_areas
 from fogsim.runs import frame_seed
 from fogsim.scene.classes import is_labelled
@@ -44,7 +45,8 @@ def frame_name(index: int) -> str:
 def describe_frame(config: RenderConfig, index: int, library=None) -> dict:
     """The scene description of frame ``index`` (same config, library and index → same scene);
     ``library``: the run's :class:`fogsim.scene.library.AssetLibrary` (``config.assets`` imported).
-    With a LiDAR, ``desc["lidar"]`` holds its pose on the ego vehicle (:mod:`fogsim.render.lidar_rig`)."""
+    With a LiDAR, ``desc["lidar"]`` holds its pose on the ego vehicle (:mod:`fogsim.render.lidar_rig`); with a
+    radar, ``desc["radar"]`` likewise (``radar_to_world``)."""
     s = frame_seed(config.seed, index)
     desc = sample_scene(np.random.default_rng(s), config.style, config.camera, config.resolution, seed=s,
                         lighting=config.lighting, library=library)
@@ -52,6 +54,10 @@ def describe_frame(config: RenderConfig, index: int, library=None) -> dict:
         sensor = config.lidar_sensor
         desc["lidar"] = {"sensor": sensor.name, "mount": "ego vehicle (the sensor's mount)",
                          "lidar_to_world": mounted_pose(desc["camera"]["world_to_camera"], sensor.mount_pose).tolist()}
+    if config.radar_sensor is not None:
+        radar = config.radar_sensor
+        desc["radar"] = {"sensor": radar.name, "mount": "ego vehicle (the sensor's mount)",
+                         "radar_to_world": mounted_pose(desc["camera"]["world_to_camera"], radar.mount_pose).tolist()}
     return desc
 
 
@@ -187,8 +193,15 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
     records = object_records(mask, ray, desc["objects"], sil, min_pixels=lab.min_pixels,
                              min_visible_fraction=lab.min_visible_fraction)
     lidar, t_truth = None, time.perf_counter()
+    caster = None  # one Embree scene of the frame for the LiDAR and the radar
+    if config.lidar_sensor is not None and config.radar_sensor is not None:
+        caster = RayCaster(passes.geometry if passes.geometry is not None else Geometry.of_frame(desc, meshes))
     if config.lidar_sensor is not None:  # the sweep, 3D boxes, fogged scans (records gain box3d, lidar_points)
-        lidar = lidar_stage(config, desc, meshes, records, int(desc["seed"] or 0), passes.geometry)
+        lidar = lidar_stage(config, desc, meshes, records, int(desc["seed"] or 0), passes.geometry, caster)
+    t_lidar = time.perf_counter()
+    radar = None
+    if config.radar_sensor is not None:  # detections, fogged levels (records gain radar_detections)
+        radar = radar_stage(config, desc, meshes, records, int(desc["seed"] or 0), passes.geometry, caster)
     t1 = time.perf_counter()
     if fog is None:  # post-process fog (Koschmieder, scatter) from the clear render
         fs = fog_settings(config)
@@ -217,16 +230,20 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
     w2c = desc["camera"]["world_to_camera"]
     written = {lv.key: layout.image(lv.key, name) for lv in config.levels}  # the KITTI tree links them
     lidar_meta = None if lidar is None else write_lidar(layout, name, lidar, written, K, w2c, records, cls)
+    radar_meta = None if radar is None else write_radar_files(layout, name, radar)
     t3 = time.perf_counter()
     timings = dict(timings or {}, ground_truth=t_truth - t0, fog=t2 - t1, write=t3 - t2)
     if lidar is not None:
-        timings["lidar"] = t1 - t_truth  # sweep, boxes and fogged scans (their files: in write)
+        timings["lidar"] = t_lidar - t_truth  # sweep, boxes and fogged scans (their files: in write)
+    if radar is not None:
+        timings["radar"] = t1 - t_lidar  # sweep, clusters and fogged levels (their files: in write)
     meta = {"frame": name, "index": index, "seed": desc["seed"], "width": w, "height": h,
             "camera": desc["camera"], "objects": records,
             "fog": {"levels": [lv.to_dict() for lv in config.levels], **fog_meta},
             "depth": {"file": str(layout.depth(name).relative_to(layout.root)), "kind": "planar Z, metres",
                       "no_hit": "inf"},
             "stereo": stereo, "sensor": sensor, **({"lidar": lidar_meta} if lidar_meta else {}),
+            **({"radar": radar_meta} if radar_meta else {}),
             "render": render_info or {}, "timings_s": {k: round(v, 4) for k, v in timings.items()},
             "scene": desc, "fogsim_version": __version__}
     write_json(layout.meta(name), meta)

@@ -82,6 +82,7 @@ class SceneOptions:
     fog_scale: float | None = None
     fog_model: dict | None = None
     lidar: str | None = None  # a LiDAR sensor (bundled name or .json); the scene's fogsim_lidar object places it
+    radar: str | None = None  # a radar sensor (bundled name or .json); the scene's fogsim_radar object places it
 
     def check(self) -> "SceneOptions":
         """Every flag checked (a ValueError naming it); returns self."""
@@ -100,6 +101,8 @@ class SceneOptions:
             parse_levels(self.levels)
         if self.lidar is not None:
             self.lidar_block()
+        if self.radar is not None:
+            self.radar_block()
         return self
 
     def lidar_block(self) -> dict:
@@ -107,3 +110,9 @@ class SceneOptions:
         from fogsim.render.preset import lidar_block
 
         return lidar_block(self.lidar) if self.lidar is not None else {}
+
+    def radar_block(self) -> dict:
+        """The checked radar sensor block of ``radar`` ({} without one)."""
+        from fogsim.render.preset import radar_block
+
+        return radar_block(self.radar) if self.radar is not None else {}

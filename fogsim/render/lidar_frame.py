@@ -90,14 +90,15 @@ class LidarFrame:
 
 
 def lidar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int,
-                geometry: Geometry | None = None) -> LidarFrame:
-    """The frame's sweep, 3D boxes (into ``records``: ``box3d``, ``lidar_points``) and fogged scans."""
+                geometry: Geometry | None = None, caster: RayCaster | None = None) -> LidarFrame:
+    """The frame's sweep, 3D boxes (into ``records``: ``box3d``, ``lidar_points``) and fogged scans
+    (``caster``: the frame's ray caster when another sensor built it already)."""
     from fogsim.render.fog_settings import fog_settings
 
     sensor = config.lidar_sensor
     pose = np.asarray(desc["lidar"]["lidar_to_world"], np.float64)
     geometry = geometry if geometry is not None else Geometry.of_frame(desc, meshes)
-    scan = sweep(RayCaster(geometry), pose, sensor, f"frame {desc.get('seed')}")
+    scan = sweep(caster or RayCaster(geometry), pose, sensor, f"frame {desc.get('seed')}")
     w2c, w2l = np.asarray(desc["camera"]["world_to_camera"], np.float64), np.linalg.inv(pose)
     by_id = {o["id"]: o for o in desc["objects"]}
     hit = set(np.unique(scan.object_id).tolist())

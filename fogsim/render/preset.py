@@ -27,6 +27,7 @@ from fogsim.fileio import MAX_PIXELS, pixel_limit_problem
 from fogsim.fog.levels import FogLevel, parse_levels
 from fogsim.lidar.sensors import LidarSensor
 from fogsim.presets import preset_path
+from fogsim.radar.sensors import RadarSensor
 from fogsim.render.fog_settings import (
     fog_overrides,
     fog_settings,
@@ -50,6 +51,7 @@ from fogsim.schema.presets import (
     Style,
     check_lighting,
 )
+from fogsim.schema.radar import RadarSensorSpec
 from fogsim.schema.vocabulary import FOG_KINDS, FOG_MEDIA
 
 __all__ = ["RenderConfig", "Overrides", "check_overrides", "check_size", "parse_resolution", "load_render_preset",
@@ -57,7 +59,7 @@ __all__ = ["RenderConfig", "Overrides", "check_overrides", "check_size", "parse_
 
 #: The component models by preset key, and the bundled folder of each.
 COMPONENTS = {"style": ("styles", Style), "camera": ("cameras", Camera), "quality": ("quality", Quality),
-              "lidar": ("lidar", LidarSensorSpec)}
+              "lidar": ("lidar", LidarSensorSpec), "radar": ("radar", RadarSensorSpec)}
 
 
 @dataclass(frozen=True)
@@ -86,6 +88,7 @@ class RenderConfig:
     sensor: dict = field(default_factory=dict)  # checked "sensor" object; {} = a perfect pinhole (fogsim.sensor)
     assets: dict = field(default_factory=dict)  # the asset library (resolve_assets); {} = procedural only
     lidar: dict = field(default_factory=dict)  # the checked LiDAR sensor block (bundled or inline); {} = none
+    radar: dict = field(default_factory=dict)  # the checked radar sensor block (bundled or inline); {} = none
 
     # the blocks checked, every default filled in (from the schema): what readers use
     @cached_property
@@ -102,6 +105,11 @@ class RenderConfig:
     def lidar_sensor(self) -> LidarSensor | None:
         """The LiDAR on the ego vehicle (:class:`fogsim.lidar.sensors.LidarSensor`), None without one."""
         return LidarSensor.from_dict(self.lidar, self.source) if self.lidar else None
+
+    @cached_property
+    def radar_sensor(self) -> RadarSensor | None:
+        """The radar on the ego vehicle (:class:`fogsim.radar.sensors.RadarSensor`), None without one."""
+        return RadarSensor.from_dict(self.radar, self.source) if self.radar else None
 
     @cached_property
     def lighting_settings(self) -> Lighting:
@@ -122,6 +130,8 @@ class RenderConfig:
             d["assets"] = self.assets
         if self.lidar:  # likewise absent without a LiDAR
             d["lidar"] = self.lidar
+        if self.radar:  # and without a radar
+            d["radar"] = self.radar
         return d
 
 
@@ -193,7 +203,7 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
                        stereo: bool | None = None, train_fraction: float | None = None,
                        max_pixels: int = MAX_PIXELS, fog: str | None = None,
                        fog_medium: str | None = None, fog_scale: float | None = None,
-                       assets: str | None = None, lidar: str | None = None) -> RenderConfig:
+                       assets: str | None = None, lidar: str | None = None, radar: str | None = None) -> RenderConfig:
     """Read a dataset preset, check all of it and apply overrides; every problem of the
     preset names the preset file (and the key), every bad override its flag.
 
@@ -203,7 +213,8 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
     (``--fog-scale``): ``fog_model.volumetric.resolution_scale`` (implies ``--fog volumetric``); ``assets``
     (``--assets``): a folder with one sub-folder of models per class, replacing the preset's class
     entries; ``lidar`` (``--lidar``): a LiDAR on the ego vehicle, a bundled sensor's name or a sensor
-    ``.json`` file, replacing the preset's ``lidar``."""
+    ``.json`` file, replacing the preset's ``lidar``; ``radar`` (``--radar``): likewise a radar
+    (``presets/radar/``), replacing the preset's ``radar``."""
     # command-line overrides first: their errors are usage errors, not the preset's
     ov = check_overrides(frames=frames, seed=seed, samples=samples, max_pixels=max_pixels,
                          train_fraction=train_fraction, fog=fog, fog_medium=fog_medium,
@@ -214,6 +225,7 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
     lv_override = parse_levels(levels) if levels is not None else None
     asset_dirs = assets_dir(assets) if assets is not None else None
     lidar_override = lidar_block(lidar) if lidar is not None else None
+    radar_override = radar_block(radar) if radar is not None else None
 
     path = preset_path(name_or_path)
     if not path.is_file():
@@ -221,6 +233,7 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
     cfg = _compose(load_json(path, DatasetPreset), path, ov, res_override, lv_override, stereo)
     cfg = replace(cfg, assets=resolve_assets(cfg.assets, path, asset_dirs, assets))
     cfg = replace(cfg, lidar=lidar_override) if lidar_override is not None else cfg
+    cfg = replace(cfg, radar=radar_override) if radar_override is not None else cfg
     if cfg.lidar and (why := _unrenderable(cfg.lidar_sensor)):
         raise InputError(cfg.source, f"lidar: {why}")
     return cfg
@@ -247,6 +260,17 @@ def lidar_block(spec: str) -> dict:
     if why := _unrenderable(LidarSensor.from_dict(block)):
         raise ValueError(f"--lidar {spec}: {why}")
     return block
+
+
+def radar_block(spec: str) -> dict:
+    """``--radar``: a bundled sensor's name (``presets/radar/``) or a sensor ``.json`` file, as the checked
+    block a RenderConfig holds (a bad name is a ValueError naming the flag; a bad file an InputError naming it)."""
+    if spec.endswith(".json") or Path(spec).is_file():
+        return load_json(spec, RadarSensorSpec).given()
+    try:
+        return load_json(presets.component_path("radar", spec, "--radar"), RadarSensorSpec).given()
+    except InputError as exc:
+        raise ValueError(f"--radar: {exc.problem}") from None
 
 
 def resolve_assets(given: dict, preset: Path, dirs: dict | None = None, dirs_source=None) -> dict:
@@ -327,6 +351,7 @@ def _compose(d: DatasetPreset, path: Path, ov: Overrides, res_override, lv_overr
         fog_model=fog_model, labels=d.labels.given(), lighting=_hdri_paths(check_lighting(d.lighting.given()), path),
         sensor=d.sensor.given() if d.sensor is not None else {},
         assets=d.assets.given(), lidar=_component("lidar", d.lidar, path) if d.lidar is not None else {},
+        radar=_component("radar", d.radar, path) if d.radar is not None else {},
         exposure=d.exposure, frames=ov.frames if ov.frames is not None else d.frames,
         seed=ov.seed if ov.seed is not None else d.seed, stereo_baseline=baseline,
         train_fraction=ov.train_fraction if ov.train_fraction is not None else d.train_fraction)

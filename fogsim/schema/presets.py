@@ -39,7 +39,7 @@ from fogsim.schema.base import (
     word,
 )
 from fogsim.schema.lidar import LidarFogSpec, LidarSensorSpec
-from fogsim.schema.radar import RadarFogSpec
+from fogsim.schema.radar import RadarFogSpec, RadarSensorSpec
 from fogsim.schema.vocabulary import FOG_EXPOSURES, FOG_KINDS, FOG_MEDIA, KERNELS, SPACES
 
 #: What a component name may hold: a name, never a path (no '/', '..', '.json').
@@ -468,6 +468,8 @@ class DatasetPreset(_Meta):
     assets: Assets = Assets()  # the user's own models (none: procedural only)
     #: a LiDAR on the ego vehicle: a bundled sensor's name (presets/lidar/) or a custom block; None = none
     lidar: _style(LidarSensorSpec, "LiDAR sensor") | None = None
+    #: a radar on the ego vehicle: a bundled sensor's name (presets/radar/) or a custom block; None = none
+    radar: _style(RadarSensorSpec, "radar sensor") | None = None
     exposure: number_in(0, lo_open=True) = 1.0
     frames: int_in(1, MAX_FRAMES) = 8
     seed: int_in(0) = 0

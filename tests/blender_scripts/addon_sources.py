@@ -71,6 +71,10 @@ s = settings(lidar="hdl64e")  # the LiDAR choice reaches the RenderConfig (and N
 r["lidar"] = panel_options.config(s).lidar_sensor.beams, [i.identifier for i in s.bl_rna.properties["lidar"].enum_items]
 s.lidar = "NONE"
 r["no_lidar"] = panel_options.config(s).lidar
+s = settings(radar="ars408-lr")  # the radar choice likewise
+r["radar"] = panel_options.config(s).radar_sensor.name, [i.identifier for i in s.bl_rna.properties["radar"].enum_items]
+s.radar = "NONE"
+r["no_radar"] = panel_options.config(s).radar
 s = settings()
 s.preset, s.assets = "default", str(library)
 r["assets"] = {k: sorted(Path(p).name for p in v) for k, v in panel_options.config(s).assets["files"].items()}

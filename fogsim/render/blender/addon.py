@@ -47,6 +47,14 @@ def _lidar_items() -> list:
             + [(n, n, LidarSensor.preset(n).description[:120]) for n in sensors])
 
 
+def _radar_items() -> list:
+    """The radar choice: the preset's, none, or a bundled sensor."""
+    from fogsim.radar.sensors import RadarSensor, radar_sensor_names
+
+    return ([("PRESET", "Preset's", "The preset's radar (none unless it names one)"), ("NONE", "None", "No radar")]
+            + [(n, n, RadarSensor.preset(n).description[:120]) for n in radar_sensor_names()])
+
+
 def _enum(words, labels: dict, preset: str) -> list:
     """An EnumProperty's items: "Preset's" first, then one per word of the vocabulary."""
     return [("PRESET", "Preset's", preset)] + [(w, *labels[w]) for w in words]
@@ -96,6 +104,8 @@ class FogsimSettings(bpy.types.PropertyGroup):
         FOG_MEDIA, MEDIUM_LABELS, "The preset's fog_model.volumetric.medium (full unless it says otherwise)"))
     lidar: EnumProperty(name="LiDAR", default="PRESET", items=_lidar_items(),
                         description="A LiDAR swept in every frame, its scan fogged with each level's β")
+    radar: EnumProperty(name="Radar", default="PRESET", items=_radar_items(),
+                        description="A radar swept in every frame, its detections fogged with each level's β")
     levels_kind: EnumProperty(name="Levels", default="PRESET", items=[
         ("PRESET", "Preset's", "The preset's fog levels (the paper's five unless it says otherwise)"),
         ("beta", "β list", "Comma-separated extinction coefficients β in 1/m (\"clear\" or 0 = no fog)"),
@@ -379,6 +389,7 @@ class FOGSIM_PT_panel(bpy.types.Panel):
         if s.fog_model == "volumetric":
             box.prop(s, "fog_medium")
         box.prop(s, "lidar")
+        box.prop(s, "radar")
         if not scene_source:
             row = box.row(align=True)
             row.prop(s, "preview_beta", text="Preview β")

@@ -28,7 +28,7 @@ from fogsim.render.blender import build, cycles
 from fogsim.render.blender.scratch import clear
 from fogsim.render.frame import describe_frame, scene_meshes
 from fogsim.render.job_options import RunOptions
-from fogsim.render.preset import lidar_block
+from fogsim.render.preset import lidar_block, radar_block
 from fogsim.runs import frame_seed
 
 STAGES = ("scene", "bpy_build", "render", "ground_truth", "fog", "write")
@@ -101,18 +101,22 @@ def run(args) -> int:
     if getattr(args, "lidar", None):
         block = {k: v for k, v in lidar_block(args.lidar).items() if k != "horizontal_resolution_deg"}
         config = replace(config, lidar={**block, "steps_per_sweep": args.lidar_steps})
+    if getattr(args, "radar", None):
+        config = replace(config, radar=radar_block(args.radar))
     job = RenderJob(config, out, RunOptions(resume=False))
-    times, rss = [], []
+    times, rss, detections = [], [], []
     for i in range(args.frames):
         meta = job.step()
         times.append(meta["timings_s"])
+        if "radar" in meta:
+            detections.append(meta["radar"]["sweep"]["detections"])
         rss.append(rss_mb())
         print(f"frame {i:4d}: {sum(meta['timings_s'].values()):5.2f} s  rss {rss[-1]:7.1f} MB", flush=True)
     base = [factory_render_seconds(job, i) for i in range(min(args.baseline_frames, args.frames))]
     skies = sky_costs(job, min(args.baseline_frames, args.frames)) if getattr(args, "skies", True) else None
     job.close()
 
-    stages = STAGES + (("lidar",) if config.lidar else ())
+    stages = STAGES + (("lidar",) if config.lidar else ()) + (("radar",) if config.radar else ())
     casters = lidar_casters(config, min(args.baseline_frames, args.frames)) if config.lidar else None
     med = {s: statistics.median(t[s] for t in times) for s in stages}
     total = statistics.median(sum(t[s] for s in stages) for t in times)
@@ -138,6 +142,10 @@ def run(args) -> int:
         print(f"  ray casting on one core ({casters['frames']} frames, {casters['faces']:,} triangles, medians): "
               f"Embree build + sweep {casters['embree']:.3f} s vs Blender's BVHTree in a Python loop "
               f"{casters['bvhtree']:.3f} s = {casters['bvhtree'] / casters['embree']:.1f}× faster")
+    if config.radar:
+        print(f"  radar {config.radar_sensor.name}: its stage {med['radar']:.3f} s per frame (rays, clusters, "
+              f"{len(config.levels)} fogged levels; files in write) = {med['radar'] / med['render']:.2f}× Cycles' "
+              f"render; {statistics.median(detections):.0f} detections per clear sweep (median)")
     at10 = rss[min(9, len(rss) - 1)]
     print(f"  RSS after frame 10: {at10:.0f} MB, after frame {len(rss)}: {rss[-1]:.0f} MB, "
           f"growth {rss[-1] - at10:+.0f} MB")

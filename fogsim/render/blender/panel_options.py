@@ -17,7 +17,7 @@ def config(s, frames: int | None = None):
     from dataclasses import replace
 
     from fogsim.fog.levels import parse_levels
-    from fogsim.render.preset import lidar_block, load_render_preset
+    from fogsim.render.preset import lidar_block, load_render_preset, radar_block
 
     volumetric = s.fog_model == "volumetric"
     cfg = load_render_preset(
@@ -32,6 +32,10 @@ def config(s, frames: int | None = None):
         cfg = replace(cfg, lidar=lidar_block(s.lidar))
     elif s.lidar == "NONE":
         cfg = replace(cfg, lidar={})
+    if s.radar not in ("PRESET", "NONE"):
+        cfg = replace(cfg, radar=radar_block(s.radar))
+    elif s.radar == "NONE":
+        cfg = replace(cfg, radar={})
     light = lighting(s, cfg.lighting)
     if light is not None:
         cfg = replace(cfg, lighting=light)
@@ -95,7 +99,8 @@ def scene_options(s):
                         levels=levels, samples=s.samples or None, resolution=s.resolution or None, seed=s.seed,
                         fog=None if s.fog_model == "PRESET" else s.fog_model,
                         fog_medium=s.fog_medium if volumetric and s.fog_medium != "PRESET" else None,
-                        lidar=s.lidar if s.lidar not in ("PRESET", "NONE") else None)
+                        lidar=s.lidar if s.lidar not in ("PRESET", "NONE") else None,
+                        radar=s.radar if s.radar not in ("PRESET", "NONE") else None)
 
 
 def scene_job(s, scene):

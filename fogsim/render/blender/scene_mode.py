@@ -57,6 +57,7 @@ from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
 from fogsim.render.lidar_rig import KITTI_CAMERA_OFFSET, LIDAR_PROPERTY, camera_offset_pose, object_pose
 from fogsim.render.lidar_scan import Geometry
 from fogsim.render.preset import RenderConfig, check_size, parse_resolution
+from fogsim.render.radar_frame import RADAR_CAMERA_OFFSET, RADAR_PROPERTY
 from fogsim.render.scene_classes import PROPERTY
 from fogsim.runs import frame_seed
 from fogsim.scene.pose import blender_intrinsics, opencv_world_to_camera
@@ -125,12 +126,12 @@ def check_libraries(source: str) -> None:
                                      "leaves its objects out; restore the library or make the data local")
 
 
-def lidar_object(scene):
-    """The object of ``scene`` marked as the LiDAR (custom property ``fogsim_lidar``), or None; two are
-    refused (one sensor per dataset)."""
-    marked = [o for o in scene.objects if LIDAR_PROPERTY in o]
+def lidar_object(scene, prop: str = LIDAR_PROPERTY):
+    """The object of ``scene`` marked as the LiDAR (custom property ``fogsim_lidar``; ``prop``
+    ``fogsim_radar``: the radar), or None; two are refused (one sensor of a kind per dataset)."""
+    marked = [o for o in scene.objects if prop in o]
     if len(marked) > 1:
-        raise InputError(f"scene {scene.name!r}", f"{len(marked)} objects carry {LIDAR_PROPERTY} "
+        raise InputError(f"scene {scene.name!r}", f"{len(marked)} objects carry {prop} "
                          f"({', '.join(o.name for o in marked)}): mark one")
     return marked[0] if marked else None
 
@@ -268,8 +269,9 @@ class SceneJob(RenderJob):
             quality={"samples": o.samples} if o.samples else {},  # {}: the scene's own Cycles settings
             levels=_levels(o.levels),
             fog_model=fog_overrides(dict(o.fog_model or {}), o.fog, o.fog_medium, o.fog_scale),
-            frames=len(self.frames), seed=o.seed, lidar=o.lidar_block())
+            frames=len(self.frames), seed=o.seed, lidar=o.lidar_block(), radar=o.radar_block())
         self.lidar_object = lidar_object(scene) if self.config.lidar else None
+        self.radar_object = lidar_object(scene, RADAR_PROPERTY) if self.config.radar else None
         self.claim(out, lambda first: setattr(self, "summary", self._check(first, source)))
         if self.fog is not None and self.fog["samples"] is None:  # the scene's own samples, not a preset's
             self.fog = {**self.fog, "samples": o.samples or scene.cycles.samples}
@@ -308,7 +310,8 @@ class SceneJob(RenderJob):
         self.render_scene.frame_current = frame_no  # the shared camera and light data animate with it
         info, _ = configure_scene(self.render_scene, self.samples, frame_seed(self.config.seed, index), self.gpu)
         with render_visibility(self.user_scene):
-            got = realise(self.user_scene, self.render_scene, self.classes, self.camera, lidar=bool(self.config.lidar))
+            got = realise(self.user_scene, self.render_scene, self.classes, self.camera,
+                          lidar=bool(self.config.lidar or self.config.radar))
         t1 = time.perf_counter()
         name = frame_name(index)
         objects = [{"id": oid, **rec} for oid, rec in got.labelled.items()]
@@ -319,6 +322,8 @@ class SceneJob(RenderJob):
             desc["camera"] = camera_record(self.render_scene, self.camera, self.config.resolution, self.config.source)
             if self.config.lidar:
                 desc["lidar"] = self._lidar_pose(desc["camera"]["world_to_camera"])
+            if self.config.radar:
+                desc["radar"] = self._radar_pose(desc["camera"]["world_to_camera"])
             passes = render(self.render_scene, render_tmp_dir(self.layout) / f"{name}.left.exr", self.quiet)
             t2 = time.perf_counter()
             if self.fog is not None:  # one Combined-only render per β > 0 with the fog layer, same seed
@@ -335,7 +340,7 @@ class SceneJob(RenderJob):
             timings["fog_render"] = t3 - t2
             fog_renders = self._fog_images(name, desc, passes, fog, fog_linear, fog_cycles)
         frame = DescribedFrame(index, desc, got.parts)
-        if self.config.lidar:
+        if self.config.lidar or self.config.radar:
             passes = replace(passes, geometry=Geometry.from_parts(got.lidar_parts))
         meta = commit_frame(self.layout, self.config, frame, passes, fog_renders, timings=timings, render_info=info)
         return meta
@@ -348,6 +353,16 @@ class SceneJob(RenderJob):
                     f"({LIDAR_PROPERTY})", "lidar_to_world": object_pose(np.array(matrix)).tolist()}
         return {"sensor": self.config.lidar_sensor.name, "mount": f"the camera + {list(KITTI_CAMERA_OFFSET)} m "
                 "(forward, left, up)", "lidar_to_world": camera_offset_pose(world_to_camera).tolist()}
+
+    def _radar_pose(self, world_to_camera) -> dict:
+        """``desc["radar"]``: the marked object's pose at this frame, else the camera's plus nuScenes' offset."""
+        if self.radar_object is not None:
+            matrix = self.radar_object.evaluated_get(bpy.context.evaluated_depsgraph_get()).matrix_world
+            return {"sensor": self.config.radar_sensor.name, "mount": f"object {self.radar_object.name!r} "
+                    f"({RADAR_PROPERTY})", "radar_to_world": object_pose(np.array(matrix)).tolist()}
+        pose = camera_offset_pose(world_to_camera, RADAR_CAMERA_OFFSET)
+        return {"sensor": self.config.radar_sensor.name, "mount": f"the camera + {list(RADAR_CAMERA_OFFSET)} m "
+                "(forward, left, up)", "radar_to_world": pose.tolist()}
 
     def close(self) -> None:
         """Remove the render scene and temporary renders; the user's scene back at its frame."""
