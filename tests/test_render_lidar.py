@@ -361,6 +361,7 @@ def test_the_renders_semantic_kitti_sequences_and_pcds_read_back(lidar_render):
     from fogsim.lidar.fog import CLUTTER
     from fogsim.lidar.formats import read_points
     from fogsim.lidar.outcome_file import read_outcomes
+    from fogsim.lidar.pcd import read_pcd
     from test_scan_pcd import by_row, check_pcd
     from test_semantic_kitti import read_sequence
 
@@ -378,7 +379,7 @@ def test_the_renders_semantic_kitti_sequences_and_pcds_read_back(lidar_render):
             cloud = read_points(out / entry["file"], "kitti")
             np.testing.assert_array_equal(fr["points"][:, :3], cloud.xyz)
             outcome, index = read_outcomes(out / entry["outcome_file"])
-            rows = by_row(outcome, index)
+            rows = by_row(outcome, index, len(cloud))
             np.testing.assert_array_equal(fr["semantic"] == FOG_ID, rows == CLUTTER)
             assert set(np.unique(fr["semantic"]).tolist()) <= set(cfg["labels"])
             objects = {o["id"]: o for o in meta["lidar"]["objects"]}
@@ -398,8 +399,13 @@ def test_the_renders_semantic_kitti_sequences_and_pcds_read_back(lidar_render):
             raw = np.fromfile(out / entry["labels"], "<u4")
             np.testing.assert_array_equal(raw, (fr["instance"] << 16) | fr["semantic"])
             beam = np.load(out / meta["lidar"]["sweep"]["attributes"], allow_pickle=False)["beam"]
-            ring = np.zeros(len(cloud), np.int64)
-            ring[index[index >= 0]] = beam[index >= 0]  # the KITTI .bin has no ring; the sweep knew each beam
+            # the KITTI .bin has no ring; the sweep knew each beam. The rows after the input's are the empty
+            # rays' fog clutter: their beams are the sensor's (the sweep file keeps only the hits)
+            ring = read_pcd(out / entry["pcd"])[1]["ring"].astype(np.int64)
+            appended = np.ones(len(cloud), bool)
+            appended[index[index >= 0]] = False
+            assert (rows[appended] == CLUTTER).all() and ((ring[appended] >= 0) & (ring[appended] < 64)).all()
+            ring[index[index >= 0]] = beam[index >= 0]
             check_pcd(out / entry["pcd"], cloud, rows, raw, ring)
     assert json.loads((out / "dataset.json").read_text())["lidar"]["semantic_kitti"]["fog_id"] == FOG_ID
 
@@ -425,9 +431,10 @@ def test_the_render_exports_as_nuscenes_samples_with_the_sweeps_beams(lidar_rend
             np.testing.assert_array_equal(got[:, :3], scan[:, :3])
             np.testing.assert_allclose(got[:, 3], 255.0 * scan[:, 3], rtol=1e-6)
             _, index = read_outcomes(out / entry["outcome_file"])
-            ring = np.zeros(len(scan))
-            ring[index[index >= 0]] = beam[index >= 0]
-            np.testing.assert_array_equal(got[:, 4], ring)
+            mine = index[index >= 0]  # the input's rows; after them the empty rays' clutter (no sweep record)
+            np.testing.assert_array_equal(got[mine, 4], beam[index >= 0])
+            others = np.setdiff1d(np.arange(len(scan)), mine)
+            assert ((got[others, 4] >= 0) & (got[others, 4] < 64)).all()
 
 
 @pytest.mark.detect

@@ -60,9 +60,10 @@ def check_pcd(path: Path, cloud: PointCloud, outcome: np.ndarray, labels: np.nda
             np.testing.assert_array_equal(f["instance"], labels // 65536, err_msg=reader)
 
 
-def by_row(outcome: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """The outcome of each fogged-scan row from the outcome file's per-input-point columns."""
-    out = np.full(int(index.max(initial=-1)) + 1, -1)
+def by_row(outcome: np.ndarray, index: np.ndarray, rows: int | None = None) -> np.ndarray:
+    """The outcome of each of the fogged scan's ``rows`` from the outcome file's per-input-point columns (the
+    rows after the input's points: the empty rays' fog clutter)."""
+    out = np.full(int(index.max(initial=-1)) + 1 if rows is None else rows, CLUTTER)
     out[index[index >= 0]] = outcome[index >= 0]
     return out
 

@@ -25,7 +25,7 @@ import os
 
 import numpy as np
 
-from fogsim.lidar.fog import LOST, FoggedScan
+from fogsim.lidar.fog import CLUTTER, LOST, FoggedScan
 from fogsim.lidar.pcd import write_pcd
 from fogsim.lidar.points import PointCloud
 
@@ -36,8 +36,9 @@ SCALE_COMMENT = "fogsim intensity_scale"
 
 
 def reported_outcomes(fogged: FoggedScan) -> np.ndarray:
-    """The outcome of every point of ``fogged.cloud`` (uint8, in its rows' order)."""
-    out = np.zeros(len(fogged.cloud), np.uint8)
+    """The outcome of every point of ``fogged.cloud`` (uint8, in its rows' order; the rows after the input's
+    points are the empty rays' fog clutter)."""
+    out = np.full(len(fogged.cloud), CLUTTER, np.uint8)
     rows = np.flatnonzero(fogged.outcome != LOST)
     out[fogged.output_index[rows]] = fogged.outcome[rows]
     return out
