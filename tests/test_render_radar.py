@@ -311,3 +311,28 @@ def test_scene_mode_sees_an_unoccluded_car_at_30_m(tmp_path):
     assert on.sum() >= 1 and np.min(lab["range_m"][on]) == pytest.approx(30.0, abs=0.5)
     box = Box3D(np.array(car["box3d"]["world"]["centre_m"]), np.eye(3), np.array([0.9, 2.25, 0.75]))
     assert np.allclose(box.centre, [0, forward + 32.25, 0.75], atol=1e-3)
+
+
+@pytest.mark.blender
+@pytest.mark.slow
+def test_the_nuscenes_export_carries_the_radar_sweeps(radar_render, tmp_path):
+    """``fogsim export nuscenes`` on a render with ``--radar ars408-lr``: each level's sweep lands in
+    ``samples/RADAR_FRONT/<frame>.pcd`` (the ARS 408 faces forward) as the render wrote it, readable by the
+    spec's reader; beside it the LiDAR's samples."""
+    from fogsim.cli import main
+    from fogsim.dataset.nuscenes import radar_channel
+
+    assert [radar_channel(y) for y in (0, 60, -60, 135, -135, 180)] == [
+        "RADAR_FRONT", "RADAR_FRONT_LEFT", "RADAR_FRONT_RIGHT", "RADAR_BACK_LEFT", "RADAR_BACK_RIGHT",
+        "RADAR_BACK_RIGHT"]
+    out, nusc = radar_render, tmp_path / "nusc"
+    assert main(["export", "nuscenes", str(out), "--out", str(nusc), "--quiet"]) == 0
+    summary = json.loads((nusc / "fogsim_nuscenes.json").read_text())
+    assert summary["radar"]["samples_per_channel_and_level"] == {"RADAR_FRONT": {"clear": 2, "beta0.06": 2}}
+    for f in ("000000", "000001"):
+        meta = json.loads((out / "meta" / f"{f}.json").read_text())
+        for level, entry in meta["radar"]["levels"].items():
+            got = nusc / level / "samples" / "RADAR_FRONT" / f"{f}.pcd"
+            assert got.read_bytes() == (out / entry["file"]).read_bytes()
+            assert len(spec_read_nuscenes_radar(got)) == max(entry["detections_out"], 1)  # empty: one NaN row
+            assert (nusc / level / "samples" / "LIDAR_TOP" / f"{f}.pcd.bin").is_file()
