@@ -456,7 +456,9 @@ def test_the_renders_kitti_tree_links_the_level_images_and_scans(lidar_render):
     for level in ("clear", "beta0.06"):
         tree = lidar_render / "kitti" / level / "training"
         for f in ("000000", "000001"):
+            semantic = lidar_render / "semantic_kitti" / level / "sequences" / "00" / "velodyne" / f"{f}.bin"
             for twin, own in ((tree / "image_2" / f"{f}.png", lidar_render / "images" / level / f"{f}.png"),
-                              (tree / "velodyne" / f"{f}.bin", lidar_render / "lidar" / level / f"{f}.bin")):
+                              (tree / "velodyne" / f"{f}.bin", lidar_render / "lidar" / level / f"{f}.bin"),
+                              (semantic, lidar_render / "lidar" / level / f"{f}.bin")):
                 assert not twin.is_symlink() and twin.read_bytes() == own.read_bytes()
                 assert os.stat(twin).st_ino == os.stat(own).st_ino and os.stat(own).st_nlink >= 2

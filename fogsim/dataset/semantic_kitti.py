@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.dataset.layout import DatasetLayout
-from fogsim.fileio import atomic_write_bytes
+from fogsim.fileio import atomic_write_bytes, link_or_copy
 from fogsim.lidar.formats import encode_points
 from fogsim.lidar.points import PointCloud
 
@@ -120,14 +120,18 @@ class SemanticKittiTree:
     def labels(self, frame: str) -> Path:
         return self.sequence / "labels" / f"{frame}.label"
 
-    def write_frame(self, frame: str, cloud: PointCloud, labels: np.ndarray) -> None:
+    def write_frame(self, frame: str, cloud: PointCloud, labels: np.ndarray, scan_file: Path | None = None) -> None:
         """The frame's scan (KITTI's 4 × float32, intensities through the 0–1 scale) and its labels (one
-        uint32 per point), each atomically; the labels first."""
+        uint32 per point), each atomically; the labels first. ``scan_file``: the level's scan already written
+        in KITTI's format (the same bytes), linked instead of written again (:func:`fogsim.fileio.link_or_copy`)."""
         labels = np.asarray(labels, np.uint32)
         if labels.shape != (len(cloud),):
             raise ValueError(f"{labels.size} labels for {len(cloud)} points")
         atomic_write_bytes(self.labels(frame), labels.astype("<u4").tobytes())
-        atomic_write_bytes(self.scan(frame), encode_points(cloud, "kitti"))
+        if scan_file is not None:
+            link_or_copy(scan_file, self.scan(frame))
+        else:
+            atomic_write_bytes(self.scan(frame), encode_points(cloud, "kitti"))
 
     def write_sequence(self, P: np.ndarray, lidar_to_camera: np.ndarray, poses: list[np.ndarray]) -> None:
         """``calib.txt`` (P0–P3 = ``P``, Tr = ``lidar_to_camera``), ``poses.txt`` (one 3×4 per frame) and

@@ -205,7 +205,8 @@ def write_lidar(layout: DatasetLayout, name: str, lidar: LidarFrame, images: dic
         point_labels = semantic_labels(lidar.scan, fogged, classes)
         atomic_write_bytes(labels, point_labels.astype("<u4").tobytes())
         write_level_pcd(pcd, fogged, point_labels)
-        SemanticKittiTree(layout.root, key).write_frame(name, fogged.cloud, point_labels)
+        SemanticKittiTree(layout.root, key).write_frame(name, fogged.cloud, point_labels,
+                                                        scan if fmt == "kitti" else None)
         # image_2 and a KITTI-format velodyne: links to the level's files (fogsim.dataset.kitti)
         KittiTree(layout.root, key).write_frame(name, images[key], scan if fmt == "kitti" else fogged.cloud, calib,
                                                 labels_2)
