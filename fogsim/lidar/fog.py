@@ -85,8 +85,8 @@ from fogsim.lidar.soft_target import backscatter_coefficient, echo_per_point, fo
 from fogsim.schema.base import check
 from fogsim.schema.lidar import LidarFogSpec
 
-__all__ = ["ATTENUATED", "CLUTTER", "EMPTY_RAY_INDEX", "FoggedScan", "KEPT", "LOST", "LidarFogger", "OUTCOMES",
-           "fog_scan", "lidar_fog_spec"]
+__all__ = ["ATTENUATED", "checked_beta", "CLUTTER", "EMPTY_RAY_INDEX", "fog_scan", "FoggedScan", "KEPT",
+           "lidar_fog_spec", "LidarFogger", "LOST", "OUTCOMES"]
 
 OUTCOMES = ("kept", "attenuated", "lost", "clutter")
 KEPT, ATTENUATED, LOST, CLUTTER = range(4)
@@ -105,7 +105,10 @@ def lidar_fog_spec(spec: LidarFogSpec | dict | None = None) -> LidarFogSpec:
     return check(spec, LidarFogSpec, prefix="lidar_fog")
 
 
-def _beta(beta, n: int) -> float | np.ndarray:
+def checked_beta(beta, n: int, item: str = "point") -> float | np.ndarray:
+    """β (1/m) as a float, or an array of one value per ``item`` (``n`` of them; one float when they are all
+    equal): a ValueError for a non-finite or negative β or a per-item β of the wrong length. The one check of
+    a β every sensor's fog model (LiDAR, radar) takes."""
     if np.ndim(beta) == 0:
         b = float(beta)
         if not (math.isfinite(b) and b >= 0):
@@ -113,12 +116,10 @@ def _beta(beta, n: int) -> float | np.ndarray:
         return b
     b = np.asarray(beta, np.float64).reshape(-1)
     if b.shape != (n,):
-        raise ValueError(f"a per-point β needs one value per point ({n}), got {b.size}")
+        raise ValueError(f"a per-{item} β needs one value per {item} ({n}), got {b.size}")
     if not np.isfinite(b).all() or (b < 0).any():
-        raise ValueError("a per-point β must be finite and ≥ 0 (1/m) everywhere")
-    if (b == b[0]).all():
-        return float(b[0])
-    return b
+        raise ValueError(f"a per-{item} β must be finite and ≥ 0 (1/m) everywhere")
+    return float(b[0]) if n and (b == b[0]).all() else b
 
 
 @dataclass(frozen=True, eq=False)
@@ -206,7 +207,7 @@ class LidarFogger:
     # ------------------------------------------------------------------ one level
     def __call__(self, beta, rng: np.random.Generator | None = None) -> FoggedScan:
         n = len(self.scan)
-        beta = _beta(beta, n)
+        beta = checked_beta(beta, n)
         if np.ndim(beta) == 0 and beta == 0:
             return self._clear()
         if rng is None:

@@ -27,11 +27,11 @@ value per detection (the mean extinction along each ray).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from fogsim.lidar.fog import checked_beta
 from fogsim.radar.attenuation import (
     attenuation_db_per_km,
     itur_version,
@@ -57,20 +57,6 @@ def radar_fog_spec(spec: RadarFogSpec | dict | None = None) -> RadarFogSpec:
     if isinstance(spec, RadarFogSpec):
         return spec
     return check(spec, RadarFogSpec, prefix="radar_fog")
-
-
-def _beta(beta, n: int) -> float | np.ndarray:
-    if np.ndim(beta) == 0:
-        b = float(beta)
-        if not (math.isfinite(b) and b >= 0):
-            raise ValueError(f"β must be a finite number ≥ 0 (1/m), got {beta}")
-        return b
-    b = np.asarray(beta, np.float64).reshape(-1)
-    if b.shape != (n,):
-        raise ValueError(f"a per-detection β needs one value per detection ({n}), got {b.size}")
-    if not np.isfinite(b).all() or (b < 0).any():
-        raise ValueError("a per-detection β must be finite and ≥ 0 (1/m) everywhere")
-    return float(b[0]) if n and (b == b[0]).all() else b
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,7 +128,7 @@ class RadarFogger:
 
     def __call__(self, beta, rng: np.random.Generator | None = None) -> FoggedRadar:
         n = len(self.scan)
-        beta = _beta(beta, n)
+        beta = checked_beta(beta, n, "detection")
         if np.ndim(beta) == 0 and beta == 0:
             return FoggedRadar(self.scan.copy(), np.full(n, KEPT, np.int8), np.arange(n, dtype=np.int64),
                                self.parameters(0.0), self.clear_snr_db.astype(np.float32))
