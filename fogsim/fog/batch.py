@@ -51,6 +51,7 @@ from fogsim.fileio import (
     TO_8BIT,
     atomic_write_bytes,
     encode_image,
+    pixel_bound,
     pixel_limit_problem,
     read_json,
     remove_stale_parts,
@@ -125,10 +126,12 @@ class FogJob:
 
     def check(self, samples: list[Sample]) -> None:
         """The run-wide checks (:func:`check_run_wide`), before the output folder is claimed."""
-        check_run_wide(samples, self)
+        with pixel_bound(self.max_pixels):
+            check_run_wide(samples, self)
 
     def fog_one(self, sample: Sample) -> None:
-        fog_sample(self, sample)
+        with pixel_bound(self.max_pixels):  # images and depth are refused by their headers, before decoding
+            fog_sample(self, sample)
 
 
 def fog_sample(job: FogJob, sample: Sample) -> None:
