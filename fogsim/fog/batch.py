@@ -64,6 +64,7 @@ from fogsim.fog.labelled import SPLIT_BY, check_labelled, checked_records, key_f
 from fogsim.fog.levels import FogLevel
 from fogsim.fog.lidar_levels import FrameLidar, LidarOutput, scan_source
 from fogsim.fog.visibility import attach_visibility
+from fogsim.lidar.bounds import max_scan_points
 from fogsim.lidar.objects import MIN_POINTS
 from fogsim.readers.base import Sample
 from fogsim.runs import claim_output, sample_seed
@@ -126,6 +127,8 @@ class FogJob:
 
     def check(self, samples: list[Sample]) -> None:
         """The run-wide checks (:func:`check_run_wide`), before the output folder is claimed."""
+        if self.lidar is not None:
+            max_scan_points()  # FOGSIM_MAX_SCAN_POINTS, when set, must be a bound
         with pixel_bound(self.max_pixels):
             check_run_wide(samples, self)
 
