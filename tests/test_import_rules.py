@@ -58,6 +58,7 @@ LAYERS = (
     ("fog engine and depth", {"fogsim.fog", "fogsim.depth"}),
     ("dataset format", {"fogsim.dataset"}),
     ("dataset readers and scenes", {"fogsim.readers", "fogsim.scene"}),
+    ("radar detections and their fog", {"fogsim.radar"}),
     ("LiDAR point clouds and their fog", {"fogsim.lidar"}),
     ("bundled presets", {"fogsim.presets"}),
     ("camera model after the fog", {"fogsim.sensor"}),

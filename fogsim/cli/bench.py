@@ -1,4 +1,4 @@
-"""``fogsim bench fog | augment | render | render-fog | fog-physics | ila | lidar | lidar-fog``: the speed and
+"""``fogsim bench fog | augment | render | render-fog | fog-physics | ila | lidar | lidar-fog | radar``: the speed and
 accuracy benchmarks.
 
 Each prints its figures beside a baseline measured in the same run (ratios of medians:
@@ -98,6 +98,16 @@ def add_parsers(sub) -> None:
     lfog.add_argument("--bev", metavar="FILE.png", help="also write bird's-eye views of the scan at each level")
     _quiet_option(lfog)
     lfog.set_defaults(run=lambda args: _lidar_fog(args))
+
+    rad = bsub.add_parser("radar", help="radar fog speed: detections per second through the ITU-R P.840 fog model "
+                          "at the paper's four levels, one core, against per-detection loops of the same model")
+    rad.add_argument("--repeat", type=int, default=5, help="interleaved repeats (medians)")
+    rad.add_argument("--detections", type=int, default=100_000, help="detections in the one big sweep")
+    rad.add_argument("--sweeps", type=int, default=200, help="real-sized sweeps (≈125 detections each)")
+    rad.add_argument("--loop-detections", type=int, default=2000,
+                     help="detections the per-detection loops run on (scaled to the big sweep)")
+    _quiet_option(rad)
+    rad.set_defaults(run=lambda args: _radar(args))
 
     fp = bsub.add_parser("fog-physics", help="Koschmieder against Cycles path-traced fog on the same frames: "
                          "per-pixel error per distance bin, per-object contrast (renders with fogsim render "
@@ -248,3 +258,10 @@ def _lidar_fog(args) -> int:
 
     _positive(repeat=args.repeat, loop_points=args.loop_points)
     return run(args.repeat, args.loop_points, bev=args.bev)
+
+
+def _radar(args) -> int:
+    from fogsim.bench.radar import run
+
+    _positive(repeat=args.repeat, detections=args.detections, sweeps=args.sweeps, loop_detections=args.loop_detections)
+    return run(args.repeat, args.detections, args.sweeps, args.loop_detections)

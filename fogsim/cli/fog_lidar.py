@@ -1,6 +1,7 @@
 """``fogsim fog``'s LiDAR side: KITTI and Seeing Through Fog as inputs (``--kitti``, ``--stf``), each
 level's scan (``--lidar`` with ``--kitti``, ``--stf`` or ``--waymo``) and scans without a dataset
-(``--points``). The camera side and the batch options are :mod:`fogsim.cli.fog`'s.
+(``--points``; radar sweeps too: ``--point-format nuscenes-radar``). The camera side and the batch
+options are :mod:`fogsim.cli.fog`'s.
 
 Why ``--stf ROOT`` and not ``--kitti ROOT --layout stf``: STF's tree shares nothing with KITTI's but the
 label fields (``cam_stereo_left_lut/``, ``lidar_hdl64_{strongest,last}/``, ``gt_labels/…``, date-stamped
@@ -22,6 +23,9 @@ from fogsim.schema.lidar import LIDAR_FOG_MODELS, SCALES
 
 #: the inputs that have a scan per image (``--lidar`` goes with them)
 SCAN_INPUTS = ("kitti", "stf", "waymo")
+#: the radar formats ``--points`` reads (fogsim.radar.formats)
+RADAR_POINT_FORMATS = ("nuscenes-radar",)
+POINT_FORMATS = FORMATS + RADAR_POINT_FORMATS
 
 
 def add_inputs(src) -> None:
@@ -31,8 +35,9 @@ def add_inputs(src) -> None:
     src.add_argument("--stf", help="Seeing Through Fog root (cam_stereo_left_lut/, lidar_hdl64_strongest|last/, "
                                    "gt_labels/cam_left_labels_TMP/); needs --stf-calib")
     src.add_argument("--points", nargs="+", metavar="FILE_OR_DIR",
-                     help="LiDAR scans without a dataset: files, or folders searched for --point-format's files; "
-                          "writes OUT/<level>/<name>.<ext> + outcomes + a sidecar JSON per scan and level")
+                     help="LiDAR scans or radar sweeps without a dataset: files, or folders searched for "
+                          "--point-format's files; writes OUT/<level>/<name>.<ext> + outcomes + a sidecar JSON per "
+                          "scan and level")
 
 
 def add_options(fog: argparse.ArgumentParser) -> None:
@@ -56,18 +61,23 @@ def add_options(fog: argparse.ArgumentParser) -> None:
     g.add_argument("--lidar-sensor", "--sensor", dest="lidar_sensor", metavar="NAME|FILE",
                    help="a bundled sensor (hdl64e, hdl64-s3d, hdl32e, waymo-top) or a custom sensor JSON "
                         "(default: the format's usual one: KITTI hdl64e, STF hdl64-s3d, nuScenes hdl32e, Waymo "
-                        "waymo-top with the frame's beams)")
+                        "waymo-top with the frame's beams); with --point-format nuscenes-radar a radar (ars408-lr, "
+                        "srr-corner, or a JSON; default ars408-lr)")
     g.add_argument("--lidar-extinction-ratio", type=float, default=None, metavar="K",
                    help="β at 905 nm / the camera's β (default 1: fog droplets much larger than both wavelengths)")
     g.add_argument("--lidar-min-points", type=int, default=None, metavar="N",
                    help=f"an object is seen by the LiDAR with ≥ N points in its 3D box (default {MIN_POINTS})")
     g.add_argument("--no-kitti-trees", action="store_true",
                    help="--lidar with --kitti/--stf: do not write OUT/kitti/<level>/ trees")
-    g.add_argument("--point-format", choices=FORMATS,
+    g.add_argument("--point-format", choices=POINT_FORMATS,
                    help="--points: the scans' format (kitti 4×float32, nuscenes/stf 5×float32 .pcd.bin/.bin, "
-                        "ply, npy)")
+                        "ply, npy; nuscenes-radar: nuScenes RADAR_* .pcd sweeps, docs: Radar in fog)")
     g.add_argument("--point-scale", choices=SCALES,
                    help="--points ply/npy: the intensity scale when the file does not say (default 0-1)")
+    r = fog.add_argument_group("radar (docs: Radar in fog)")
+    r.add_argument("--radar-temperature", type=float, default=None, metavar="CELSIUS",
+                   help="--point-format nuscenes-radar: the fog's temperature for ITU-R P.840's liquid-water "
+                        "attenuation (default 10 °C); --sensor names a radar there (default ars408-lr)")
 
 
 # ----------------------------------------------------------------------------- checks and records
@@ -104,8 +114,8 @@ def normalise(args) -> None:
                          "(scans alone: --points FILES --point-format …)")
     if not args.lidar and (given := _lidar_flags_given(args)):
         raise ValueError(f"{given[0]} goes with --lidar (or --points)")
-    for flag in ("--point-format", "--point-scale"):
-        if getattr(args, flag[2:].replace("-", "_"), None):
+    for flag in ("--point-format", "--point-scale", "--radar-temperature"):
+        if getattr(args, flag[2:].replace("-", "_"), None) is not None:
             raise ValueError(f"{flag} goes with --points")
 
 
@@ -217,7 +227,11 @@ def cmd_points(args) -> int:
 
     fmt = args.point_format
     if not fmt:
-        raise ValueError(f"--points needs --point-format ({', '.join(FORMATS)})")
+        raise ValueError(f"--points needs --point-format ({', '.join(POINT_FORMATS)})")
+    if fmt in RADAR_POINT_FORMATS:
+        return cmd_radar_points(args)
+    if args.radar_temperature is not None:
+        raise ValueError("--radar-temperature goes with --point-format nuscenes-radar")
     if args.point_scale and fmt not in ("ply", "npy"):
         raise ValueError(f"--point-scale is for ply and npy scans; {fmt} scans have their own scale")
     if args.heterogeneity:
@@ -244,3 +258,56 @@ def cmd_points(args) -> int:
         print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
     print(summary.line(job))
     return EXIT_FAILED if summary.failed else EXIT_OK
+
+
+def cmd_radar_points(args) -> int:
+    """``fogsim fog --points … --point-format nuscenes-radar`` (:mod:`fogsim.fog.radar_points`)."""
+    from fogsim.deps import package_versions
+    from fogsim.fog.batch import run
+    from fogsim.fog.engine import FogSettings
+    from fogsim.fog.levels import parse_levels
+    from fogsim.fog.points import point_files
+    from fogsim.fog.radar_points import DEFAULT_RADAR_SENSOR, RadarPointsJob
+    from fogsim.radar.fog import radar_fog_spec
+    from fogsim.runs import check_output, parse_shard, select_shard
+
+    fmt = args.point_format
+    if args.heterogeneity:
+        raise ValueError("--heterogeneity needs a camera image (its density field): --points fogs homogeneous fog")
+    for flag in ("lidar", "no_kitti_trees", "lidar_min_points", "lidar_model", "lidar_extinction_ratio",
+                 "point_scale"):
+        if getattr(args, flag, None):
+            raise ValueError(f"--{flag.replace('_', '-')} is for LiDAR scans, not --point-format {fmt}")
+    if args.workers < 1:
+        raise ValueError("--workers must be ≥ 1")
+    sensor = radar_sensor_choice(args.lidar_sensor) or DEFAULT_RADAR_SENSOR[fmt]
+    spec = radar_fog_spec({} if args.radar_temperature is None else {"temperature_c": args.radar_temperature})
+    levels = tuple(parse_levels(args.levels, args.visibility))
+    for given in args.points:
+        check_output(args.out, {"--points": given})
+    items = point_files(args.points, fmt)
+    recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
+    job = RadarPointsJob(levels, args.out, FogSettings(radar=spec), sensor, fmt, recorded)
+    summary = run(select_shard(items, parse_shard(args.shard)), job, args.workers, not args.no_resume,
+                  not args.quiet, package_versions() | {"samples": len(items)})
+    for source, error in summary.failed:
+        print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
+    print(summary.line(job))
+    return EXIT_FAILED if summary.failed else EXIT_OK
+
+
+def radar_sensor_choice(given: str | None):
+    """``--sensor`` for radar sweeps: None, a bundled radar's name (checked), or a custom block read from its
+    file (checked, one line naming it)."""
+    if not given:
+        return None
+    from fogsim.radar.sensors import RadarSensor, load_radar_sensor
+
+    path = Path(given)
+    if path.suffix == ".json" or path.is_file():
+        from fogsim.fileio import read_json
+
+        load_radar_sensor(path)
+        return read_json(path)
+    RadarSensor.preset(given)  # an unknown name: a ValueError listing the bundled ones
+    return given

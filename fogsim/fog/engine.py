@@ -8,7 +8,7 @@ render's post-process fog (:mod:`fogsim.render.frame`), the Koschmieder-vs-path-
 (:mod:`fogsim.fog.physics`), ``fogsim fit-fog``, the training augmentation (:mod:`fogsim.augment`).
 The fog's density β comes from the run's levels, not from here, so one record fogs every level — and
 every sensor: the camera through :meth:`FogSettings.fogger`; the next sensor (the LiDAR) reads the
-same record and the same β.
+same record and the same β, and so does the radar (:meth:`FogSettings.radar_fogger`).
 
 :meth:`FogSettings.record` is what every document fogsim writes says of the fog (``model`` one of
 the vocabulary's words; an older document's words are read by :func:`~fogsim.schema.vocabulary.model_word`).
@@ -27,7 +27,10 @@ from fogsim.fog.model import Fogger, Kernel, airlight_rgb, check_heterogeneity, 
 from fogsim.fog.scatter import ScatterFogger, ScatterParams, load_params
 from fogsim.lidar.fog import LidarFogger, lidar_fog_spec
 from fogsim.lidar.points import PointCloud
+from fogsim.radar.detections import RadarScan
+from fogsim.radar.fog import RadarFogger, radar_fog_spec
 from fogsim.schema.lidar import LidarFogSpec
+from fogsim.schema.radar import RadarFogSpec
 from fogsim.schema.vocabulary import FOG_KINDS, POST_PROCESS_KINDS, SPACES
 
 #: the blend space of each model when the record does not say (scatter: where it was fitted)
@@ -67,6 +70,9 @@ class FogSettings:
     ``lidar``: the LiDAR's part of the same fog (:class:`~fogsim.schema.lidar.LidarFogSpec`: its
     model, backscatter, extinction ratio at 905 nm; None = the defaults) — the LiDAR takes the level's
     β and the heterogeneity's field from this record too (:meth:`lidar_fogger`, :meth:`point_betas`).
+    ``radar``: the radar's part (:class:`~fogsim.schema.radar.RadarFogSpec`: the visibility–liquid-water
+    relation, the fog's temperature; None = the defaults) — the radar takes the level's β too
+    (:meth:`radar_fogger`).
     """
 
     kind: str = "koschmieder"
@@ -77,6 +83,7 @@ class FogSettings:
     scatter_file: str | None = None
     scatter: ScatterParams | None = None
     lidar: LidarFogSpec | None = None
+    radar: RadarFogSpec | None = None
 
     def __post_init__(self):
         if self.kind not in FOG_KINDS:
@@ -91,6 +98,8 @@ class FogSettings:
             raise TypeError(f"kernel must be a fogsim.fog.model.Kernel or None, got {type(self.kernel).__name__}")
         if self.lidar is not None and not isinstance(self.lidar, LidarFogSpec):
             object.__setattr__(self, "lidar", lidar_fog_spec(self.lidar))  # a dict: checked, one line naming the key
+        if self.radar is not None and not isinstance(self.radar, RadarFogSpec):
+            object.__setattr__(self, "radar", radar_fog_spec(self.radar))
         if self.heterogeneity is not None and not self.heterogeneity.amplitude:
             object.__setattr__(self, "heterogeneity", None)  # amplitude 0 is homogeneous fog
         if not (isinstance(self.airlight, str) and self.airlight == ESTIMATE):
@@ -107,7 +116,8 @@ class FogSettings:
         space = {"scatter": "linear", "koschmieder": m.space}.get(m.kind)
         return cls(m.kind, airlight, space, kernel if m.kind == "koschmieder" else None,
                    scatter_file=m.scatter_params if m.kind == "scatter" else None,
-                   lidar=m.lidar if "lidar" in m.model_fields_set else None)
+                   lidar=m.lidar if "lidar" in m.model_fields_set else None,
+                   radar=m.radar if "radar" in m.model_fields_set else None)
 
     # ------------------------------------------------------------------ what it resolves to
     @property
@@ -153,6 +163,11 @@ class FogSettings:
         :meth:`point_betas` for patchy fog) gives the scan the sensor reports and every point's outcome."""
         return LidarFogger(scan, sensor, self.lidar)
 
+    def radar_fogger(self, scan: RadarScan, sensor) -> RadarFogger:
+        """The radar's fogger of one sweep in this fog: ``fogger(β)`` with the level's β (the camera's; one
+        per detection for patchy fog) gives the sweep the radar reports and every detection's outcome."""
+        return RadarFogger(scan, sensor, self.radar)
+
     def point_betas(self, beta: float, density: np.ndarray | None, uv: np.ndarray | None = None):
         """β along each LiDAR ray, from the camera's β and density field: β × m at the pixel a point's
         ``uv`` (N×2 pixel-edge coordinates in the camera image) falls in, β for the points outside the
@@ -178,6 +193,8 @@ class FogSettings:
             out["scatter_params_file"] = self.scatter_file
         if self.lidar is not None:
             out["lidar_fog"] = self.lidar.model_dump()
+        if self.radar is not None:
+            out["radar_fog"] = self.radar.model_dump()
         return out
 
     @property

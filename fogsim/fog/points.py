@@ -32,6 +32,7 @@ from fogsim.lidar.bounds import max_scan_points
 from fogsim.lidar.formats import FORMAT_SUFFIX, read_points, write_points
 from fogsim.lidar.outcome_file import OUTCOME_SUFFIX, write_outcomes
 from fogsim.lidar.sensors import load_sensor
+from fogsim.radar.formats import RADAR_SUFFIX
 from fogsim.runs import LEVEL_SEED_RULE, level_seed
 from fogsim.schema.lidar import LidarFogSpec
 
@@ -55,10 +56,12 @@ def _key(path: Path, suffix: str) -> str:
 
 
 def point_files(paths: list[str | os.PathLike], fmt: str) -> list[PointFile]:
-    """The scans of ``paths`` (files, or folders searched recursively for the format's suffix), sorted by
+    """The scans of ``paths`` (files, or folders searched recursively for the format's suffix — a LiDAR
+    format's, :data:`~fogsim.lidar.formats.FORMAT_SUFFIX`, or a radar one's,
+    :data:`~fogsim.radar.formats.RADAR_SUFFIX`), sorted by
     name within each folder; a missing path, an empty folder or two scans with one output name is a
     :class:`~fogsim.fog.depth_input.SetupError` (exit 2, before the output folder is claimed)."""
-    suffix = FORMAT_SUFFIX[fmt]
+    suffix = FORMAT_SUFFIX[fmt] if fmt in FORMAT_SUFFIX else RADAR_SUFFIX[fmt]
     items: list[PointFile] = []
     for given in paths:
         path = Path(given)

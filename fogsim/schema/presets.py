@@ -39,6 +39,7 @@ from fogsim.schema.base import (
     word,
 )
 from fogsim.schema.lidar import LidarFogSpec, LidarSensorSpec
+from fogsim.schema.radar import RadarFogSpec
 from fogsim.schema.vocabulary import FOG_EXPOSURES, FOG_KINDS, FOG_MEDIA, KERNELS, SPACES
 
 #: What a component name may hold: a name, never a path (no '/', '..', '.json').
@@ -244,6 +245,7 @@ class FogModel(Closed):
     scatter_params: Text | None = None  # kind "scatter": a fogsim fit-fog parameter file (None: the shipped one)
     volumetric: Volumetric = Volumetric()
     lidar: LidarFogSpec = LidarFogSpec()  # the LiDAR's part of the same fog (a preset with a "lidar" sensor)
+    radar: RadarFogSpec = RadarFogSpec()  # the radar's part of the same fog (ITU-R P.840, fogsim.radar.fog)
 
     @model_validator(mode="after")
     def _kernel(self):

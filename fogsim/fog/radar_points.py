@@ -1,0 +1,87 @@
+"""``fogsim fog --points … --point-format nuscenes-radar``: radar sweeps fogged without a dataset — files or a
+folder of nuScenes ``RADAR_*`` PCD sweeps (no devkit needed: the ``.pcd`` records are all there is to read).
+
+Layout under ``OUT`` (``<name>`` = the sweep's path below the input folder, or its file name, without
+``.pcd``), as ``--points`` writes LiDAR scans (:mod:`fogsim.fog.points`)::
+
+    <level>/<name>.pcd               the level's sweep in nuScenes' format: the kept detections, every field
+                                     as read (a level that keeps every detection — β = 0 — is the input file,
+                                     byte for byte)
+    <level>/<name>.outcomes.npz      every input detection's outcome, row and SNR in fog (fogsim.radar.outcome_file)
+    <level>/<name>.json              the sidecar, written last (it marks the sweep's level done)
+    fogsim_run.json                  the run's parameters (resume refuses others)
+
+The fog is the run's record (:meth:`fogsim.fog.engine.FogSettings.radar_fogger`: its ``radar`` block); the
+model is deterministic (no seed). Homogeneous fog only (there is no camera to give a density field).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from fogsim._version import __version__
+from fogsim.fileio import atomic_write_bytes, write_json
+from fogsim.fog.engine import FogSettings
+from fogsim.fog.levels import FogLevel
+from fogsim.fog.points import PointFile
+from fogsim.radar.fog import KEPT
+from fogsim.radar.formats import RADAR_SUFFIX, read_radar, write_radar
+from fogsim.radar.outcome_file import OUTCOME_SUFFIX, write_radar_outcomes
+from fogsim.radar.sensors import load_radar_sensor
+from fogsim.schema.radar import RadarFogSpec
+
+__all__ = ["DEFAULT_RADAR_SENSOR", "RadarPointsJob"]
+
+#: the sensor each radar format's data is recorded with
+DEFAULT_RADAR_SENSOR = {"nuscenes-radar": "ars408-lr"}
+
+
+@dataclass(frozen=True)
+class RadarPointsJob:
+    """Fog radar sweeps at ``levels`` (β in 1/m) with the fog record's radar part (``fog.radar``), the
+    ``sensor`` (a bundled name or a custom block as a dict), reading ``fmt`` files, into ``out``."""
+
+    levels: tuple[FogLevel, ...]
+    out: str
+    fog: FogSettings
+    sensor: str | dict = field(hash=False)
+    fmt: str = "nuscenes-radar"
+    inputs: dict = field(default_factory=dict, hash=False)
+
+    unit = "sweeps"
+
+    def parameters(self) -> dict:
+        """What ``fogsim_run.json`` records (and a resumed run must repeat)."""
+        return {"points": True, "radar": True, "levels": [lv.to_dict() for lv in self.levels],
+                "radar_fog": (self.fog.radar or RadarFogSpec()).model_dump(), "sensor": self.sensor,
+                "point_format": self.fmt, "inputs": self.inputs}
+
+    def paths(self, item: PointFile, level: FogLevel) -> tuple[Path, Path, Path]:
+        """(sweep, outcomes, sidecar) of one sweep and level."""
+        base = Path(self.out) / level.key / item.key
+        return (base.with_name(base.name + RADAR_SUFFIX[self.fmt]), base.with_name(base.name + OUTCOME_SUFFIX),
+                base.with_name(base.name + ".json"))
+
+    def done(self, item: PointFile) -> bool:
+        return all(self.paths(item, lv)[2].is_file() for lv in self.levels)
+
+    def check(self, items: list[PointFile]) -> None:
+        """Nothing run-wide to check beyond :func:`~fogsim.fog.points.point_files` (each file is read in its turn)."""
+
+    def fog_one(self, item: PointFile) -> None:
+        """Every level of one sweep: sweep, outcomes, then the sidecar."""
+        scan = read_radar(item.source, self.fmt)
+        sensor = load_radar_sensor(self.sensor)
+        fogger = self.fog.radar_fogger(scan, sensor)
+        original = Path(item.source).read_bytes()
+        for level in self.levels:
+            fogged = fogger(level.beta)
+            sweep_path, outcome_path, sidecar = self.paths(item, level)
+            if (fogged.outcome == KEPT).all():
+                atomic_write_bytes(sweep_path, original)  # nothing lost: the input, byte for byte
+            else:
+                write_radar(sweep_path, fogged.scan, self.fmt)
+            write_radar_outcomes(outcome_path, fogged)
+            write_json(sidecar, {"level": level.to_dict(), "source": item.source, "key": item.key,
+                                 "sweep": sweep_path.name, "outcome_file": outcome_path.name, **fogged.record(),
+                                 "sensor": sensor.to_dict(), "fogsim_version": __version__})

@@ -1,0 +1,139 @@
+"""The radar schema: a sensor (``presets/radar/*.json`` or a custom block), the radar fog model's parameters
+and the outcome file beside a fogged sweep — every key's type, range and default, declared once, here.
+
+:class:`RadarSensorSpec` is what :class:`fogsim.radar.sensors.RadarSensor` is built from; every parameter a
+document gives must have a ``sources`` entry (a data sheet, a paper, or the words "assumed: …"), so a
+number without its origin is refused. :class:`RadarFogSpec` is the fog record's ``radar`` block
+(:class:`fogsim.radar.fog.RadarFogger`). Both are :class:`~fogsim.schema.base.Closed`.
+
+Units: GHz, metres, degrees, m/s, dBm (power), dBi (antenna gain), dB (noise figure, SNR, gains), dBsm
+(radar cross section), MHz (bandwidth), °C, g/m³ (liquid water), β in 1/km where the fog relation says so.
+"""
+from __future__ import annotations
+
+from typing import ClassVar
+
+from pydantic import ConfigDict, Field, model_validator
+
+from fogsim.schema.base import Bool, Closed, NonNegInt, Open, Text, number_in, pair
+from fogsim.schema.documents import Vector
+from fogsim.schema.lidar import Mount
+
+#: the visibility–liquid-water relations a radar fog record may name (fogsim.radar.attenuation)
+LWC_RELATIONS = ("kunkel-1984",)
+#: fields of a sensor block that are bookkeeping, not parameters (they need no ``sources`` entry)
+BOOKKEEPING = ("name", "description", "version", "sources")
+
+
+class NearRange(Closed):
+    """``near_range``: a second, wide and short scan of the same sensor (the ARS 408's near range)."""
+
+    max_range_m: number_in(0, 2000, lo_open=True)
+    azimuth_fov_deg: pair(number_in(-180, 180))
+    range_resolution_m: number_in(0, 100, lo_open=True)
+    range_accuracy_m: number_in(0, 100)
+    azimuth_resolution_deg: number_in(0, 180, lo_open=True)
+    azimuth_accuracy_deg: number_in(0, 180)
+
+
+class RadarSensorSpec(Closed):
+    """An automotive FMCW radar (``presets/radar/*.json`` or a custom block): what it sees (frequency,
+    range, azimuth / elevation field of view — the far scan's, plus an optional ``near_range`` scan),
+    how finely (resolutions, accuracies, velocity), and its radar equation (transmit power, antenna gains,
+    noise figure, noise bandwidth, processing gain, detection threshold). ``processing_gain_db`` None:
+    calibrated so a target of ``reference_rcs_dbsm`` at ``max_range_m`` is exactly at the threshold (the
+    data sheets give the range, not the gain). ``sources``: one entry per parameter given (dotted names
+    for nested keys, e.g. ``near_range.max_range_m``, or the block's name for all of it)."""
+
+    name: Text | None = None
+    description: Text | None = None
+    version: NonNegInt | None = None
+    frequency_ghz: number_in(1, 300)
+    min_range_m: number_in(0, 100) = 0.2
+    max_range_m: number_in(1, 2000)
+    azimuth_fov_deg: pair(number_in(-180, 180))
+    elevation_fov_deg: pair(number_in(-90, 90)) | None = None
+    measures_elevation: Bool = False
+    range_resolution_m: number_in(0, 100, lo_open=True)
+    range_accuracy_m: number_in(0, 100)
+    azimuth_resolution_deg: number_in(0, 180, lo_open=True)
+    azimuth_accuracy_deg: number_in(0, 180)
+    elevation_resolution_deg: number_in(0, 180, lo_open=True) | None = None
+    elevation_accuracy_deg: number_in(0, 180) | None = None
+    velocity_range_mps: pair(number_in(-1000, 1000))
+    velocity_resolution_mps: number_in(0, 100, lo_open=True)
+    velocity_accuracy_mps: number_in(0, 100)
+    rcs_range_dbsm: pair(number_in(-100, 100)) = [-64.0, 64.0]
+    transmit_power_dbm: number_in(-30, 60)
+    tx_gain_dbi: number_in(-10, 50)
+    rx_gain_dbi: number_in(-10, 50)
+    noise_figure_db: number_in(0, 40)
+    noise_bandwidth_mhz: number_in(0, 1e5, lo_open=True)
+    processing_gain_db: number_in(0, 120) | None = None
+    detection_threshold_db: number_in(-10, 60)
+    reference_rcs_dbsm: number_in(-60, 60)
+    false_alarms_per_scan: number_in(0, 1e4) = 0.0
+    cycle_time_ms: number_in(0, 1e4, lo_open=True) | None = None
+    near_range: NearRange | None = None
+    mount: Mount = Mount()
+    sources: dict[str, Text] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if not self.min_range_m < self.max_range_m:
+            raise ValueError(f"min_range_m ({self.min_range_m:g}) must be below max_range_m ({self.max_range_m:g})")
+        if self.measures_elevation and (self.elevation_resolution_deg is None or self.elevation_fov_deg is None):
+            raise ValueError("a sensor that measures elevation needs elevation_fov_deg and elevation_resolution_deg")
+        if self.near_range is not None and self.near_range.max_range_m > self.max_range_m:
+            raise ValueError("near_range.max_range_m must not exceed max_range_m (the far scan's)")
+        given = self.model_fields_set - set(BOOKKEEPING)
+        if given:  # a document that gives parameters says where each comes from
+            def sourced(key: str) -> bool:
+                return key in self.sources or any(s.startswith(key + ".") for s in self.sources)
+            missing = sorted(k for k in given if not sourced(k))
+            if missing:
+                raise ValueError(f"sources: no entry for {', '.join(missing)} (every parameter says where it comes "
+                                 "from: a data sheet, a paper, or 'assumed: why')")
+            known = set(type(self).model_fields) - set(BOOKKEEPING)
+            unknown = sorted(k for k in self.sources if k.split(".")[0] not in known)
+            if unknown:
+                raise ValueError(f"sources: {', '.join(unknown)} is not a parameter of the sensor")
+        return self
+
+
+class RadarFogSpec(Closed):
+    """``radar_fog`` (a fog record's ``radar`` block): the radar's part of the fog (:mod:`fogsim.radar.fog`).
+
+    ``lwc_relation``: how the camera's β gives the fog's liquid water content M (g/m³) — ``kunkel-1984``:
+    β = ``lwc_coefficient`` · M^``lwc_exponent`` (β in 1/km; Kunkel 1984: 144.7 and 0.88).
+    ``temperature_c``: the fog's temperature for ITU-R P.840's K_l(f, T). ``lwc_g_m3``: a fixed M that
+    overrides the relation (None: from β)."""
+
+    lwc_relation: Text = "kunkel-1984"
+    lwc_coefficient: number_in(0, 1e4, lo_open=True) = 144.7
+    lwc_exponent: number_in(0, 10, lo_open=True) = 0.88
+    temperature_c: number_in(-40, 40) = 10.0
+    lwc_g_m3: number_in(0, 50) | None = None
+
+    @model_validator(mode="after")
+    def _relation(self):
+        if self.lwc_relation not in LWC_RELATIONS:
+            raise ValueError(f"lwc_relation must be one of {', '.join(LWC_RELATIONS)}, got {self.lwc_relation!r}")
+        return self
+
+
+class RadarOutcomes(Open):
+    """``<name>.outcomes.npz`` beside a fogged sweep (:mod:`fogsim.radar.outcome_file`): per input detection
+    its ``outcome`` (0 kept, 1 lost), ``output_index`` (its row in the fogged sweep, −1 when lost) and
+    ``snr_fog_db`` (its SNR in the fog, dB), of equal length."""
+
+    document: ClassVar[str] = "radar outcome file"
+
+    model_config = ConfigDict(arbitrary_types_allowed=True, extra="ignore", frozen=True)
+
+    outcome: Vector
+    output_index: Vector
+    snr_fog_db: Vector
+
+
+__all__ = ["BOOKKEEPING", "LWC_RELATIONS", "NearRange", "RadarFogSpec", "RadarOutcomes", "RadarSensorSpec"]
