@@ -345,3 +345,84 @@ def test_the_renders_kitti_tree_round_trips_through_fogsim_fog_kitti(lidar_rende
     assert sum(o["lidar_points"]["clear"] for o in kept) > 0
     refogged = read_points(out / meta["lidar"]["levels"]["clear"]["file"], "kitti")
     assert len(refogged) > 1000
+
+
+@pytest.mark.blender
+@pytest.mark.slow
+def test_the_renders_semantic_kitti_sequences_and_pcds_read_back(lidar_render):
+    """Each level's ``semantic_kitti/<level>/sequences/00`` read with SemanticKITTI's own label logic
+    (:func:`test_semantic_kitti.read_sequence`): the scans are the level's, every instance is a meta object
+    whose SemanticKITTI id its class maps to and whose points lie in its 3D box, scenery has no instance,
+    the clear level's labels are what the sweep hit, fog clutter is 110 exactly where the outcome file says
+    clutter; the .pcd beside each scan carries the same scan, labels and outcomes (open3d, pypcd4)."""
+    from fogsim.dataset.semantic_kitti import FOG_ID, FOGSIM_TO_SEMANTIC_KITTI
+    from fogsim.lidar.fog import CLUTTER
+    from fogsim.lidar.formats import read_points
+    from fogsim.lidar.outcome_file import read_outcomes
+    from test_scan_pcd import by_row, check_pcd
+    from test_semantic_kitti import read_sequence
+
+    out = lidar_render
+    metas = {f: json.loads((out / "meta" / f"{f}.json").read_text()) for f in ("000000", "000001")}
+    things = {FOGSIM_TO_SEMANTIC_KITTI[c] for c in ("car", "van", "truck", "bus", "pedestrian", "cyclist")}
+    for level in ("clear", "beta0.06"):
+        frames, calib, cfg = read_sequence(out / "semantic_kitti" / level)
+        assert [fr["frame"] for fr in frames] == list(metas)
+        np.testing.assert_allclose(calib["Tr"], metas["000000"]["lidar"]["lidar_to_camera"], atol=1e-9)
+        np.testing.assert_allclose(frames[0]["pose"], np.eye(4), atol=1e-9)
+        for fr in frames:
+            meta = metas[fr["frame"]]
+            entry = meta["lidar"]["levels"][level]
+            cloud = read_points(out / entry["file"], "kitti")
+            np.testing.assert_array_equal(fr["points"][:, :3], cloud.xyz)
+            outcome, index = read_outcomes(out / entry["outcome_file"])
+            rows = by_row(outcome, index)
+            np.testing.assert_array_equal(fr["semantic"] == FOG_ID, rows == CLUTTER)
+            assert set(np.unique(fr["semantic"]).tolist()) <= set(cfg["labels"])
+            objects = {o["id"]: o for o in meta["lidar"]["objects"]}
+            assert not np.isin(fr["semantic"][fr["instance"] == 0], list(things)).any()  # things have instances
+            for oid in np.unique(fr["instance"][fr["instance"] > 0]).tolist():
+                mine = fr["instance"] == oid
+                assert (fr["semantic"][mine] == FOGSIM_TO_SEMANTIC_KITTI[objects[oid]["class"]]).all()
+                if level == "clear" and "lidar_box" in objects[oid]:
+                    box = objects[oid]["lidar_box"]
+                    local = (fr["points"][mine, :3] - box["centre_m"]) @ np.asarray(box["axes"])
+                    assert (np.abs(local) <= np.asarray(box["half_m"]) + 0.05).all(), oid
+            if level == "clear":  # β = 0: every sweep point kept, labelled by what it hit
+                hit = np.load(out / meta["lidar"]["sweep"]["attributes"], allow_pickle=False)["object_id"]
+                cars = np.isin(hit, [i for i, o in objects.items() if o["class"] == "car"])
+                assert cars.any() and (fr["semantic"][cars] == 10).all()
+                np.testing.assert_array_equal(fr["instance"][cars], hit[cars])
+            raw = np.fromfile(out / entry["labels"], "<u4")
+            np.testing.assert_array_equal(raw, (fr["instance"] << 16) | fr["semantic"])
+            beam = np.load(out / meta["lidar"]["sweep"]["attributes"], allow_pickle=False)["beam"]
+            ring = np.zeros(len(cloud), np.int64)
+            ring[index[index >= 0]] = beam[index >= 0]  # the KITTI .bin has no ring; the sweep knew each beam
+            check_pcd(out / entry["pcd"], cloud, rows, raw, ring)
+    assert json.loads((out / "dataset.json").read_text())["lidar"]["semantic_kitti"]["fog_id"] == FOG_ID
+
+
+@pytest.mark.blender
+@pytest.mark.slow
+def test_the_render_exports_as_nuscenes_samples_with_the_sweeps_beams(lidar_render, tmp_path):
+    """``fogsim export nuscenes`` on the render: each level's samples are its scan (x y z, intensity × 255)
+    and the ring estimated from the sensor's inclinations is the beam the sweep cast (the KITTI .bin of an
+    hdl64e render stores none)."""
+    from fogsim.cli import main
+    from fogsim.lidar.outcome_file import read_outcomes
+    from test_export_nuscenes import read_pcd_bin
+
+    out = lidar_render
+    assert main(["export", "nuscenes", str(out), "--out", str(tmp_path / "nusc"), "--quiet"]) == 0
+    for f in ("000000", "000001"):
+        meta = json.loads((out / "meta" / f"{f}.json").read_text())
+        beam = np.load(out / meta["lidar"]["sweep"]["attributes"], allow_pickle=False)["beam"]
+        for level, entry in meta["lidar"]["levels"].items():
+            got = read_pcd_bin(tmp_path / "nusc" / level / "samples" / "LIDAR_TOP" / f"{f}.pcd.bin")
+            scan = np.frombuffer((out / entry["file"]).read_bytes(), "<f4").reshape(-1, 4)
+            np.testing.assert_array_equal(got[:, :3], scan[:, :3])
+            np.testing.assert_allclose(got[:, 3], 255.0 * scan[:, 3], rtol=1e-6)
+            _, index = read_outcomes(out / entry["outcome_file"])
+            ring = np.zeros(len(scan))
+            ring[index[index >= 0]] = beam[index >= 0]
+            np.testing.assert_array_equal(got[:, 4], ring)

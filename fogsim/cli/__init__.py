@@ -1,4 +1,5 @@
-"""``fogsim`` — the one front door: ``render | fog | ila | depth | study | bench | fit-fog | levels | demo | schema``.
+"""``fogsim`` — the one front door: ``render | fog | ila | depth | study | bench | fit-fog | levels | demo | schema |
+export``.
 
 Every subcommand's ``--help`` works without Blender, torch or Ultralytics: they are imported
 only when a command needs them. Errors end a command with one line (never a traceback) and
@@ -15,7 +16,7 @@ from fogsim.errors import run_command
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from fogsim.cli import bench, demo, depth, fit_fog, fog, ila, render, schema, study
+    from fogsim.cli import bench, demo, depth, export, fit_fog, fog, ila, render, schema, study
 
     parser = argparse.ArgumentParser(prog="fogsim", description="Labeled images in fog: render street scenes, "
                                      "fog rendered and real datasets, train and evaluate detectors per fog level.")
@@ -30,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_parsers(sub)
     fit_fog.add_parsers(sub)
     schema.add_parsers(sub)
+    export.add_parsers(sub)
     return parser
 
 

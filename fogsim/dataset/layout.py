@@ -10,8 +10,10 @@ Layout under the root::
     cityscapes/<kind>/<split>/fogsim/<frame>_<kind>.{png,json}   the stereo pair (``--stereo``)
     lidar/<level>/<frame>.<ext>  the level's LiDAR scan (``fogsim fog --lidar``: the source's point format)
     lidar/<level>/<frame>.outcomes.npz   every input point's outcome and row (fogsim.lidar.outcome_file)
+    lidar/<level>/<frame>.pcd    the level's scan for viewers (fogsim.lidar.scan_pcd)
     lidar/<level>/<frame>.label, lidar/sweep/<frame>.{bin,npz}   a render's point labels and clear sweep
     kitti/<level>/…              each level as a KITTI object tree (fogsim.dataset.kitti)
+    semantic_kitti/<level>/…     a render's levels as SemanticKITTI sequences (fogsim.dataset.semantic_kitti)
     coco/<level>.json            COCO detection annotations (objects the filters dropped: iscrowd = 1)
     splits/<level>_{train,val}.txt, splits/all_{train,val}.txt   image lists (absolute paths)
     data/<level>.yaml, data/all.yaml                              Ultralytics data files

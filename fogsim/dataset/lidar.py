@@ -1,8 +1,9 @@
 """The LiDAR part of a labelled dataset: what a frame record holds for it, and what :func:`finalize` writes
 from the committed frames — the cross-sensor table (``dataset.json``'s ``lidar`` block and
-``cross_sensor.md``), the pictures (``lidar_bev.png``, ``lidar_points_vs_distance.png``) and each KITTI
-tree's ``ImageSets``. Any producer (``fogsim fog --lidar``, a render with a synthetic LiDAR) feeds it the
-same records; paths are :class:`~fogsim.dataset.layout.DatasetLayout`'s.
+``cross_sensor.md``), the pictures (``lidar_bev.png``, ``lidar_points_vs_distance.png``), each KITTI
+tree's ``ImageSets`` and each SemanticKITTI sequence's calib, poses and yaml
+(:func:`fogsim.dataset.semantic_kitti.write_sequences`). Any producer (``fogsim fog --lidar``, a render
+with a synthetic LiDAR) feeds it the same records; paths are :class:`~fogsim.dataset.layout.DatasetLayout`'s.
 
 The frame record (``meta/<frame>.json``) — what the table and the pictures read:
 
@@ -31,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.dataset.layout import DatasetLayout
+from fogsim.dataset.semantic_kitti import write_sequences
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes, write_json
 from fogsim.lidar.boxes import Box3D
@@ -186,4 +188,7 @@ def lidar_summary(layout: DatasetLayout, levels, frames: list[str], metas: list[
     kitti = _kitti_image_sets(layout, frames, metas, train, val)
     if kitti is not None:
         out["kitti_image_sets"] = kitti
+    semantic = write_sequences(layout, frames, metas)
+    if semantic is not None:
+        out["semantic_kitti"] = semantic
     return out

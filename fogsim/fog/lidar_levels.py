@@ -13,7 +13,9 @@ and per level (β in 1/m, the camera level's β):
   (:data:`fogsim.runs.LEVEL_SEED_RULE`): the same for a level whatever the shard, the worker and the
   other levels;
 * files: ``lidar/<level>/<scan frame>.<ext>`` (the source's point format; β = 0 is the input bit for
-  bit) and ``lidar/<level>/<scan frame>.outcomes.npz`` (:mod:`fogsim.lidar.outcome_file`); for a KITTI-style
+  bit), ``lidar/<level>/<scan frame>.outcomes.npz`` (:mod:`fogsim.lidar.outcome_file`) and
+  ``lidar/<level>/<scan frame>.pcd`` (the scan with each point's outcome, for viewers:
+  :mod:`fogsim.lidar.scan_pcd`); for a KITTI-style
   source also ``kitti/<level>/<part>/{image_2,velodyne,calib,label_2}/<id>`` (:mod:`fogsim.dataset.kitti`).
   The scan frame is :func:`~fogsim.dataset.layout.frame_from_key` of the source's ``key``;
 * per object with a 3D box: ``lidar_points[level]`` = the level's reported points inside it, and
@@ -37,6 +39,7 @@ from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.formats import FORMAT_SUFFIX, write_points
 from fogsim.lidar.objects import MIN_POINTS
 from fogsim.lidar.outcome_file import write_outcomes
+from fogsim.lidar.scan_pcd import PCD_SUFFIX, write_level_pcd
 from fogsim.readers.base import SCAN_SOURCE, Sample
 from fogsim.runs import LEVEL_SEED_RULE, level_seed
 
@@ -92,7 +95,7 @@ class FrameLidar:
         self.counts: dict[str, np.ndarray] = {}
 
     def level(self, level) -> FoggedScan:
-        """Fog the scan at ``level`` (key, β), write its scan and outcome files, count the points in each box."""
+        """Fog the scan at ``level`` (key, β), write its scan, outcome and PCD files, count the points in each box."""
         beta = self.fog.point_betas(level.beta, self.density, self.uv)
         seed = level_seed(self.seed, self.source.key, level.key)
         fogged = self.fogger(beta, np.random.default_rng(seed))
@@ -101,10 +104,13 @@ class FrameLidar:
         outcome_path = self.layout.lidar_outcomes(level.key, self.frame)
         write_points(scan_path, fogged.cloud, fmt)
         write_outcomes(outcome_path, fogged)
+        pcd_path = self.layout.lidar(level.key, self.frame, PCD_SUFFIX)
+        write_level_pcd(pcd_path, fogged)
         real = [b for b in self.boxes if b is not None]
         self.counts[level.key] = points_in_boxes(fogged.cloud.xyz, real) if real else np.zeros(0, np.int64)
         self.levels[level.key] = {**fogged.record(), "seed": seed, "file": self.layout.relative(scan_path),
-                                  "outcome_file": self.layout.relative(outcome_path)}
+                                  "outcome_file": self.layout.relative(outcome_path),
+                                  "pcd": self.layout.relative(pcd_path)}
         return fogged
 
     @property

@@ -7,6 +7,7 @@ format's suffix :data:`~fogsim.lidar.formats.FORMAT_SUFFIX`)::
 
     <level>/<name><suffix>           the level's scan in the input's format (β = 0: the input bit for bit)
     <level>/<name>.outcomes.npz      every input point's outcome and row (fogsim.lidar.outcome_file)
+    <level>/<name>.pcd               the scan with each point's outcome, for viewers (fogsim.lidar.scan_pcd)
     <level>/<name>.json              the sidecar, written last (it marks the scan's level done)
     fogsim_run.json                  the run's parameters (resume refuses others)
 
@@ -31,6 +32,7 @@ from fogsim.fog.levels import FogLevel
 from fogsim.lidar.bounds import max_scan_points
 from fogsim.lidar.formats import FORMAT_SUFFIX, read_points, write_points
 from fogsim.lidar.outcome_file import OUTCOME_SUFFIX, write_outcomes
+from fogsim.lidar.scan_pcd import PCD_SUFFIX, write_level_pcd
 from fogsim.lidar.sensors import load_sensor
 from fogsim.radar.formats import RADAR_SUFFIX
 from fogsim.runs import LEVEL_SEED_RULE, level_seed
@@ -114,6 +116,11 @@ class PointsJob:
         return (base.with_name(base.name + FORMAT_SUFFIX[self.fmt]), base.with_name(base.name + OUTCOME_SUFFIX),
                 base.with_name(base.name + ".json"))
 
+    def pcd_path(self, item: PointFile, level: FogLevel) -> Path:
+        """The level's scan as a PCD for viewers (:mod:`fogsim.lidar.scan_pcd`)."""
+        base = Path(self.out) / level.key / item.key
+        return base.with_name(base.name + PCD_SUFFIX)
+
     def done(self, item: PointFile) -> bool:
         """Every level's sidecar (written last) is there, and so are the scan and outcome file it names:
         a sidecar whose files were deleted or moved does not claim the scan done."""
@@ -138,7 +145,9 @@ class PointsJob:
             except ValueError as exc:  # a 5-column format without rings (an .npy / PLY scan has none)
                 raise InputError(item.source, str(exc).removeprefix(f"{item.source}: ")) from None
             write_outcomes(outcome_path, fogged)
+            pcd = self.pcd_path(item, level)
+            write_level_pcd(pcd, fogged)
             write_json(sidecar, {"level": level.to_dict(), "source": item.source, "key": item.key,
-                                 "scan": scan_path.name, "outcomes": outcome_path.name, "seed": seed,
+                                 "scan": scan_path.name, "outcomes": outcome_path.name, "pcd": pcd.name, "seed": seed,
                                  "seed_rule": LEVEL_SEED_RULE, **fogged.record(), "sensor": sensor.to_dict(),
                                  "fogsim_version": __version__})

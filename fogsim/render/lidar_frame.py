@@ -21,8 +21,13 @@ Files, per level ``L`` and frame ``F`` (written before the frame's meta, which m
 * ``lidar/L/F.bin`` — the scan the sensor reports, in its own format (0–1 intensities: KITTI's
   4 × float32; 0–255: nuScenes' 5 × float32 with the ring, ``.pcd.bin``), ``lidar/L/F.outcomes.npz`` — every clear-sweep
   point's outcome and row (:mod:`fogsim.lidar.outcome_file`), ``lidar/L/F.label`` — SemanticKITTI labels,
-  one uint32 per reported point: instance id << 16 | class (:data:`SEMANTIC_CLASSES`; the instance is the
-  object's mask id for labelled objects, 0 for scenery and fog clutter);
+  one uint32 per reported point: instance id << 16 | class (SemanticKITTI's own ids,
+  :data:`fogsim.dataset.semantic_kitti.FOGSIM_TO_SEMANTIC_KITTI`, fog clutter
+  :data:`~fogsim.dataset.semantic_kitti.FOG_ID`; the instance is the object's mask id for labelled
+  objects, 0 for scenery and fog clutter), ``lidar/L/F.pcd`` — the scan with its label, instance and
+  outcome per point for viewers (:mod:`fogsim.lidar.scan_pcd`);
+* ``semantic_kitti/L/sequences/00/{velodyne,labels}/F`` — the level as a SemanticKITTI sequence
+  (:mod:`fogsim.dataset.semantic_kitti`; its calib, poses and yaml at finalize);
 * ``kitti/L/training/{image_2,velodyne,calib,label_2}/F`` — the level as a KITTI object tree
   (:class:`fogsim.dataset.kitti.KittiTree`): calib P0–P3 = the render's K | 0, R0_rect = I,
   Tr_velo_to_cam the LiDAR's pose in the camera, Tr_imu_to_velo = I; label_2 the kept objects of the KITTI
@@ -40,23 +45,22 @@ from fogsim.camera import Intrinsics
 from fogsim.dataset.kitti import KittiTree
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.lidar import box_record as lidar_box_record
+from fogsim.dataset.semantic_kitti import FOG_ID, FOGSIM_TO_SEMANTIC_KITTI, SEQUENCE, SemanticKittiTree, semantic_id
 from fogsim.fileio import atomic_write_bytes
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.fog import CLUTTER, FoggedScan
 from fogsim.lidar.formats import FORMAT_SUFFIX, write_points
 from fogsim.lidar.objects import attach_lidar_points
 from fogsim.lidar.outcome_file import write_outcomes
+from fogsim.lidar.scan_pcd import PCD_SUFFIX, write_level_pcd
 from fogsim.lidar.sensors import LidarSensor
 from fogsim.readers.kitti.calib import KittiCalib
 from fogsim.render.boxes3d import box_record, object_box, transformed
 from fogsim.render.lidar_scan import Geometry, RayCaster, SyntheticScan, sweep
-from fogsim.scene.classes import LABELLED, STUFF, is_labelled
+from fogsim.scene.classes import LABELLED, is_labelled
 
 #: the LiDAR noise generator of level i: default_rng([frame seed, i, LIDAR_STREAM])
 LIDAR_STREAM = 0x11DA2
-#: SemanticKITTI-style class ids of the .label files (index = id)
-SEMANTIC_CLASSES = ("unlabelled", *LABELLED, *STUFF, "fog")
-SEMANTIC_ID = {name: i for i, name in enumerate(SEMANTIC_CLASSES)}
 #: fogsim classes as KITTI object types (the others have none and get no label line)
 KITTI_TYPES = {"car": "Car", "van": "Van", "truck": "Truck", "bus": "Misc", "pedestrian": "Pedestrian",
                "cyclist": "Cyclist"}
@@ -122,15 +126,16 @@ def lidar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int
 
 
 def semantic_labels(scan: SyntheticScan, fogged: FoggedScan, classes: dict[int, str]) -> np.ndarray:
-    """The uint32 label of every point of ``fogged`` (instance << 16 | class; fog clutter: class ``fog``)."""
-    cls = np.array([SEMANTIC_ID.get(classes.get(int(i), ""), 0) for i in range(int(scan.object_id.max(initial=0)) + 1)],
+    """The uint32 label of every point of ``fogged`` (instance << 16 | SemanticKITTI class; fog clutter:
+    :data:`~fogsim.dataset.semantic_kitti.FOG_ID`, instance 0); ``classes``: object id → fogsim class."""
+    cls = np.array([semantic_id(classes.get(int(i))) for i in range(int(scan.object_id.max(initial=0)) + 1)],
                    np.uint32)
     oid = scan.object_id.astype(np.int64)
     thing = np.isin(oid, [i for i, c in classes.items() if c in LABELLED])
     clear = ((np.where(thing, oid, 0).astype(np.uint32) << np.uint32(16)) | cls[oid]).astype(np.uint32)
     out = np.zeros(len(fogged.cloud), np.uint32)
     rows = np.flatnonzero(fogged.output_index >= 0)
-    out[fogged.output_index[rows]] = np.where(fogged.outcome[rows] == CLUTTER, np.uint32(SEMANTIC_ID["fog"]),
+    out[fogged.output_index[rows]] = np.where(fogged.outcome[rows] == CLUTTER, np.uint32(FOG_ID),
                                               clear[rows])
     return out
 
@@ -192,18 +197,24 @@ def write_lidar(layout: DatasetLayout, name: str, lidar: LidarFrame, images: dic
     for key, fogged in lidar.fogged.items():
         scan, outcomes, labels = (layout.lidar(key, name, FORMAT_SUFFIX[fmt]), layout.lidar_outcomes(key, name),
                                   layout.lidar_labels(key, name))
+        pcd = layout.lidar(key, name, PCD_SUFFIX)
         write_points(scan, fogged.cloud, fmt)
         write_outcomes(outcomes, fogged)
-        atomic_write_bytes(labels, semantic_labels(lidar.scan, fogged, classes).astype("<u4").tobytes())
+        point_labels = semantic_labels(lidar.scan, fogged, classes)
+        atomic_write_bytes(labels, point_labels.astype("<u4").tobytes())
+        write_level_pcd(pcd, fogged, point_labels)
+        SemanticKittiTree(layout.root, key).write_frame(name, fogged.cloud, point_labels)
         KittiTree(layout.root, key).write_frame(name, images[key], fogged.cloud, calib, labels_2)
         levels[key] = {**fogged.record(), "file": layout.relative(scan), "outcome_file": layout.relative(outcomes),
-                       "labels": layout.relative(labels)}
+                       "labels": layout.relative(labels), "pcd": layout.relative(pcd)}
     return {"format": fmt, "levels": levels, "input": {"file": sweep_file, "format": fmt},
             "kitti": {"id": name, "part": "training"}, "sweep": {**lidar.scan.record(), "attributes": attributes_file},
             "objects": lidar.objects, "sensor": lidar.sensor.to_dict(), "sensor_spec": lidar.spec,
             "lidar_to_world": lidar.pose.tolist(), "lidar_to_camera": l2c.tolist(),
-            "semantic_classes": list(SEMANTIC_CLASSES),
-            "label_rule": "uint32 = instance << 16 | class (instance: the mask id of a labelled object, else 0)",
+            "semantic_classes": {c: FOGSIM_TO_SEMANTIC_KITTI[c] for c in sorted(FOGSIM_TO_SEMANTIC_KITTI)},
+            "label_rule": "uint32 = instance << 16 | SemanticKITTI class (instance: the mask id of a labelled "
+                          "object, else 0)",
+            "semantic_kitti": {"levels": list(lidar.fogged), "sequence": SEQUENCE, "P": calib.P[0].tolist()},
             "noise_seed_rule": "numpy default_rng([frame seed, level index, 0x11DA2])",
             "frame": "sensor: x forward, y left, z up (m); points in the sensor frame",
             "timing": "one instant per sweep (no rolling-shutter motion)"}
