@@ -486,30 +486,6 @@ RESUME = [
 ]
 
 
-CASES = POINT_FORMATS + SENSORS + KITTI + IMAGES + RESUME
-
-
-@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
-def test_hostile_sensor_surface(case: Case, tmp_path, capsys, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    for key, value in getattr(case, "env", {}).items():
-        monkeypatch.setenv(key, value)
-    err = run_hostile_case(case, tmp_path, capsys)
-    if case.code:
-        lines = [ln for ln in err.splitlines() if ln.startswith(("fogsim: error", "  failed:"))]
-        assert lines and all(len(ln) < 600 for ln in lines), err
-    if case.id.startswith("done-"):  # the sidecar did not claim the scan done: the level was written again
-        assert (tmp_path / "out" / "beta0.06" / "a.bin").is_file()
-        assert (tmp_path / "out" / "beta0.06" / "a.outcomes.npz").is_file()
-    if case.id == "resume-stale-part-removed":
-        assert not list((tmp_path / "out").rglob("*.part"))
-
-
-def test_at_least_sixty_cases():
-    ids = [c.id for c in CASES] + [c[0] for c in PCD_CASES]
-    assert len(ids) >= 60 and len(set(ids)) == len(ids)
-
-
 # ----------------------------------------------------------------------------- PCD files (the radar's nuScenes files)
 #: a nuScenes RADAR_* header's fields (18 per detection, 43 bytes a record), as the devkit's radar files have them
 RADAR_FIELDS = ("x y z dyn_prop id rcs vx vy vx_comp vy_comp is_quality_valid ambig_state x_rms y_rms invalid_state "
@@ -531,6 +507,186 @@ def radar_header(points: int, data: str = "binary", **change: str) -> bytes:
 
 def _lzf_sizes(compressed: int, uncompressed: int) -> bytes:
     return struct.pack("<II", compressed, uncompressed) + b"\0" * 16
+
+
+# ------------------------------------------------------------------ radar sweeps (--point-format nuscenes-radar)
+def radar_dtype() -> np.dtype:
+    """nuScenes' radar record (packed, little-endian) from :data:`RADAR_FIELDS` / SIZE / TYPE."""
+    code = {("F", "4"): "<f4", ("I", "1"): "i1", ("I", "2"): "<i2"}
+    return np.dtype([(n, code[t, z]) for n, z, t in zip(RADAR_FIELDS, RADAR_SIZE, RADAR_TYPE)])
+
+
+def radar_bytes(n: int = 6, edit: Callable[[np.ndarray], None] | None = None, **header: str) -> bytes:
+    """A nuScenes radar sweep of ``n`` detections (5–60 m ahead, 0–15 dBsm), written from the format's spec."""
+    rec = np.zeros(n, radar_dtype())
+    rec["x"] = np.linspace(5.0, 60.0, n)
+    rec["rcs"] = np.linspace(0.0, 15.0, n)
+    rec["ambig_state"], rec["is_quality_valid"], rec["pdh0"] = 3, 1, 1
+    if edit:
+        edit(rec)
+    return radar_header(n, **header) + rec.tobytes()
+
+
+def _radar(name: str, blob: Callable[[Path], bytes | None], *flags: str):
+    """``fogsim fog --points`` of a folder of nuScenes radar sweeps: a good one and ``name``."""
+    def build(tmp: Path) -> list[str]:
+        folder = tmp / "in" / "RADAR_FRONT"
+        folder.mkdir(parents=True)
+        (folder / "n008__RADAR_FRONT__1.pcd").write_bytes(radar_bytes())
+        data = blob(folder / name)
+        if data is not None:
+            (folder / name).write_bytes(data)
+        return ["fog", "--points", str(folder), "--point-format", "nuscenes-radar", "--levels", "0.06", "--out",
+                str(tmp / "out"), "--quiet", *flags]
+    return build
+
+
+def _radar_ran(*again: str):
+    def build(tmp: Path) -> list[str]:
+        argv = _radar("n008__RADAR_FRONT__2.pcd", lambda p: radar_bytes(4))(tmp)
+        assert main(argv) == 0
+        return argv + list(again)
+    return build
+
+
+BAD = "n008__RADAR_FRONT__2.pcd"
+RADAR = [
+    Case("radar-points-lie", _radar(BAD, lambda p: radar_header(125) + b"\0" * 10), 1, (BAD, "the header lies")),
+    SensorCase("radar-sparse-over-bound", _radar(BAD, _sparse_at(SMALL, radar_header(SMALL // RADAR_RECORD))), 1,
+               (BAD, "24,385 points exceeds the bound of 1,000"), env=LOW),
+    Case("radar-truncated", _radar(BAD, lambda p: radar_bytes(6)[:-30]), 1, (BAD, "truncated")),
+    Case("radar-type-unknown", _radar(BAD, lambda p: radar_bytes(TYPE=" ".join(["Q"] + RADAR_TYPE[1:]))), 1,
+         (BAD, "TYPE Q")),
+    Case("radar-rcs-missing", _radar(BAD, lambda p: radar_bytes(FIELDS=" ".join(RADAR_FIELDS).replace(" rcs ",
+                                                                                                     " rcz "))), 1,
+         (BAD, "lack rcs")),
+    Case("radar-rcs-as-integer", _radar(BAD, lambda p: radar_bytes(TYPE=" ".join(RADAR_TYPE[:5] + ["I"]
+                                                                                   + RADAR_TYPE[6:])), "--quiet"), 0,
+         ()),
+    Case("radar-nan-second-record", _radar(BAD, lambda p: radar_bytes(edit=lambda r: r["x"].__setitem__(1, np.nan))),
+         1, (BAD, "NaN")),
+    Case("radar-rcs-infinite", _radar(BAD, lambda p: radar_bytes(edit=lambda r: r["rcs"].__setitem__(2, np.inf))),
+         1, (BAD,)),
+    Case("radar-not-pcd", _radar(BAD, lambda p: b"\x89PNG\r\n\x1a\n" + b"\0" * 64), 1, (BAD, "unknown key")),
+    Case("radar-empty-file", _radar(BAD, lambda p: b""), 1, (BAD, "no DATA line")),
+    Case("radar-lidar-flag", _radar(BAD, lambda p: None, "--lidar-model", "attenuation"), 2,
+         ("--lidar-model is for LiDAR scans",)),
+    Case("radar-sensor-lidar-name", _radar(BAD, lambda p: None, "--sensor", "hdl64e"), 2, ("hdl64e",)),
+    Case("radar-sensor-file-not-json", lambda t: _radar(BAD, lambda p: None)(t) + ["--sensor", str(
+        _write(t / "in" / "r.json", b"{radar"))], 2, ("r.json", "not readable as JSON")),
+    Case("radar-sensor-file-sparse-huge", lambda t: _radar(BAD, lambda p: None)(t) + ["--sensor", str(
+        _write(t / "in" / "r.json", None, OVER_DOCUMENT))], 2, ("r.json", "larger than 64 MiB")),
+    Case("radar-temperature-for-lidar", _points("a.bin", lambda p: None, "kitti", "--radar-temperature", "5"), 2,
+         ("--radar-temperature", "nuscenes-radar")),
+    Case("radar-resume-other-temperature", _radar_ran("--radar-temperature", "-5"), 2,
+         ("fogsim_run.json", "other parameters")),
+    Case("radar-resume-same", _radar_ran(), 0, ()),
+]
+
+
+def _write(path: Path, data: bytes | None, size: int = 0) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if data is None:
+        sparse(path, size, b"{")
+    else:
+        path.write_bytes(data)
+    return path
+
+
+# ----------------------------------------------------------------------------- export nuscenes
+_DATASETS: dict[str, Path] = {}
+
+
+def _kitti_dataset(tmp: Path) -> Path:
+    """tmp/in/ds: a finished ``fogsim fog --kitti --lidar`` dataset (levels clear and 0.06), built once."""
+    if "kitti" not in _DATASETS:
+        import tempfile
+
+        cache = Path(tempfile.mkdtemp(prefix="fogsim-hostile-sensors-"))
+        root = kt.write_kitti(cache / "kitti")
+        assert main(["fog", "--kitti", str(root), "--lidar", "--levels", "0,0.06", "--out", str(cache / "ds"),
+                     "--quiet"]) == 0
+        _DATASETS["kitti"] = cache / "ds"
+    dest = tmp / "in" / "ds"
+    shutil.copytree(_DATASETS["kitti"], dest)
+    return dest
+
+
+def _export(edit: Callable[[Path], None] | None = None, *flags: str, out: str = "{tmp}/out"):
+    def build(tmp: Path) -> list[str]:
+        ds = _kitti_dataset(tmp)
+        if edit:
+            edit(ds)
+        return ["export", "nuscenes", str(ds), "--out", out.replace("{tmp}", str(tmp)), "--quiet", *flags]
+    return build
+
+
+def _meta(edit: Callable[[dict], None]):
+    def change(ds: Path) -> None:
+        path = sorted((ds / "meta").glob("*.json"))[0]
+        doc = json.loads(path.read_text())
+        edit(doc)
+        path.write_text(json.dumps(doc))
+    return change
+
+
+def _level_scan(make: Callable[[Path], bytes | None]):
+    def change(ds: Path) -> None:
+        meta = json.loads(sorted((ds / "meta").glob("*.json"))[0].read_text())
+        path = ds / meta["lidar"]["levels"]["beta0.06"]["file"]
+        data = make(path)
+        if data is not None:
+            path.write_bytes(data)
+    return change
+
+
+EXPORT = [
+    Case("export-good", _export(), 0, ()),
+    SensorCase("export-scan-sparse-over-bound", _export(_level_scan(lambda p: sparse(p, SMALL))), 2,
+               ("beta0.06", "65,536 points exceeds the bound of 5,000"),
+               env={"FOGSIM_MAX_SCAN_POINTS": "5000"}),  # the fixture's own scans hold ≈ 1,000 points
+    Case("export-scan-truncated", _export(_level_scan(lambda p: p.read_bytes()[:-6])), 2,
+         ("beta0.06", "not a whole number of 16-byte kitti records")),
+    Case("export-scan-missing", _export(_level_scan(lambda p: p.unlink())), 2, ("beta0.06", "not found")),
+    Case("export-meta-format-unknown", _export(_meta(lambda d: d["lidar"].update(format="las"))), 2,
+         ("meta/", "lidar: needs a point format")),
+    Case("export-meta-level-without-file", _export(_meta(lambda d: d["lidar"]["levels"]["beta0.06"].pop("file"))),
+         2, ("meta/", "lidar.levels.beta0.06: has no scan file")),
+    Case("export-meta-inclinations-nan", _export(_meta(lambda d: d["lidar"]["sensor"].update(
+        inclinations_deg=[float("nan")]))), 2, ("meta/", "inclinations_deg")),
+    Case("export-meta-not-json", _export(lambda ds: sorted((ds / "meta").glob("*.json"))[0].write_text("{")), 2,
+         ("meta/",)),
+    Case("export-out-is-dataset", _export(None, out="{tmp}/in/ds"), 2, ("is the dataset itself",)),
+    Case("export-levels-unknown", _export(None, "--levels", "beta0.5"), 2, ("no frame has LiDAR level(s) beta0.5",)),
+    Case("export-dataset-missing", lambda t: ["export", "nuscenes", str(t / "in" / "none"), "--out",
+                                              str(t / "out")], 2, ("none",)),
+]
+
+
+CASES = POINT_FORMATS + SENSORS + KITTI + IMAGES + RESUME + RADAR + EXPORT
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+def test_hostile_sensor_surface(case: Case, tmp_path, capsys, monkeypatch):
+    if case.id.startswith("radar-"):
+        pytest.importorskip("itur")
+    monkeypatch.chdir(tmp_path)
+    for key, value in getattr(case, "env", {}).items():
+        monkeypatch.setenv(key, value)
+    err = run_hostile_case(case, tmp_path, capsys)
+    if case.code:
+        lines = [ln for ln in err.splitlines() if ln.startswith(("fogsim: error", "  failed:"))]
+        assert lines and all(len(ln) < 600 for ln in lines), err
+    if case.id.startswith("done-"):  # the sidecar did not claim the scan done: the level was written again
+        assert (tmp_path / "out" / "beta0.06" / "a.bin").is_file()
+        assert (tmp_path / "out" / "beta0.06" / "a.outcomes.npz").is_file()
+    if case.id == "resume-stale-part-removed":
+        assert not list((tmp_path / "out").rglob("*.part"))
+
+
+def test_at_least_sixty_cases():
+    ids = [c.id for c in CASES] + [c[0] for c in PCD_CASES]
+    assert len(ids) >= 60 and len(set(ids)) == len(ids)
 
 
 PCD_CASES = [  # (id, file bytes (or a writer of the file), words of the one-line refusal)
@@ -621,12 +777,15 @@ def _bounded(res: subprocess.CompletedProcess, code: int, *words: str) -> None:
     assert lines and all(w in lines[0] for w in words), err[-3000:]
 
 
-@pytest.mark.parametrize("fmt, name", [("kitti", "a.bin"), ("nuscenes", "n_LIDAR_TOP__1.pcd.bin")])
+@pytest.mark.parametrize("fmt, name", [("kitti", "a.bin"), ("nuscenes", "n_LIDAR_TOP__1.pcd.bin"),
+                                       ("nuscenes-radar", "n008__RADAR_FRONT__1.pcd")])
 def test_a_16g_scan_through_points_is_refused_in_bounded_memory(tmp_path, fmt, name):
-    sparse(tmp_path / "in" / name)
+    if fmt == "nuscenes-radar":
+        pytest.importorskip("itur")
+    sparse(tmp_path / "in" / name, HUGE, radar_header(HUGE // RADAR_RECORD) if fmt == "nuscenes-radar" else b"")
     res = run_limited(["-m", "fogsim", "fog", "--points", str(tmp_path / "in"), "--point-format", fmt,
                        "--out", str(tmp_path / "out"), "--quiet"], tmp_path)
-    _bounded(res, 1, name, "17,179,869,184 bytes", "bound of 10,000,000 points per scan")
+    _bounded(res, 1, name, "exceeds the bound of 10,000,000 points per scan")
 
 
 def test_a_16g_velodyne_scan_through_kitti_is_refused_in_bounded_memory(tmp_path):
