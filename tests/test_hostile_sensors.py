@@ -481,6 +481,7 @@ RESUME = [
     Case("resume-stale-part-removed", _ran(then=_stale_part), 0, ()),
     Case("done-sidecar-without-scan", _ran(then=_done_but_gone), 0, ()),
     Case("done-sidecar-without-outcomes", _ran(then=_delete("beta0.06/a.outcomes.npz")), 0, ()),
+    Case("done-sidecar-without-pcd", _ran(then=_delete("beta0.06/a.pcd")), 0, ()),
     Case("finalize-points-run", lambda t: _ran()(t) and ["fog", "--finalize-only", "--out", str(t / "out")], 2,
          ("fogsim_run.json", "fogged scans alone")),
 ]
@@ -541,10 +542,12 @@ def _radar(name: str, blob: Callable[[Path], bytes | None], *flags: str):
     return build
 
 
-def _radar_ran(*again: str):
+def _radar_ran(*again: str, then: Callable[[Path], None] | None = None):
     def build(tmp: Path) -> list[str]:
         argv = _radar("n008__RADAR_FRONT__2.pcd", lambda p: radar_bytes(4))(tmp)
         assert main(argv) == 0
+        if then:
+            then(tmp)
         return argv + list(again)
     return build
 
@@ -581,6 +584,9 @@ RADAR = [
     Case("radar-resume-other-temperature", _radar_ran("--radar-temperature", "-5"), 2,
          ("fogsim_run.json", "other parameters")),
     Case("radar-resume-same", _radar_ran(), 0, ()),
+    Case("radar-done-sidecar-without-sweep", _radar_ran(then=_delete("beta0.06/n008__RADAR_FRONT__2.pcd")), 0, ()),
+    SensorCase("radar-bound-env-bad", _radar(BAD, lambda p: None), 2, ("FOGSIM_MAX_SCAN_POINTS",),
+               env={"FOGSIM_MAX_SCAN_POINTS": "many"}),
 ]
 
 
@@ -678,8 +684,9 @@ def test_hostile_sensor_surface(case: Case, tmp_path, capsys, monkeypatch):
         lines = [ln for ln in err.splitlines() if ln.startswith(("fogsim: error", "  failed:"))]
         assert lines and all(len(ln) < 600 for ln in lines), err
     if case.id.startswith("done-"):  # the sidecar did not claim the scan done: the level was written again
-        assert (tmp_path / "out" / "beta0.06" / "a.bin").is_file()
-        assert (tmp_path / "out" / "beta0.06" / "a.outcomes.npz").is_file()
+        assert all((tmp_path / "out" / "beta0.06" / f"a{s}").is_file() for s in (".bin", ".outcomes.npz", ".pcd"))
+    if case.id == "radar-done-sidecar-without-sweep":
+        assert (tmp_path / "out" / "beta0.06" / BAD).is_file()
     if case.id == "resume-stale-part-removed":
         assert not list((tmp_path / "out").rglob("*.part"))
 
@@ -856,7 +863,8 @@ def test_ctrl_c_in_the_middle_of_the_levels_then_resume(tmp_path):
     assert res.returncode == 0, res.stderr[-3000:]
     files = sorted(p.relative_to(whole) for p in whole.rglob("*") if p.is_file())
     assert files == sorted(p.relative_to(out) for p in out.rglob("*") if p.is_file())
-    assert len(files) == 1 + 120 * 4 * 3
+    per_level = len(list((whole / "beta0.03").glob("s000.*")))  # scan, outcomes, sidecar (and a .pcd for viewers)
+    assert per_level >= 3 and len(files) == 1 + 120 * 4 * per_level
     for rel in files:
         if rel.name != "fogsim_run.json":
             assert (out / rel).read_bytes() == (whole / rel).read_bytes(), rel

@@ -122,9 +122,9 @@ class PointsJob:
         return base.with_name(base.name + PCD_SUFFIX)
 
     def done(self, item: PointFile) -> bool:
-        """Every level's sidecar (written last) is there, and so are the scan and outcome file it names:
-        a sidecar whose files were deleted or moved does not claim the scan done."""
-        return all(p.is_file() for lv in self.levels for p in self.paths(item, lv))
+        """Every level's sidecar (written last) is there, and so are the scan, outcome and PCD files it
+        names: a sidecar whose files were deleted or moved does not claim the scan done."""
+        return all(p.is_file() for lv in self.levels for p in (*self.paths(item, lv), self.pcd_path(item, lv)))
 
     def check(self, items: list[PointFile]) -> None:
         """The scan-size bound in force (``FOGSIM_MAX_SCAN_POINTS``), before the folder is claimed; each
