@@ -558,6 +558,8 @@ RADAR = [
     SensorCase("radar-sparse-over-bound", _radar(BAD, _sparse_at(SMALL, radar_header(SMALL // RADAR_RECORD))), 1,
                (BAD, "24,385 points exceeds the bound of 1,000"), env=LOW),
     Case("radar-truncated", _radar(BAD, lambda p: radar_bytes(6)[:-30]), 1, (BAD, "truncated")),
+    Case("radar-sparse-after-its-records", _radar(BAD, _sparse_at(4 * SMALL, radar_bytes(6))), 1,
+         (BAD, "PCD binary body of", "far longer than its 6 points need (258 bytes)")),
     Case("radar-type-unknown", _radar(BAD, lambda p: radar_bytes(TYPE=" ".join(["Q"] + RADAR_TYPE[1:]))), 1,
          (BAD, "TYPE Q")),
     Case("radar-rcs-missing", _radar(BAD, lambda p: radar_bytes(FIELDS=" ".join(RADAR_FIELDS).replace(" rcs ",
@@ -729,6 +731,8 @@ PCD_CASES = [  # (id, file bytes (or a writer of the file), words of the one-lin
      "do not match"),
     ("pcd-radar-compressed-short", radar_header(2, data="binary_compressed") + b"\0\0", "8-byte size prefix"),
     ("pcd-radar-folder", lambda p: p.mkdir(), "is a folder"),
+    ("pcd-radar-16g-after-its-records", lambda p: sparse(p, HUGE, radar_header(2) + b"\0" * 2 * RADAR_RECORD),
+     "far longer than its 2 points need"),
 ]
 
 
