@@ -671,7 +671,29 @@ EXPORT = [
 ]
 
 
-CASES = POINT_FORMATS + SENSORS + KITTI + IMAGES + RESUME + RADAR + EXPORT
+# ----------------------------------------------------------------------------- Waymo v1 record lengths
+def _tfrecord_claiming(length: int, size: int):
+    """``fogsim fog --waymo`` of a sparse TFRecord whose first record's length field (its CRC right) claims
+    ``length`` bytes."""
+    def build(tmp: Path) -> list[str]:
+        from fogsim.readers.waymo.tfrecord import masked_crc32c
+
+        head = struct.pack("<Q", length)
+        sparse(tmp / "in" / "seg.tfrecord", size, head + struct.pack("<I", masked_crc32c(head)))
+        return ["fog", "--waymo", str(tmp / "in" / "seg.tfrecord"), "--levels", "0.06", "--out", str(tmp / "out"),
+                "--quiet"]
+    return build
+
+
+WAYMO = [
+    Case("waymo-record-length-huge", _tfrecord_claiming(1 << 40, SMALL), 2,
+         ("seg.tfrecord#record 0", "1,099,511,627,776 bytes exceeds the bound of 268,435,456 bytes per record")),
+    Case("waymo-record-length-past-end", _tfrecord_claiming(SMALL * 2, SMALL), 2,
+         ("seg.tfrecord#record 0", "runs past the end")),
+]
+
+
+CASES = POINT_FORMATS + SENSORS + KITTI + IMAGES + RESUME + RADAR + EXPORT + WAYMO
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
