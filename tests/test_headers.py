@@ -67,3 +67,16 @@ def test_npy_header_and_bounded_read(tmp_path):
     np.save(tmp_path / "obj.npy", np.array([{}], dtype=object), allow_pickle=True)
     with pytest.raises(InputError, match="pickled"):
         npy_header(tmp_path / "obj.npy")
+
+
+def test_the_render_exr_reader_refuses_a_file_longer_than_its_header_allows(tmp_path):
+    from fogsim.render.exr_reader import read_exr
+
+    write_depth(tmp_path / "d.exr", np.full((24, 32), 7.0, np.float32))
+    assert float(read_exr(tmp_path / "d.exr")["Y"][3, 4]) == 7.0
+    with open(tmp_path / "d.exr", "r+b") as f:  # a sparse tail: 16 GB that reading whole would allocate
+        f.truncate(16 << 30)
+    if (tmp_path / "d.exr").stat().st_blocks * 512 > 1 << 30:
+        pytest.skip("this file system cannot make sparse files")
+    with pytest.raises(InputError, match=r"d.exr: 17,179,869,184 bytes is more than its header's 32×24 × 1"):
+        read_exr(tmp_path / "d.exr")
