@@ -69,3 +69,58 @@ def write_surfaces(folder: Path, surfaces: list[Surface]) -> tuple[Path, Path, n
     stf.write_bytes(stf_bin(xyz, (255.0 * rho / REFLECTIVITY_PER_INTENSITY).astype(np.float32),
                             (np.arange(len(xyz)) % 64).astype(np.float32)))
     return kitti, stf, rho, rng_m, sid
+
+
+# ----------------------------------------------------------------------------- a KITTI-like street sweep
+#: the sweep of :func:`kitti_street_sweep`: the camera's view of an HDL-64E (±40° about +x, 0.25° steps)
+#: over a street with parked and driving cars, dark and bright, 5–70 m ahead
+SWEEP_AZIMUTH_DEG, SWEEP_STEP_DEG = 40.0, 0.25
+SWEEP_CARS = ((5.5, -3.0, 0.05), (9.0, 2.8, 0.6), (14.0, -3.2, 0.3), (21.0, 3.0, 0.05), (27.0, -2.5, 0.9),
+              (35.0, 2.6, 0.2), (46.0, -3.0, 0.05), (58.0, 3.1, 0.6), (70.0, -2.8, 0.3))
+#: glass: the house fronts' windows (3 m of every 4 m along the street, 0.8–2.6 m above the road) return
+#: no reflectance, as windows do in KITTI scans
+WINDOW_PITCH_M, WINDOW_WIDTH_M, WINDOW_BANDS_M = 4.0, 3.0, ((0.8, 2.6),)
+#: KITTI reflectance of the road and the house fronts, and the weakest non-zero reflectance reported
+SWEEP_ROAD, SWEEP_HOUSE, SWEEP_ZERO_BELOW = 0.3, 0.4, 0.05
+
+
+def kitti_street_sweep(seed: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """(xyz N×3 float32, KITTI reflectance N float32 in [0, 1], two decimals) of a ray-cast street sweep
+    like KITTI's 000008 (its camera-view part): ≈ 20 k points, ≈ 20 % of them zero-intensity. Built
+    from :func:`kitti_tree.street_scan` (ground, house fronts 9 m to each side, :data:`SWEEP_CARS`);
+    reflectance = surface ρ_K (road :data:`SWEEP_ROAD`, houses :data:`SWEEP_HOUSE`, the cars' own) ×
+    √|cos incidence| × a ±15 % texture, windows 0, KITTI's two decimals, and returns weaker than
+    :data:`SWEEP_ZERO_BELOW` reported as 0 (the grazing far road, dark cars side-on: KITTI's zeros)."""
+    import kitti_tree as kt
+
+    rng = np.random.default_rng(seed)
+    cars = [kt.Car(x, lane, kt.GROUND_Z, yaw=0.05 * k, reflectance=refl)
+            for k, (x, lane, refl) in enumerate(SWEEP_CARS)]
+    xyz, refl, ids = kt.street_scan(cars, rng, azimuth_deg=SWEEP_AZIMUTH_DEG, step_deg=SWEEP_STEP_DEG,
+                                    max_range=120.0)
+    p = xyz.astype(np.float64)
+    r = np.linalg.norm(p, axis=1)
+    rho = np.where(ids == -1, SWEEP_ROAD, np.where(ids == -2, SWEEP_HOUSE, refl))
+    cos_inc = np.where(ids == -1, np.abs(p[:, 2]) / r, np.where(ids == -2, np.abs(p[:, 1]) / r, 0.8))
+    window = (ids == -2) & ((p[:, 0] % WINDOW_PITCH_M) < WINDOW_WIDTH_M)
+    height = p[:, 2] - kt.GROUND_Z
+    window &= np.any([(height > lo) & (height < hi) for lo, hi in WINDOW_BANDS_M], axis=0)
+    value = np.round(rho * np.sqrt(cos_inc) * rng.uniform(0.85, 1.15, len(r)), 2)
+    value[window | (value < SWEEP_ZERO_BELOW)] = 0.0
+    return xyz, np.clip(value, 0.0, 1.0).astype(np.float32)
+
+
+#: what the side-by-side table calls the fixture scan
+SWEEP_LABEL = ("the CI fixture `tests/lidar_fixtures.py: kitti_street_sweep()` (a ray-cast HDL-64E street sweep, "
+               "camera view ±40°, KITTI format)")
+
+
+def kitti_street_cloud(folder: Path, seed: int = 8):
+    """:func:`kitti_street_sweep` written as a KITTI velodyne ``.bin`` in ``folder`` (by hand, the format's
+    layout) and read back by fogsim's reader: the :class:`fogsim.lidar.PointCloud`."""
+    from fogsim.lidar.formats import read_points
+
+    xyz, refl = kitti_street_sweep(seed)
+    path = Path(folder) / "street_sweep.bin"
+    path.write_bytes(kitti_bin(xyz, refl))
+    return read_points(path, "kitti")

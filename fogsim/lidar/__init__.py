@@ -4,7 +4,8 @@ Modules, bottom up: :mod:`.scales` (intensity scales), :mod:`.points` (:class:`P
 :mod:`.formats` (KITTI / nuScenes / STF ``.bin``, PLY, ``.npy``), :mod:`.sensors` (:class:`LidarSensor`,
 the bundled presets), :mod:`.soft_target` (the fog's own echo), :mod:`.fog` (:class:`LidarFogger`,
 the outcomes), :mod:`.outcome_file` (the outcomes beside a fogged scan), :mod:`.reference` (the
-per-point transcription), :mod:`.boxes` (points in 3D boxes),
+per-point transcription), :mod:`.hahner` (Hahner et al. 2021's simulation from its paper, to compare
+with), :mod:`.boxes` (points in 3D boxes),
 :mod:`.objects` (per-object counts and the cross-sensor table), :mod:`.pictures` (bird's-eye views).
 Conventions: :mod:`.points`; the model and its equations: :mod:`.fog` and ``docs/lidar-fog.md``.
 """
