@@ -348,8 +348,11 @@ def check_declared(header: ImageHeader | None, source) -> None:
     :data:`MAX_CHANNELS` channels — before anything is decoded or allocated."""
     if header is None:
         return
-    if why := pixel_limit_problem(header.width, header.height, max_pixels_now(), "read"):
-        raise InputError(source, f"its {header.kind.upper()} header declares {why}")
+    bound = max_pixels_now()
+    if pixel_limit_problem(header.width, header.height, bound):
+        raise InputError(source, f"its {header.kind.upper()} header declares {header.width}×{header.height} = "
+                                 f"{header.pixels / 1e6:.1f} MP, above the limit of {bound / 1e6:g} MP (--max-pixels "
+                                 f"{bound}): refused before decoding; raise --max-pixels to read it")
     if header.channels > MAX_CHANNELS:
         raise InputError(source, f"its {header.kind.upper()} header declares {header.channels} channels (at most "
                                  f"{MAX_CHANNELS})")
