@@ -16,11 +16,13 @@ import socket
 import tempfile
 import time
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 
 import numpy as np
 
 from fogsim.errors import InputError
+from fogsim.headers import HEADER_BYTES, ImageHeader, exr_header, image_header, read_npy
 from fogsim.integrity import DECODER_DAMAGE, encoded_image_damage, first_line, native_output
 
 os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")
@@ -355,18 +357,58 @@ def pixel_limit_problem(width: int, height: int, max_pixels: int, action: str = 
     return None
 
 
+#: the most channels a decoded image may declare (an RGBA PNG has 4; a multi-layer EXR render ≈ 10)
+MAX_CHANNELS = 32
+#: the most bytes an image file may take per pixel of the bound (16: RGBA float32 stored uncompressed)
+MAX_FILE_BYTES_PER_PIXEL = 16
+_PIXEL_BOUND: ContextVar[int] = ContextVar("fogsim_max_pixels", default=MAX_PIXELS)
+
+
+@contextmanager
+def pixel_bound(max_pixels: int):
+    """Within the block, every image and depth file is read under ``max_pixels`` (``--max-pixels``)
+    instead of :data:`MAX_PIXELS` (the readers decode before the job sees the image)."""
+    token = _PIXEL_BOUND.set(int(max_pixels))
+    try:
+        yield
+    finally:
+        _PIXEL_BOUND.reset(token)
+
+
+def max_pixels_now() -> int:
+    """The pixel bound in force (:func:`pixel_bound`, else :data:`MAX_PIXELS`)."""
+    return _PIXEL_BOUND.get()
+
+
+def check_declared(header: ImageHeader | None, source) -> None:
+    """Refuse an image whose header declares more pixels than :func:`max_pixels_now` or more than
+    :data:`MAX_CHANNELS` channels — before anything is decoded or allocated."""
+    if header is None:
+        return
+    bound = max_pixels_now()
+    if pixel_limit_problem(header.width, header.height, bound):
+        raise InputError(source, f"its {header.kind.upper()} header declares {header.width}×{header.height} = "
+                                 f"{header.pixels / 1e6:.1f} MP, above the limit of {bound / 1e6:g} MP (--max-pixels "
+                                 f"{bound}): refused before decoding; raise --max-pixels to read it")
+    if header.channels > MAX_CHANNELS:
+        raise InputError(source, f"its {header.kind.upper()} header declares {header.channels} channels (at most "
+                                 f"{MAX_CHANNELS})")
+
+
 def decode_image(data: bytes, source: str) -> np.ndarray:
     """Decode encoded image bytes (PNG, JPEG, ...) to an RGB array of the file's bit depth.
 
-    Truncated or corrupt data is an :class:`InputError` naming ``source``, never an image
-    with the decoder's grey fill: the structural check of :func:`encoded_image_damage`
-    first, then any damage the decoder reports (libjpeg only warns about corrupt data).
+    The size its header declares is checked first (:func:`check_declared`); truncated or corrupt data
+    is an :class:`InputError` naming ``source``, never an image with the decoder's grey fill: the
+    structural check of :func:`encoded_image_damage` first, then any damage the decoder reports
+    (libjpeg only warns about corrupt data).
     """
     return _to_rgb(_decode(data, source), source)
 
 
 def _decode(data: bytes, source) -> np.ndarray:
     """The stored pixels (BGR, any bit depth) of encoded image bytes, or InputError."""
+    check_declared(image_header(data[:HEADER_BYTES]), source)
     damage = encoded_image_damage(data)
     if damage:
         raise InputError(source, damage)
@@ -383,20 +425,34 @@ def _decode(data: bytes, source) -> np.ndarray:
     return arr
 
 
-def _imread(path: Path) -> np.ndarray:
-    """The stored pixels of an image file, as OpenCV decodes them (BGR, any bit depth)."""
-    if not path.is_file():
-        raise InputError(path, "file not found")
+def _read_head(path: Path, count: int) -> bytes:
     try:
-        data = path.read_bytes()
+        with open(path, "rb") as f:
+            return f.read(count)
     except OSError as exc:
         raise InputError(path, f"cannot read the file ({exc.strerror or exc})") from None
-    return _decode(data, path)
+
+
+def read_stored(path: str | os.PathLike) -> np.ndarray:
+    """The stored pixels of an image file, as OpenCV decodes them (BGR, any bit depth), read in bounded
+    memory: a header declaring too many pixels or channels, and a file larger than the pixel bound can
+    need (:data:`MAX_FILE_BYTES_PER_PIXEL` a pixel), are refused before the body is read."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "file not found")
+    size = path.stat().st_size
+    bound = max_pixels_now()
+    check_declared(image_header(_read_head(path, HEADER_BYTES)), path)
+    if size > bound * MAX_FILE_BYTES_PER_PIXEL + HEADER_BYTES:
+        raise InputError(path, f"{size:,} bytes is more than an image of at most {bound:,} pixels takes "
+                               f"({MAX_FILE_BYTES_PER_PIXEL} bytes a pixel; --max-pixels {bound}): not an image "
+                               "fogsim reads")
+    return _decode(_read_head(path, size + 1), path)
 
 
 def read_image(path: str | os.PathLike) -> np.ndarray:
     """Read an image file as RGB (uint8 or uint16, as stored; float32 for EXR)."""
-    return _to_rgb(_imread(Path(path)), str(path))
+    return _to_rgb(read_stored(path), str(path))
 
 
 def _to_rgb(arr: np.ndarray, source: str) -> np.ndarray:
@@ -448,6 +504,7 @@ def read_exr_channels(path: str | os.PathLike) -> dict[str, np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
+    check_declared(exr_header(_read_head(path, HEADER_BYTES)), path)
     error = None
     with native_output() as said:  # OpenEXR prints its own lines on damaged files: keep them off the terminal
         try:
@@ -561,13 +618,7 @@ def read_depth_file(path: str | os.PathLike, png_scale: float | None = None) -> 
                                    f"found {', '.join(channels) or 'none'})")
         depth = channels[name]
     elif suffix == ".npy":
-        try:
-            depth = np.load(path, allow_pickle=False)
-        except Exception as exc:
-            raise InputError(path, f"not a readable .npy array ({exc})") from None
-        if not isinstance(depth, np.ndarray) or depth.dtype.kind not in "fiu":
-            kind = depth.dtype if isinstance(depth, np.ndarray) else type(depth).__name__
-            raise InputError(path, f"depth must hold real numbers (a float or integer array), got {kind}")
+        depth = read_npy(path, lambda dtype, shape: _check_depth_npy(path, dtype, shape))
         if depth.ndim == 3 and depth.shape[2] == 1:
             depth = depth[:, :, 0]
     elif suffix in (".png", ".tif", ".tiff"):
@@ -583,10 +634,19 @@ def read_depth_file(path: str | os.PathLike, png_scale: float | None = None) -> 
     return depth.astype(np.float32, copy=False)
 
 
+def _check_depth_npy(path: Path, dtype: np.dtype, shape: tuple[int, ...]) -> None:
+    """A depth ``.npy``'s header: real numbers, H×W (or H×W×1), within the pixel bound."""
+    if dtype.kind not in "fiu" or dtype.names:
+        raise InputError(path, f"depth must hold real numbers (a float or integer array), got {dtype}")
+    if len(shape) not in (2, 3) or (len(shape) == 3 and shape[2] != 1):
+        raise InputError(path, f"depth must be a single-channel map, got shape {shape}")
+    check_declared(ImageHeader("npy", shape[1], shape[0], 1), path)
+
+
 def read_uint16_map(path: str | os.PathLike) -> np.ndarray:
     """Read a single-channel 16-bit PNG/TIFF exactly (never through OpenCV's 8-bit default)."""
     path = Path(path)
-    raw = _imread(path)
+    raw = read_stored(path)
     if raw.ndim == 3:
         raise InputError(path, f"expected a single-channel 16-bit map, got {raw.shape[2]} channels")
     if raw.dtype != np.uint16:

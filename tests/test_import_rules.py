@@ -65,6 +65,7 @@ LAYERS = (
     ("document schemas", {"fogsim.schema"}),
     ("run bookkeeping", {"fogsim.runs"}),
     ("files, dependencies, camera, pictures", {"fogsim.fileio", "fogsim.deps", "fogsim.camera", "fogsim.viz"}),
+    ("what a file declares before it is read", {"fogsim.headers"}),
     ("basics", {"fogsim.errors", "fogsim._version", "fogsim.colour", "fogsim.boxes", "fogsim.rle",
                 "fogsim.integrity"}),
     ("terminal output", {"fogsim.console"}),  # below integrity: its output capture is the one there is

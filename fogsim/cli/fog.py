@@ -9,7 +9,7 @@ from pathlib import Path
 from fogsim.cli import fog_lidar
 from fogsim.dataset.writer import check_train_fraction
 from fogsim.errors import EXIT_FAILED, EXIT_OK, InputError
-from fogsim.fileio import MAX_PIXELS
+from fogsim.fileio import MAX_PIXELS, pixel_bound
 from fogsim.fog.labelled import SPLIT_BY
 from fogsim.fog.model import airlight_rgb, check_heterogeneity
 from fogsim.readers.base import DEPTH_ENCODINGS
@@ -151,7 +151,8 @@ def _samples(args):
         if args.hfov is not None and K is None:
             if not 0 < args.hfov < 180:
                 raise ValueError(f"--hfov must be in (0, 180) degrees, got {args.hfov}")
-            h, w = samples[0].read_image().shape[:2]
+            with pixel_bound(getattr(args, "max_pixels", MAX_PIXELS)):
+                h, w = samples[0].read_image().shape[:2]
             K = Intrinsics.from_hfov(args.hfov, w, h)
             samples = [replace(smp, intrinsics=K) for smp in samples]
         return samples

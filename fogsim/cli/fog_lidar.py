@@ -133,10 +133,10 @@ def sensor_choice(given: str | None):
 
     path = Path(given)
     if path.suffix == ".json" or path.is_file():
-        from fogsim.fileio import read_json
+        from fogsim.fileio import MAX_DOCUMENT_BYTES, read_json
 
         load_sensor(path)  # the file's problems, one line naming it
-        return read_json(path)
+        return read_json(path, MAX_DOCUMENT_BYTES)
     LidarSensor.preset(given)  # an unknown name: a ValueError listing the bundled ones
     return given
 
@@ -328,9 +328,9 @@ def radar_sensor_choice(given: str | None):
 
     path = Path(given)
     if path.suffix == ".json" or path.is_file():
-        from fogsim.fileio import read_json
+        from fogsim.fileio import MAX_DOCUMENT_BYTES, read_json
 
         load_radar_sensor(path)
-        return read_json(path)
+        return read_json(path, MAX_DOCUMENT_BYTES)
     RadarSensor.preset(given)  # an unknown name: a ValueError listing the bundled ones
     return given

@@ -52,6 +52,7 @@ from fogsim.fileio import (
     TO_8BIT,
     atomic_write_bytes,
     encode_image,
+    pixel_bound,
     pixel_limit_problem,
     read_json,
     remove_stale_parts,
@@ -64,6 +65,7 @@ from fogsim.fog.labelled import SPLIT_BY, check_labelled, checked_records, key_f
 from fogsim.fog.levels import FogLevel
 from fogsim.fog.lidar_levels import FrameLidar, LidarOutput, scan_source
 from fogsim.fog.visibility import attach_visibility
+from fogsim.lidar.bounds import max_scan_points
 from fogsim.lidar.objects import MIN_POINTS
 from fogsim.readers.base import Sample
 from fogsim.runs import claim_output, sample_seed
@@ -126,10 +128,14 @@ class FogJob:
 
     def check(self, samples: list[Sample]) -> None:
         """The run-wide checks (:func:`check_run_wide`), before the output folder is claimed."""
-        check_run_wide(samples, self)
+        if self.lidar is not None:
+            max_scan_points()  # FOGSIM_MAX_SCAN_POINTS, when set, must be a bound
+        with pixel_bound(self.max_pixels):
+            check_run_wide(samples, self)
 
     def fog_one(self, sample: Sample) -> None:
-        fog_sample(self, sample)
+        with pixel_bound(self.max_pixels):  # images and depth are refused by their headers, before decoding
+            fog_sample(self, sample)
 
 
 def fog_sample(job: FogJob, sample: Sample) -> None:

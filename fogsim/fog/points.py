@@ -35,6 +35,7 @@ from fogsim.fileio import write_json
 from fogsim.fog.depth_input import SetupError
 from fogsim.fog.engine import FogSettings
 from fogsim.fog.levels import FogLevel
+from fogsim.lidar.bounds import max_scan_points
 from fogsim.lidar.formats import FORMAT_SUFFIX, read_points, write_points
 from fogsim.lidar.outcome_file import OUTCOME_SUFFIX, write_outcomes
 from fogsim.lidar.rays import empty_rays
@@ -128,10 +129,14 @@ class PointsJob:
         return base.with_name(base.name + PCD_SUFFIX)
 
     def done(self, item: PointFile) -> bool:
-        return all(self.paths(item, lv)[2].is_file() for lv in self.levels)
+        """Every level's sidecar (written last) is there, and so are the scan, outcome and PCD files it
+        names: a sidecar whose files were deleted or moved does not claim the scan done."""
+        return all(p.is_file() for lv in self.levels for p in (*self.paths(item, lv), self.pcd_path(item, lv)))
 
     def check(self, items: list[PointFile]) -> None:
-        """Nothing run-wide to check beyond :func:`point_files` (each file is read in its turn)."""
+        """The scan-size bound in force (``FOGSIM_MAX_SCAN_POINTS``), before the folder is claimed; each
+        file is read (and bounded) in its turn."""
+        max_scan_points()
 
     def fog_one(self, item: PointFile) -> None:
         """Every level of one scan: scan, outcomes, then the sidecar."""

@@ -24,6 +24,7 @@ from fogsim.fileio import atomic_write_bytes, write_json
 from fogsim.fog.engine import FogSettings
 from fogsim.fog.levels import FogLevel
 from fogsim.fog.points import PointFile
+from fogsim.lidar.bounds import max_scan_points
 from fogsim.radar.fog import KEPT
 from fogsim.radar.formats import RADAR_SUFFIX, read_radar, write_radar
 from fogsim.radar.outcome_file import OUTCOME_SUFFIX, write_radar_outcomes
@@ -63,10 +64,13 @@ class RadarPointsJob:
                 base.with_name(base.name + ".json"))
 
     def done(self, item: PointFile) -> bool:
-        return all(self.paths(item, lv)[2].is_file() for lv in self.levels)
+        """Every level's sidecar (written last) is there, and so are the sweep and outcome file it names."""
+        return all(p.is_file() for lv in self.levels for p in self.paths(item, lv))
 
     def check(self, items: list[PointFile]) -> None:
-        """Nothing run-wide to check beyond :func:`~fogsim.fog.points.point_files` (each file is read in its turn)."""
+        """The scan-size bound in force (``FOGSIM_MAX_SCAN_POINTS``), before the folder is claimed; each sweep is
+        read (and bounded) in its turn."""
+        max_scan_points()
 
     def fog_one(self, item: PointFile) -> None:
         """Every level of one sweep: sweep, outcomes, then the sidecar."""

@@ -24,6 +24,11 @@ format         record (little-endian)                       scale    where
   ``intensity`` reads as intensity 0. The library is ``plyfile`` (see docs/dependencies.md).
 * ``.npy``: float32 layouts round-trip bit for bit; float64 is read and converted to float32; a
   structured array is written back as plain float32 N×k. Pickled (object) files are refused.
+* Reading is bounded (:mod:`fogsim.lidar.bounds`): the points a file declares — a ``.bin``'s size over its
+  record, a ``.npy``'s header shape, a PLY's ``element vertex`` count — are checked against the file's size
+  (a header that claims more than the file holds is refused naming the header) and against
+  :func:`~fogsim.lidar.bounds.max_scan_points` *before* the body is read, so a sparse 16 GB file or a lying
+  header costs a ``stat`` and a few kilobytes.
 """
 from __future__ import annotations
 
@@ -35,6 +40,8 @@ import numpy as np
 
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes
+from fogsim.headers import read_npy
+from fogsim.lidar.bounds import check_point_count, file_size
 from fogsim.lidar.points import PointCloud
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.schema.lidar import SCALES
@@ -48,6 +55,12 @@ COLUMNS = {"kitti": 4, "nuscenes": 5, "stf": 5}
 #: the file-name ending of each format (what a folder of scans is searched for, what fogged levels are named)
 FORMAT_SUFFIX = {"kitti": ".bin", "nuscenes": ".pcd.bin", "stf": ".bin", "ply": ".ply", "npy": ".npy"}
 PLY_SCALE_COMMENT = "fogsim intensity_scale"
+#: the most bytes a PLY header (up to ``end_header``) or a ``.npy`` header may take before it is refused
+MAX_HEADER_BYTES = 64 * 1024
+#: bytes per element of the PLY scalar types (``char``/``int8`` … ``double``/``float64``)
+PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+             "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+             "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
 
 
 def detect_format(path: str | os.PathLike) -> str:
@@ -72,13 +85,19 @@ def _check_format(fmt: str) -> str:
     return fmt
 
 
-def _read_bytes(path: Path) -> bytes:
+def _read_exactly(path: Path, offset: int, count: int) -> bytes:
+    """``count`` bytes of ``path`` from ``offset`` (already checked against the bound and the file's size)."""
     try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise InputError(path, "file not found") from None
+        with open(path, "rb") as f:
+            f.seek(offset)
+            data = f.read(count)
     except IsADirectoryError:
         raise InputError(path, "is a folder, not a point-cloud file") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot be read ({exc.strerror or exc})") from None
+    if len(data) != count:
+        raise InputError(path, f"ended after {len(data):,} of {count:,} bytes while it was read (changed meanwhile?)")
+    return data
 
 
 # ----------------------------------------------------------------------------- reading
@@ -101,13 +120,14 @@ def read_points(path: str | os.PathLike, fmt: str | None = None, scale: str | No
 
 
 def _read_bin(path: Path, fmt: str) -> PointCloud:
-    data = _read_bytes(path)
+    size = file_size(path)
     k = COLUMNS[fmt]
     record = 4 * k
-    if len(data) % record:
-        raise InputError(path, f"size {len(data)} bytes is not a whole number of {record}-byte {fmt} records "
+    check_point_count(path, size // record, size, f"{fmt} scan")
+    if size % record:
+        raise InputError(path, f"size {size} bytes is not a whole number of {record}-byte {fmt} records "
                                f"({k} float32 per point): truncated, or another format")
-    a = np.frombuffer(data, "<f4").reshape(-1, k)
+    a = np.frombuffer(_read_exactly(path, 0, size), "<f4").reshape(-1, k)
     ring = a[:, 4] if k == 5 else None
     if ring is not None and not np.isfinite(ring).all():
         raise InputError(path, "ring column holds NaN or infinite values")
@@ -115,17 +135,19 @@ def _read_bin(path: Path, fmt: str) -> PointCloud:
 
 
 def _read_npy(path: Path, scale: str) -> PointCloud:
-    data = _read_bytes(path)
-    try:
-        a = np.load(io.BytesIO(data), allow_pickle=False)
-    except ValueError as exc:
-        if "pickle" in str(exc).lower():
-            raise InputError(path, "holds pickled (object) data, which fogsim never loads") from None
-        raise InputError(path, f"not a readable .npy ({exc})") from None
-    except (OSError, EOFError) as exc:
-        raise InputError(path, f"not a readable .npy ({exc})") from None
-    if not isinstance(a, np.ndarray):
-        raise InputError(path, "is an .npz archive, not one .npy array")
+    size = file_size(path)
+
+    def check(dtype: np.dtype, shape: tuple[int, ...]) -> None:
+        if dtype.names:
+            if len(shape) != 1:
+                raise InputError(path, f"a structured point array must be 1-D (one record per point), got shape "
+                                       f"{list(shape)}")
+        elif len(shape) != 2 or shape[1] not in (3, 4, 5) or dtype.kind not in "fiu":
+            raise InputError(path, f"expected a numeric N×3, N×4 or N×5 array (x y z [intensity [ring]]) or a "
+                                   f"structured array, got {dtype} {list(shape)}")
+        check_point_count(path, shape[0], size, ".npy header declares a scan")
+
+    a = read_npy(path, check)
     if a.dtype.names:
         names = set(a.dtype.names)
         if not {"x", "y", "z"} <= names:
@@ -135,9 +157,6 @@ def _read_npy(path: Path, scale: str) -> PointCloud:
         ring = a["ring"] if "ring" in names else None
         ret = a["return_index"] if "return_index" in names else None
     else:
-        if a.ndim != 2 or a.shape[1] not in (3, 4, 5) or a.dtype.kind not in "fiu":
-            raise InputError(path, f"expected a numeric N×3, N×4 or N×5 array (x y z [intensity [ring]]) or a "
-                                   f"structured array, got {a.dtype} {list(a.shape)}")
         xyz = a[:, :3]
         inten = a[:, 3] if a.shape[1] > 3 else np.zeros(len(a), np.float32)
         ring = a[:, 4] if a.shape[1] > 4 else None
@@ -147,12 +166,77 @@ def _read_npy(path: Path, scale: str) -> PointCloud:
     return PointCloud.from_raw(xyz, inten, scale, str(path), ring=ring, return_index=ret)
 
 
+def ply_header(path: Path) -> tuple[str, list[tuple[str, int, list[tuple[str, ...]]]], int]:
+    """(format, [(element, count, [property words…])…], body offset) of the PLY file ``path``, from at most
+    :data:`MAX_HEADER_BYTES` (an :class:`InputError` naming the header when it is not one)."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read(MAX_HEADER_BYTES)
+    except IsADirectoryError:
+        raise InputError(path, "is a folder, not a point-cloud file") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot be read ({exc.strerror or exc})") from None
+    if not raw.startswith(b"ply"):
+        raise InputError(path, "not a readable PLY file (it does not start with 'ply')")
+    end = raw.find(b"end_header")
+    stop = raw.find(b"\n", end) if end >= 0 else -1
+    if stop < 0:
+        raise InputError(path, f"not a readable PLY file (no end_header line in its first {len(raw):,} bytes)")
+    fmt, elements = None, []
+    for line in raw[:end].decode("ascii", "replace").splitlines()[1:]:
+        words = line.split()
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        try:
+            if words[0] == "format":
+                fmt = words[1]
+            elif words[0] == "element":
+                count = int(words[2])
+                if count < 0:
+                    raise ValueError(f"negative count {count}")
+                elements.append((words[1], count, []))
+            elif words[0] == "property" and elements:
+                elements[-1][2].append(tuple(words[1:]))
+            else:
+                raise ValueError(f"unexpected line {line.strip()[:60]!r}")
+        except (IndexError, ValueError) as exc:
+            raise InputError(path, f"PLY header is malformed ({exc})") from None
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        raise InputError(path, f"PLY header names no known format (got {fmt!r})")
+    return fmt, elements, stop + 1
+
+
+def _check_ply_header(path: Path) -> None:
+    """Refuse a PLY whose header claims more vertices than its body can hold, or more than the bound."""
+    size = file_size(path)
+    fmt, elements, offset = ply_header(path)
+    vertex = next((count for name, count, _ in elements if name == "vertex"), None)
+    if vertex is None:
+        raise InputError(path, "PLY file has no vertex element")
+    need = 0  # the fewest bytes the declared elements take
+    for _, count, props in elements:
+        row = 0
+        for words in props:
+            if words[0] == "list":  # a list of at least zero items: its count's bytes
+                row += np.dtype(PLY_TYPES.get(words[1], "u1")).itemsize if fmt != "ascii" else 2
+            else:
+                row += np.dtype(PLY_TYPES.get(words[0], "u1")).itemsize if fmt != "ascii" else 2
+        need += count * row
+    body = size - offset
+    if need > body:
+        raise InputError(path, f"PLY header claims {vertex:,} points (element vertex; at least {need:,} bytes of "
+                               f"{fmt} data) but the file holds only {body:,} bytes after its header: truncated, "
+                               "or the header lies")
+    check_point_count(path, vertex, size, "PLY header declares a scan")
+
+
 def _read_ply(path: Path, scale: str | None) -> PointCloud:
     from plyfile import PlyData, PlyParseError
 
-    data = _read_bytes(path)
+    _check_ply_header(path)
     try:
-        ply = PlyData.read(io.BytesIO(data))
+        with open(path, "rb") as f:
+            ply = PlyData.read(f, mmap=False)
     except (PlyParseError, ValueError, EOFError, IndexError, KeyError, UnicodeDecodeError) as exc:
         raise InputError(path, f"not a readable PLY file ({exc})") from None
     if "vertex" not in [e.name for e in ply.elements]:

@@ -14,7 +14,8 @@ radar's nuScenes ``RADAR_*`` files go through it. Written from PCL's published f
 
 Reading is bounded: the header (≤ :data:`MAX_HEADER_BYTES`) is parsed first, its POINTS checked against
 :func:`fogsim.lidar.bounds.check_point_count` and against what the file's size can hold — a header that
-claims more points than the body holds is refused naming the header — and only then is the body read.
+claims more points than the body holds is refused naming the header, and so is a body far longer than its
+points need (a file copied whole stays bounded) — and only then is the body read.
 """
 from __future__ import annotations
 
@@ -144,6 +145,9 @@ def read_pcd(path: str | os.PathLike) -> tuple[PcdHeader, np.ndarray]:
             if need > body:
                 raise InputError(path, f"PCD header declares {head.points:,} points ({need:,} bytes) but the file "
                                        f"holds {body:,} bytes after its header: truncated, or the header lies")
+            if body > need + MAX_HEADER_BYTES:  # what a caller copying the file whole would read
+                raise InputError(path, f"PCD binary body of {body:,} bytes is far longer than its {head.points:,} "
+                                       f"points need ({need:,} bytes): the header lies or the file is not PCD")
             array = np.frombuffer(f.read(need), head.dtype).copy()
         elif head.data == "ascii":
             elements = sum(int(np.prod(head.dtype[n].shape or (1,))) for n in head.fields)

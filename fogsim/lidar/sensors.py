@@ -28,7 +28,6 @@ in its ``sources`` block), ``reference`` puts the constants of Hahner et al. 202
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import asdict, dataclass, field, replace
@@ -36,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsim.errors import InputError
+from fogsim.fileio import MAX_DOCUMENT_BYTES, read_json
 from fogsim.presets import presets_dir
 from fogsim.schema.base import check, load_json
 from fogsim.schema.lidar import REFERENCE_CALIBRATION, LidarCalibration, LidarSensorSpec
@@ -249,12 +248,6 @@ def load_sensor(sensor: "LidarSensor | str | os.PathLike | dict") -> LidarSensor
     if isinstance(sensor, dict):
         return LidarSensor.from_dict(sensor)
     path = Path(sensor)
-    if path.suffix == ".json" or path.is_file():
-        try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise InputError(path, "file not found") from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise InputError(path, f"not a readable JSON file ({exc})") from None
-        return LidarSensor.from_dict(doc, path)
+    if path.suffix == ".json" or path.is_file():  # bounded (64 MiB) and nesting-checked, as every document
+        return LidarSensor.from_dict(read_json(path, MAX_DOCUMENT_BYTES), path)
     return LidarSensor.preset(str(sensor))

@@ -48,6 +48,7 @@ import numpy as np
 
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes
+from fogsim.headers import read_npy
 from fogsim.lidar.bounds import check_point_count, file_size
 from fogsim.lidar.pcd import encode_pcd, read_pcd
 from fogsim.radar.detections import RadarScan
@@ -130,26 +131,14 @@ def _read_nuscenes(path: Path) -> RadarScan:
 
 def _read_npy(path: Path) -> RadarScan:
     size = file_size(path)
-    with open(path, "rb") as f:
-        try:
-            version = np.lib.format.read_magic(f)
-            read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else \
-                np.lib.format.read_array_header_2_0
-            shape, _, dtype = read_header(f)
-        except (ValueError, OSError, EOFError, SyntaxError) as exc:
-            raise InputError(path, f"not a readable .npy ({exc})") from None
-        if dtype.hasobject:
-            raise InputError(path, "holds pickled (object) data, which fogsim never loads")
+
+    def check(dtype: np.dtype, shape: tuple[int, ...]) -> None:  # the header alone, before the body is read
         if not dtype.names or len(shape) != 1:
             raise InputError(path, f"a radar .npy is a 1-D structured array (fields x y z rcs …), got {dtype} "
                                    f"{list(shape)}")
         check_point_count(path, int(shape[0]), size, ".npy header declares a sweep")
-        need = int(shape[0]) * dtype.itemsize
-        body = f.read(need + 1)
-        if len(body) < need:
-            raise InputError(path, f".npy header declares {shape[0]:,} detections ({need:,} bytes), the file holds "
-                                   f"{len(body):,}: truncated")
-        a = np.frombuffer(body[:need], dtype).copy()
+
+    a = read_npy(path, check).copy()  # fogsim.headers: bounded, never unpickled
     names = set(a.dtype.names)
     if not {"x", "y", "z", "rcs"} <= names:
         raise InputError(path, f"a radar .npy needs fields x, y, z, rcs (has {', '.join(a.dtype.names)})")

@@ -20,7 +20,6 @@ whatever the unknown constants are.
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import asdict, dataclass
@@ -28,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsim.errors import InputError
+from fogsim.fileio import MAX_DOCUMENT_BYTES, read_json
 from fogsim.lidar.sensors import LIGHT_SPEED
 from fogsim.presets import presets_dir
 from fogsim.schema.base import check, load_json
@@ -206,12 +205,6 @@ def load_radar_sensor(sensor: "RadarSensor | str | os.PathLike | dict") -> Radar
     if isinstance(sensor, dict):
         return RadarSensor.from_dict(sensor)
     path = Path(sensor)
-    if path.suffix == ".json" or path.is_file():
-        try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise InputError(path, "file not found") from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise InputError(path, f"not a readable JSON file ({exc})") from None
-        return RadarSensor.from_dict(doc, path)
+    if path.suffix == ".json" or path.is_file():  # bounded (64 MiB) and nesting-checked, as every document
+        return RadarSensor.from_dict(read_json(path, MAX_DOCUMENT_BYTES), path)
     return RadarSensor.preset(str(sensor))

@@ -32,7 +32,6 @@ No erosion against SGM edge fattening is applied.
 """
 from __future__ import annotations
 
-import struct
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -43,6 +42,7 @@ from fogsim.boxes import boxes_from_mask, median_distance
 from fogsim.camera import disparity_to_depth, planar_to_ray
 from fogsim.errors import InputError
 from fogsim.fileio import read_uint16_map
+from fogsim.headers import image_header
 from fogsim.readers.base import Labels
 from fogsim.readers.cityscapes_files import read_cityscapes_disparity
 from fogsim.rle import rle_encode
@@ -66,15 +66,14 @@ def instance_ids_path(root: str | Path, split: str, city: str, base: str) -> Pat
 
 
 def png_size(path: str | Path) -> tuple[int, int] | None:
-    """(width, height) from a PNG's header (24 bytes read), None when it is no PNG."""
+    """(width, height) from a PNG's header (:func:`fogsim.headers.image_header`; 26 bytes read), None when it
+    is no PNG."""
     try:
         with open(path, "rb") as f:
-            head = f.read(24)
+            header = image_header(f.read(26))
     except OSError:
         return None
-    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
-        return None
-    return struct.unpack(">II", head[16:24])
+    return (header.width, header.height) if header is not None and header.kind == "png" else None
 
 
 def instance_records(ids: np.ndarray, ray: np.ndarray | None, min_valid_pixels: int = MIN_VALID_PIXELS,

@@ -28,11 +28,9 @@ def paper_distance_from_8bit(raw: np.ndarray) -> np.ndarray:
 
 def read_paper_8bit(path: str | Path) -> np.ndarray:
     """An 8-bit depth map (grey, or the first channel of a colour PNG) → distance in metres."""
-    import cv2
+    from fogsim.fileio import read_stored
 
-    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if raw is None:
-        raise InputError(path, "not a readable image (corrupt or unsupported format)")
+    raw = read_stored(path)  # BGR as stored: channel 0 is the file's first
     if raw.ndim == 3:
         raw = raw[:, :, 0]
     if raw.dtype != np.uint8:

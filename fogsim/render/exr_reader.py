@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.errors import InputError
+from fogsim.headers import HEADER_BYTES, exr_header
 
 MAGIC = 20000630
 _PIXEL = {0: np.dtype("<u4"), 1: np.dtype("<f2"), 2: np.dtype("<f4")}  # UINT, HALF, FLOAT
@@ -87,10 +88,27 @@ def _read_part(buf: bytes, attrs: dict, offsets: list[int], multipart: bool) -> 
     return planes
 
 
+def _check_size(path: Path) -> None:
+    """Refuse a file larger than its header's data windows and channels can take stored uncompressed
+    (4 bytes a value, with each scanline's offset and chunk header), before it is read whole."""
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        declared = exr_header(f.read(HEADER_BYTES))
+    if declared is None:
+        return  # not an EXR, or a header not within the prefix: the parser below names the problem
+    channels = max(declared.channels, 1)
+    most = declared.pixels * channels * 4 + declared.height * 24 * channels + HEADER_BYTES
+    if size > most:
+        raise InputError(path, f"{size:,} bytes is more than its header's {declared.width}×{declared.height} × "
+                               f"{channels} channels can take ({most:,} bytes): not an EXR fogsim reads")
+
+
 def read_exr(path: str | Path) -> dict[str, np.ndarray]:
-    """Every channel of a scanline EXR (all parts), name → H×W array (float16/float32/uint32)."""
+    """Every channel of a scanline EXR (all parts), name → H×W array (float16/float32/uint32). The file is
+    read whole only when its size fits what its header declares (:func:`_check_size`)."""
     path = Path(path)
     try:
+        _check_size(path)
         buf = path.read_bytes()
     except OSError as exc:
         raise InputError(path, f"cannot read ({exc.strerror})") from None

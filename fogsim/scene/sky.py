@@ -58,6 +58,10 @@ def sky_of(light: dict) -> str:
     return light["sky"] if "sky" in light else "procedural"
 
 
+#: the largest HDRI read (24576 × 12288, the largest equirectangular maps published, ≈ 3.6 GB as float RGB)
+MAX_HDRI_PIXELS = 24576 * 12288
+
+
 def hdri_problem(path: str | Path) -> str | None:
     """Why the user's HDRI file ``path`` would light a frame with garbage, or None: it does not
     decode as an image, or it holds NaN or ±inf (Cycles renders a black frame from it). One decode
@@ -65,14 +69,15 @@ def hdri_problem(path: str | Path) -> str | None:
     import cv2
 
     from fogsim.errors import InputError
-    from fogsim.fileio import read_exr_channels, read_image
+    from fogsim.fileio import pixel_bound, read_exr_channels, read_image
 
     path = Path(path)
     try:
-        if path.suffix.lower() == ".exr" and not cv2.haveImageWriter(".exr"):  # an OpenCV without EXR
-            pixels = np.stack(list(read_exr_channels(path).values()))
-        else:
-            pixels = read_image(path)
+        with pixel_bound(MAX_HDRI_PIXELS):  # refused by its header above this, before it is decoded
+            if path.suffix.lower() == ".exr" and not cv2.haveImageWriter(".exr"):  # an OpenCV without EXR
+                pixels = np.stack(list(read_exr_channels(path).values()))
+            else:
+                pixels = read_image(path)
     except InputError as exc:
         return f"not a readable HDRI ({exc.problem})"
     if pixels.dtype.kind == "f" and not np.isfinite(pixels).all():

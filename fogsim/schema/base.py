@@ -327,10 +327,38 @@ def shape_of(a: Any) -> tuple:
     return tuple(getattr(a, "shape", ()))
 
 
+#: the most bytes one member of an ``.npz`` fogsim reads may unpack to (a 10 M-point outcome file ≈ 90 MB)
+MAX_NPZ_MEMBER_BYTES = 1 << 29
+
+
+def _check_npz_members(path: Path) -> None:
+    """Refuse an ``.npz`` member that unpacks to more than :data:`MAX_NPZ_MEMBER_BYTES`, or whose ``.npy``
+    header declares more bytes than the member holds — before anything is inflated or allocated."""
+    from numpy.lib import format as npf
+
+    with zipfile.ZipFile(path) as zf:
+        for info in zf.infolist():
+            if info.file_size > MAX_NPZ_MEMBER_BYTES:
+                raise InputError(path, f"member {info.filename} unpacks to {info.file_size:,} bytes, above the bound "
+                                       f"of {MAX_NPZ_MEMBER_BYTES:,}")
+            with zf.open(info) as member:
+                try:
+                    version = npf.read_magic(member)
+                    read = npf.read_array_header_1_0 if version == (1, 0) else npf.read_array_header_2_0
+                    shape, _, dtype = read(member)
+                except (ValueError, EOFError, SyntaxError, TypeError):
+                    continue  # np.load names the problem
+                need = math.prod(shape) * dtype.itemsize
+                if need > info.file_size:
+                    raise InputError(path, f"member {info.filename}: its header declares {dtype} {list(shape)} "
+                                           f"({need:,} bytes) but it holds only {info.file_size:,} bytes")
+
+
 def load_npz(path: str | os.PathLike, model: type[M]) -> M:
     """Open an ``.npz`` without unpickling and check its arrays against ``model`` (each field an
     array or a 0-d scalar, see the model). A truncated, non-zip or pickled file, or one whose
-    member does not decode, is one line naming the file."""
+    member does not decode, is one line naming the file; a member's size is bounded before it is
+    read (:func:`_check_npz_members`)."""
     import numpy as np
 
     path = Path(path)
@@ -339,6 +367,7 @@ def load_npz(path: str | os.PathLike, model: type[M]) -> M:
             magic = f.read(4)
         if magic != b"PK\x03\x04":  # np.load would take any other file for a pickle (or a .npy)
             raise InputError(path, "not a readable .npz (not a zip file: truncated, or another kind of file)")
+        _check_npz_members(path)
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
     except FileNotFoundError:

@@ -147,6 +147,9 @@ def label_records(text: str, source, width: int, height: int, calib: KittiCalib 
                 records.append({**base, "class": name, "class_id": cid, "bbox": bbox, "pixels": pixels,
                                 "kept": False, "reason": why, "distance_m": None, "distance_source": "unknown"})
             continue
+        if variant == "kitti" and min(line.dimensions) <= 0:  # only DontCare rows carry KITTI's −1 sizes
+            raise InputError(source, f"line {n}: a {line.type}'s dimensions h w l must be positive metres, got "
+                                     f"{' '.join(f'{v:g}' for v in line.dimensions)}")
         h = line.dimensions[0]
         c = np.asarray(line.location) - [0.0, h / 2.0, 0.0]
         ray = c - centre

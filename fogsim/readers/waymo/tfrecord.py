@@ -12,6 +12,9 @@ extra) or ``crc32c`` module when one is installed, else :func:`crc32c_numpy`, a 
 fallback on numpy that computes thousands of interleaved lanes at once and joins them with
 CRC shift operators (≈ 100–200 MB/s on records of megabytes, against ≈ 5–10 MB/s for a byte
 loop; a compiled module does several GB/s). The writer always writes correct CRCs.
+
+A record's length is checked against the file's size and against :data:`MAX_RECORD_BYTES` when the file
+is indexed and again before a record is read, so a lying or damaged length never becomes an allocation.
 """
 from __future__ import annotations
 
@@ -26,6 +29,8 @@ from fogsim.errors import InputError
 _HEADER = struct.Struct("<QI")  # length, masked CRC of the 8 length bytes
 _FOOTER = struct.Struct("<I")  # masked CRC of the data
 _MASK_DELTA = 0xA282EAD8
+#: the largest record read (a Waymo v1 frame — five JPEG images and the compressed range images — is ≈ 1–30 MB)
+MAX_RECORD_BYTES = 1 << 28
 
 
 _POLY = 0x82F63B78  # the Castagnoli polynomial, bit-reflected
@@ -192,6 +197,9 @@ def index_tfrecord(path: str | os.PathLike) -> list[tuple[int, int]]:
                 raise InputError(source, "corrupt TFRecord (length CRC mismatch; not a TFRecord "
                                          "file, or damaged)")
             offset = start + _HEADER.size
+            if length > MAX_RECORD_BYTES:
+                raise InputError(source, f"TFRecord record of {length:,} bytes exceeds the bound of "
+                                         f"{MAX_RECORD_BYTES:,} bytes per record (a Waymo frame is ≈ 1–30 MB)")
             if offset + length + _FOOTER.size > size:
                 raise InputError(source, f"truncated TFRecord file (record of {length} bytes "
                                          f"runs past the end)")
@@ -208,6 +216,9 @@ def read_record(path: str | os.PathLike, offset: int, length: int,
     is verified unless ``verify`` is false.
     """
     source = source or f"{path}@byte {offset}"
+    if not 0 <= length <= MAX_RECORD_BYTES:
+        raise InputError(source, f"TFRecord record of {length:,} bytes exceeds the bound of {MAX_RECORD_BYTES:,} "
+                                 "bytes per record")
     try:
         with open(path, "rb") as f:
             f.seek(offset)
