@@ -665,7 +665,8 @@ EXPORT = [
     Case("export-meta-not-json", _export(lambda ds: sorted((ds / "meta").glob("*.json"))[0].write_text("{")), 2,
          ("meta/",)),
     Case("export-out-is-dataset", _export(None, out="{tmp}/in/ds"), 2, ("is the dataset itself",)),
-    Case("export-levels-unknown", _export(None, "--levels", "beta0.5"), 2, ("no frame has LiDAR or radar level(s) beta0.5",)),
+    Case("export-levels-unknown", _export(None, "--levels", "beta0.5"), 2,
+         ("no frame has LiDAR or radar level(s) beta0.5",)),
     Case("export-dataset-missing", lambda t: ["export", "nuscenes", str(t / "in" / "none"), "--out",
                                               str(t / "out")], 2, ("none",)),
 ]
