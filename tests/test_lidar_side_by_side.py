@@ -4,6 +4,7 @@ hold whatever fogsim's model is, and docs/lidar-fog.md holding the table exactly
 from __future__ import annotations
 
 import importlib.util
+import re
 from pathlib import Path
 
 import numpy as np
@@ -77,8 +78,13 @@ def test_docs_hold_the_table_as_generated(result):
     text = DOCS.read_text(encoding="utf-8")
     assert text.count(sbs.BEGIN) == 1 and text.count(sbs.END) == 1
     current = text[text.index(sbs.BEGIN) + len(sbs.BEGIN):text.index(sbs.END)]
-    assert current == "\n" + sbs.markdown(result), (
-        f"docs/lidar-fog.md's side-by-side table is stale: run `{sbs.REGENERATE}`")
+    # the words exactly, the numbers to their last printed digit (a point on a decision boundary may round
+    # the other way under another numpy's exp/log: one point of 20 324 is 0.005 %)
+    number = re.compile(r"(\d+\.\d+)")
+    got, want = number.split(current), number.split("\n" + sbs.markdown(result))
+    stale = f"docs/lidar-fog.md's side-by-side table is stale: run `{sbs.REGENERATE}`"
+    assert got[0::2] == want[0::2] and len(got) == len(want), stale
+    assert all(abs(float(a) - float(b)) <= 0.11 for a, b in zip(got[1::2], want[1::2])), stale
     assert "## Beside the reference simulator" in text
 
 
