@@ -1,5 +1,6 @@
 import hashlib
 import json
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -8,6 +9,12 @@ import pytest
 from fogsim.camera import Intrinsics, depth_to_disparity, encode_disparity_png
 from fogsim.fileio import write_depth, write_image
 from fogsim.readers.waymo import tfrecord
+
+# A run started in the background of a non-interactive shell (`bash .ci/run &`, nohup) inherits SIGINT
+# *ignored*, and so would every process the tests start: the Ctrl-C tests (tests/test_interrupts.py, the
+# hostile suites) need it delivered. A Python handler here is reset to the default in each child at exec.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def expected_yolo_lines(mask: np.ndarray, objects: list[dict], visible_fraction: dict, min_pixels: int,
