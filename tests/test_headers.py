@@ -13,11 +13,10 @@ from fogsim.fileio import encode_image, write_depth, write_rgb_exr
 from fogsim.headers import exr_header, image_header, npy_header, read_npy
 
 
-@pytest.mark.parametrize("suffix", [".png", ".jpg", ".bmp", ".tif", ".webp"])
-@pytest.mark.parametrize("shape", [(24, 32, 3), (7, 5), (31, 17, 4)])
+@pytest.mark.parametrize("suffix, shape", [(suffix, shape) for suffix in (".png", ".jpg", ".bmp", ".tif", ".webp")
+                                            for shape in ((24, 32, 3), (7, 5), (31, 17, 4))
+                                            if not (suffix == ".jpg" and shape == (31, 17, 4))])  # JPEG: no alpha
 def test_image_headers_declare_what_the_decoder_makes(suffix, shape):
-    if suffix == ".jpg" and len(shape) == 3 and shape[2] == 4:
-        pytest.skip("JPEG holds no alpha")
     data = encode_image(np.random.default_rng(0).integers(0, 256, shape, dtype=np.uint8), suffix)
     head = image_header(data[:4096])
     decoded = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
