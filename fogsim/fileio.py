@@ -258,12 +258,25 @@ def parse_json(text: str | bytes, source: str | os.PathLike):
         raise InputError(source, f"not readable as JSON ({exc})") from None
 
 
+def _read_at_most(f, limit: int, chunk: int = 1 << 20) -> bytes:
+    """At most ``limit`` bytes of the open binary file ``f``, read a chunk at a time: ``f.read(limit)`` would
+    allocate ``limit`` bytes up front (a 1 GiB buffer for every small JSON file under a 1 GiB bound)."""
+    parts, total = [], 0
+    while total < limit:
+        part = f.read(min(chunk, limit - total))
+        if not part:
+            break
+        parts.append(part)
+        total += len(part)
+    return b"".join(parts)
+
+
 def read_text_bounded(path: str | os.PathLike, max_bytes: int, what: str = "file") -> bytes:
     """The bytes of ``path``, refused (InputError naming it) when it is larger than ``max_bytes``
     — checked on the open file, so a huge or endless file (a FIFO, /dev/zero) is never read whole."""
     try:
         with open(path, "rb") as f:
-            data = f.read(max_bytes + 1)
+            data = _read_at_most(f, max_bytes + 1)
     except FileNotFoundError:
         raise InputError(path, "file not found") from None
     except IsADirectoryError:
