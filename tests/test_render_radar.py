@@ -27,15 +27,10 @@ pytest.importorskip("embreex", reason="the radar's ray caster needs embreex (the
 
 
 def box_mesh(centre, size, yaw=0.0):
-    import trimesh
+    """(vertices, faces) of a box (the LiDAR tests' :func:`test_render_lidar.box_mesh` without its pose)."""
+    from test_render_lidar import box_mesh as posed_box
 
-    m = trimesh.creation.box(extents=size)
-    c, s = math.cos(yaw), math.sin(yaw)
-    T = np.eye(4)
-    T[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
-    T[:3, 3] = centre
-    m.apply_transform(T)
-    return np.asarray(m.vertices), np.asarray(m.faces)
+    return posed_box(centre, size, yaw)[:2]
 
 
 def ars408(**kw) -> RadarSensor:
