@@ -141,10 +141,11 @@ def test_fit_recovers_known_parameters(data):
 
 
 def test_fit_recovers_the_visibility(data):
-    """Visibility unknown: β and the echo scale fitted together (max_range_m known), β within 10 %."""
+    """Visibility unknown: β and the echo scale fitted together (max_range_m known, 100 evaluations): β within
+    10 %, the echo scale within 25 %."""
     _, clear, real = data
     p = FitProblem(clear, real, sensor_dict(), {"calibration": {"max_range_m": 200.0}}, None, ("fog_echo_scale",))
-    r = fit(p, 60)
+    r = fit(p, 100)
     assert r.beta_fitted and r.beta == pytest.approx(BETA, rel=0.10)
     assert r.values["fog_echo_scale"] == pytest.approx(0.2, rel=0.25)
 
@@ -303,3 +304,12 @@ def test_bad_inputs_one_line(data, tmp_path, capsys):
     with pytest.raises(SystemExit):  # lidar-compare needs the visibility
         run("lidar-compare", "--clear", root / "in" / "clear", "--foggy", root / "in" / "foggy", "--point-format",
             "kitti", "--out", tmp_path / "o")
+
+
+def test_out_inside_an_input_is_refused(data, tmp_path, capsys):
+    root, _, _ = data
+    code = run("lidar-compare", "--clear", root / "in" / "clear", "--foggy", root / "in" / "foggy", "--point-format",
+               "kitti", "--sensor", root / "in" / "sensor.json", "--visibility", 100, "--out",
+               root / "in" / "foggy" / "report")
+    err = capsys.readouterr().err
+    assert code == 2 and "--out lies inside --foggy" in err and not (root / "in" / "foggy" / "report").exists()

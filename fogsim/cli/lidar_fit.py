@@ -90,6 +90,7 @@ def _problem(args, parameters):
     from fogsim.fog.points import DEFAULT_SENSOR
     from fogsim.lidar.fit import FitProblem, beta_of_visibility
     from fogsim.lidar.scan_stats import parse_weights
+    from fogsim.runs import check_output
 
     vis = args.visibility
     if vis is not None and not (math.isfinite(vis) and vis > 0):
@@ -103,9 +104,10 @@ def _problem(args, parameters):
         raise ValueError(f"--point-format {fmt} has no usual sensor: give --sensor NAME|FILE")
     spec = fog_spec(args)
     weights = parse_weights(args.weights)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out} is a file, not a folder")
+    given = [("--clear", p) for p in args.clear] + [("--foggy", p) for p in args.foggy]
+    given += [(flag, p) for flag, p in (("--sensor", args.sensor), ("--lidar-calibration", args.lidar_calibration))
+              if p and Path(p).exists()]
+    check_output(args.out, given)
     clear, clear_files = _scans(args.clear, fmt, args.point_scale)
     foggy, foggy_files = _scans(args.foggy, foggy_fmt, args.point_scale)
     same = sorted(set(map(lambda p: str(Path(p).resolve()), clear_files)) &

@@ -120,8 +120,8 @@ def histogram_figure(sets: dict[str, ScanStatistics], clear: ScanStatistics) -> 
     far = _panel("far field: returns per scan / the clear scans' (survival)", _bin_labels(FAR_EDGES_M),
                  {k: s.survival(clear) for k, s in sets.items()}, ylabel="survival", steps=False)
     bins = 32
-    inten = _panel("intensity (normalised 0-1): share of returns per bin",
-                   [f"{i / bins:.2f}" for i in range(bins)], {k: _intensity_histogram(s, bins) for k, s in sets.items()})
+    inten = _panel("intensity (normalised 0-1): share of returns per bin", [f"{i / bins:.2f}" for i in range(bins)],
+                   {k: _intensity_histogram(s, bins) for k, s in sets.items()})
     gap = np.full((rng.shape[0], 6, 3), 255, np.uint8)
     return np.vstack([np.hstack([rng, gap, near]), np.full((6, 2 * rng.shape[1] + 6, 3), 255, np.uint8),
                       np.hstack([far, gap, inten])])
@@ -204,9 +204,11 @@ def markdown(record: dict) -> str:
             f"{d[k]['terms'].get(t, float('nan')):.4f}" for k in scored) + " |")
     out.append("| **total** | | " + " | ".join(f"**{d[k]['total']:.4f}**" for k in scored) + " |")
     if record.get("parameters"):
-        out += ["", "## Parameters", "", "| parameter | meaning | start | fitted | search range |", "|---|---|---|---|---|"]
+        out += ["", "## Parameters", "", "| parameter | meaning | start | fitted | search range |",
+                "|---|---|---|---|---|"]
         for k, p in record["parameters"].items():
-            out.append(f"| `{k}` | {p['meaning']} | {p['start']:.4g} | {p['fitted']:.4g} | {p['low']:.3g} – {p['high']:.3g} |")
+            out.append(f"| `{k}` | {p['meaning']} | {p['start']:.4g} | {p['fitted']:.4g} | "
+                       f"{p['low']:.3g} – {p['high']:.3g} |")
         out += ["", f"{record['evaluations']} evaluations (fogs of the clear set), {record['elapsed_s']:.1f} s."]
     out += ["", "## Statistics", "", "| statistic | " + " | ".join(cols) + " |", "|---|" + "---|" * len(cols)]
     out.append("| returns per scan | " + " | ".join(f"{stats[c]['returns_per_scan']:.0f}" for c in cols) + " |")

@@ -61,8 +61,9 @@ REFERENCE_CALIBRATION = {
 }
 #: the sensor keys a calibration may set
 CALIBRATION_KEYS = ("min_range_m", "max_range_m", "reference_reflectivity", "pulse_half_power_ns", "overlap_full_m",
-                    "fog_echo_scale", "fluctuation_sigma", "range_noise_m", "range_noise_at_threshold_m", "reflectivity_per_intensity",
-                    "intensity_range_exponent", "intensity_reference_range_m", "retro_reflectivity_max")
+                    "fog_echo_scale", "fluctuation_sigma", "range_noise_m", "range_noise_at_threshold_m",
+                    "reflectivity_per_intensity", "intensity_range_exponent", "intensity_reference_range_m",
+                    "retro_reflectivity_max")
 
 _INCLINATIONS = 'a list of beam inclinations in degrees or "calibration" (read from the data)'
 Inclinations = Annotated[Annotated[word("calibration", _INCLINATIONS), Tag("<calibration>")]
