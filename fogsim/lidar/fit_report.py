@@ -71,9 +71,10 @@ def _panel(title: str, labels: list[str], series: dict[str, np.ndarray], size=(5
             cv2.putText(img, lab, (x - 4 * len(lab) // 2 - 4, h - bottom + 14 + 12 * ((i // every) % 2)), FONT, 0.3,
                         INK, 1, cv2.LINE_AA)
     cv2.putText(img, title, (left, 17), FONT, 0.45, INK, 1, cv2.LINE_AA)
-    cv2.putText(img, ylabel, (4, top - 6), FONT, 0.33, INK, 1, cv2.LINE_AA)
+    cv2.putText(img, ylabel, (left + 4, top + 12), FONT, 0.33, INK, 1, cv2.LINE_AA)
     for k, (name, values) in enumerate(series.items()):
         colour = SERIES_COLOURS.get(name, (120, 0, 160))
+        width = 4 if name == "real" else 2  # the real fog's line drawn wide, under the others: seen where they match
         v = np.asarray(values, np.float64)
         pts = []
         for i, value in enumerate(v):
@@ -90,22 +91,23 @@ def _panel(title: str, labels: list[str], series: dict[str, np.ndarray], size=(5
                 continue
             x0, x1, y = p
             if steps:
-                cv2.line(img, (x0, y), (x1, y), colour, 2, cv2.LINE_AA)
+                cv2.line(img, (x0, y), (x1, y), colour, width, cv2.LINE_AA)
                 if prev is not None:
-                    cv2.line(img, (x0, prev[2]), (x0, y), colour, 2, cv2.LINE_AA)
+                    cv2.line(img, (x0, prev[2]), (x0, y), colour, width, cv2.LINE_AA)
             else:
                 xc = (x0 + x1) // 2
-                cv2.circle(img, (xc, y), 3, colour, -1, cv2.LINE_AA)
+                cv2.circle(img, (xc, y), width + 1, colour, -1, cv2.LINE_AA)
                 if prev is not None:
-                    cv2.line(img, ((prev[0] + prev[1]) // 2, prev[2]), (xc, y), colour, 1, cv2.LINE_AA)
+                    cv2.line(img, ((prev[0] + prev[1]) // 2, prev[2]), (xc, y), colour, width - 1, cv2.LINE_AA)
             prev = p
         cv2.putText(img, name, (w - right - 70, top + 14 + 13 * k), FONT, 0.4, colour, 1, cv2.LINE_AA)
     return img
 
 
-def _intensity_histogram(stats: ScanStatistics, bins: int = 32) -> np.ndarray:
-    counts = stats.intensity_counts.reshape(bins, INTENSITY_BINS // bins).sum(1)
-    return counts / max(1, int(counts.sum()))
+def _intensity_histogram(stats: ScanStatistics, top: float, bins: int = 32) -> np.ndarray:
+    """The share of all returns per bin of [0, ``top``) (``top`` 2^-k: whole fine bins per bin)."""
+    fine = stats.intensity_counts[: round(INTENSITY_BINS * top)]
+    return fine.reshape(bins, -1).sum(1) / max(1, stats.returns)
 
 
 def histogram_figure(sets: dict[str, ScanStatistics], clear: ScanStatistics) -> np.ndarray:
@@ -119,9 +121,11 @@ def histogram_figure(sets: dict[str, ScanStatistics], clear: ScanStatistics) -> 
                   {k: s.near_distribution * s.near_share for k, s in sets.items()}, ylabel="share of all")
     far = _panel("far field: returns per scan / the clear scans' (survival)", _bin_labels(FAR_EDGES_M),
                  {k: s.survival(clear) for k, s in sets.items()}, ylabel="survival", steps=False)
-    bins = 32
-    inten = _panel("intensity (normalised 0-1): share of returns per bin", [f"{i / bins:.2f}" for i in range(bins)],
-                   {k: _intensity_histogram(s, bins) for k, s in sets.items()})
+    bins, p95 = 32, max(float(s.quantiles((0.95,))[0]) for s in sets.values())
+    top = next(t for t in (1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0) if t >= p95 or t == 1.0)  # where 95 % of them lie
+    inten = _panel(f"intensity (normalised, 0-{top:g}): share of returns per bin",
+                   [f"{top * i / bins:.3g}" for i in range(bins)],
+                   {k: _intensity_histogram(s, top, bins) for k, s in sets.items()})
     gap = np.full((rng.shape[0], 6, 3), 255, np.uint8)
     return np.vstack([np.hstack([rng, gap, near]), np.full((6, 2 * rng.shape[1] + 6, 3), 255, np.uint8),
                       np.hstack([far, gap, inten])])

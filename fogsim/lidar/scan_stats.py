@@ -113,11 +113,15 @@ class ScanStatistics:
 
     def intensity_quantiles(self) -> np.ndarray:
         """:data:`INTENSITY_QUANTILES` of the normalised intensity (linear within a histogram bin)."""
+        return self.quantiles(INTENSITY_QUANTILES)
+
+    def quantiles(self, q) -> np.ndarray:
+        """Quantiles ``q`` (in [0, 1]) of the normalised intensity, linear within a histogram bin (NaN: none)."""
         total = int(self.intensity_counts.sum())
         if not total:
-            return np.full(len(INTENSITY_QUANTILES), np.nan)
+            return np.full(len(q), np.nan)
         cdf = np.cumsum(self.intensity_counts) / total  # at each bin's right edge
-        q = np.asarray(INTENSITY_QUANTILES)
+        q = np.asarray(q, np.float64)
         k = np.minimum(np.searchsorted(cdf, q), INTENSITY_BINS - 1)  # the bin each quantile falls in
         below = np.where(k > 0, cdf[k - 1], 0.0)
         share = (q - below) / np.maximum(cdf[k] - below, 1e-300)
