@@ -167,7 +167,7 @@ def cmd_fit(args) -> int:
     name = args.name or f"fit-{problem.sensor.name}-{problem.spec.model}"
     when = time.strftime("%Y-%m-%d")
     source = (f"fitted by fogsim lidar-fit ({when}) to {len(problem.real)} foggy scans against {len(problem.clear)} "
-              f"clear ones ({args.out}/{REPORT_MD})")
+              f"clear ones (the {REPORT_MD} written with this file)")
     calibration = fitted_calibration(problem, result, name, {k: source for k in problem.parameters})
     out = Path(args.out)
     record = report_record(problem, result, command="lidar-fit", start_beta=result.start_beta,

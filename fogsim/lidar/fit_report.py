@@ -163,17 +163,18 @@ def distance_figure(scored: dict[str, dict], trace: list[float] | None = None, s
         label = name.replace("_", " ")
         cv2.putText(img, label, (int(x + 2), h - bottom + 14 + 12 * (i % 2)), FONT, 0.3, INK, 1, cv2.LINE_AA)
     for j, sname in enumerate(series):
-        cv2.putText(img, f"{sname}: {series[sname][-1]:.4f}", (bars_w - 150, top + 14 + 14 * j), FONT, 0.4,
+        cv2.putText(img, f"{sname}: {series[sname][-1]:.4f}", (int(left + slot + 6), top + 14 + 14 * j), FONT, 0.4,
                     SERIES_COLOURS[sname], 1, cv2.LINE_AA)
     if trace:
         x0, x1, y0, y1 = bars_w + 40, w - 10, top, h - bottom
         cv2.rectangle(img, (x0, y0), (x1, y1), INK, 1)
-        cv2.putText(img, "best distance per evaluation", (x0, 17), FONT, 0.4, INK, 1, cv2.LINE_AA)
+        cv2.putText(img, "best distance per evaluation (log)", (x0, 17), FONT, 0.4, INK, 1, cv2.LINE_AA)
         t = np.asarray(trace, np.float64)
         hi, lo = float(t.max()), float(t.min())
-        span = hi - lo or 1.0
+        lt = np.log(np.maximum(t, 1e-12))
+        span = float(lt.max() - lt.min()) or 1.0
         xs = x0 + (np.arange(len(t)) / max(1, len(t) - 1)) * (x1 - x0)
-        ys = y1 - (t - lo) / span * (y1 - y0 - 4) - 2
+        ys = y1 - (lt - lt.min()) / span * (y1 - y0 - 4) - 2
         cv2.polylines(img, [np.stack([xs, ys], 1).astype(np.int32)], False, SERIES_COLOURS["fitted"], 2, cv2.LINE_AA)
         cv2.putText(img, f"{hi:.3g}", (x0 - 36, y0 + 10), FONT, 0.33, INK, 1, cv2.LINE_AA)
         cv2.putText(img, f"{lo:.3g}", (x0 - 36, y1), FONT, 0.33, INK, 1, cv2.LINE_AA)
