@@ -182,10 +182,14 @@ def test_parameter_table():
 
 @pytest.mark.parametrize("model", LIDAR_FOG_MODELS)
 def test_every_model_can_be_scored(data, model):
+    """Each model the schema knows, by name: scored (a model the fit table knows must fog any sensor; another
+    may refuse this custom sensor, with its reason)."""
     _, clear, real = data
     p = FitProblem(clear[:1], real[:1], sensor_dict(), {"model": model}, BETA, ())
     total, terms, sim = p.evaluate(p.start, BETA)
-    assert sim is not None, p.last_error
+    if sim is None:
+        assert model not in MODEL_PARAMETERS and p.last_error, p.last_error
+        return
     assert sim.scans == 1 and 0 <= total < 1 and set(terms) == {"range", "near_share", "near_range", "far_survival",
                                                                 "intensity"}
 

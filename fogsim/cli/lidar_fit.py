@@ -49,26 +49,25 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--weights", metavar="TERM=W,…", help="the distance's weights (terms: range, near_share, "
                    "near_range, far_survival, intensity; default 1 each)")
     p.add_argument("--seed", type=int, default=0, help="the seed of the simulated fog's random draws (the same "
-                   "draws at every evaluation)")
+                   "draws at every evaluation; default 0)")
     p.add_argument("--out", required=True, metavar="DIR", help="the folder the report (and calibration) go to")
     p.add_argument("--quiet", action="store_true", help="print only errors and the summary line")
 
 
 def add_parsers(sub) -> None:
     f = sub.add_parser("lidar-fit", help="fit a LiDAR fog model's calibration to real foggy scans (clear scans + "
-                       "foggy scans of one sensor) and write the calibration, a report and its figures",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                       "foggy scans of one sensor) and write the calibration, a report and its figures")
     _common(f)
     f.add_argument("--visibility", type=float, metavar="METRES",
                    help="the real fog's meteorological visibility, when known (default: fitted, 10-2000 m)")
     f.add_argument("--parameters", metavar="KEY,…", help="the calibration keys to fit (default: the model's: "
                    "soft-target fog_echo_scale, pulse_half_power_ns, overlap_full_m, fluctuation_sigma, max_range_m)")
-    f.add_argument("--evaluations", type=int, default=200, help="the most fogs of the clear set the fit may run")
+    f.add_argument("--evaluations", type=int, default=200, metavar="N",
+                   help="the most fogs of the clear set the fit may run (default 200)")
     f.add_argument("--name", help="the calibration's name (default fit-<sensor>-<model>)")
     f.set_defaults(run=cmd_fit)
     c = sub.add_parser("lidar-compare", help="score a LiDAR fog model and calibration against real foggy scans "
-                       "(the statistics and distance of lidar-fit, without fitting)",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                       "(the statistics and distance of lidar-fit, without fitting)")
     _common(c)
     c.add_argument("--visibility", type=float, required=True, metavar="METRES",
                    help="the real fog's meteorological visibility")

@@ -91,8 +91,9 @@ PARAMETER_SPACE: dict[str, ParameterRange] = {
     "min_range_m": ParameterRange(0.0, 5.0, False, meaning="the nearest reported return (m)"),
     "range_noise_at_threshold_m": ParameterRange(0.01, 2.0, True, meaning="range noise at the threshold (m)"),
 }
-#: per model (LidarFogSpec ``model``), the calibration keys a fit varies by default (the lead extends this
-#: table as models are added; a key must be in PARAMETER_SPACE)
+#: per model (LidarFogSpec ``model``), the calibration keys a fit varies by default (extended as models are added;
+#: a key must be in PARAMETER_SPACE and a calibration key — fogsim.schema.lidar.CALIBRATION_KEYS, a LidarSensor
+#: field that LidarSensor.calibrated replaces)
 MODEL_PARAMETERS: dict[str, tuple[str, ...]] = {
     "soft-target": ("fog_echo_scale", "pulse_half_power_ns", "overlap_full_m", "fluctuation_sigma", "max_range_m"),
     "attenuation": ("fluctuation_sigma", "max_range_m"),
@@ -146,7 +147,7 @@ class FitProblem:
                 raise ValueError(f"model {self.spec.model!r} has no fit parameters declared (fogsim.lidar.fit."
                                  f"MODEL_PARAMETERS: {', '.join(MODEL_PARAMETERS)}); name them with --parameters")
             self.parameters = MODEL_PARAMETERS[self.spec.model]
-        unknown = [p for p in self.parameters if p not in PARAMETER_SPACE]
+        unknown = [p for p in self.parameters if p not in PARAMETER_SPACE or p not in CALIBRATION_KEYS]
         if unknown:
             raise ValueError(f"cannot fit {', '.join(unknown)}: the fitted parameters are "
                              f"{', '.join(PARAMETER_SPACE)}")
@@ -156,7 +157,6 @@ class FitProblem:
         self.empty = [empty_rays(scan, self.sensor) for scan in self.clear]
         self.real_stats = statistics(self.real)
         self.clear_stats = statistics(self.clear)
-        self.evaluations = 0
         self.last_error: str | None = None
 
     # ------------------------------------------------------------------ one evaluation
@@ -173,7 +173,6 @@ class FitProblem:
         for i, (scan, empty) in enumerate(zip(self.clear, self.empty)):
             fogged = LidarFogger(scan, self.sensor, spec, empty)(beta, np.random.default_rng([self.seed, i]))
             stats.add(fogged.cloud)
-        self.evaluations += 1
         return stats
 
     def evaluate(self, values: dict[str, float], beta: float) -> tuple[float, dict[str, float], ScanStatistics | None]:
