@@ -7,7 +7,8 @@ import sys
 import pytest
 
 SUBCOMMANDS = (["render"], ["fog"], ["demo"], ["levels"], ["ila"], ["ila", "train"], ["ila", "fill"],
-               ["ila", "predict"], ["study"], ["bench"], ["bench", "fog"], ["bench", "render"], ["bench", "ila"])
+               ["ila", "predict"], ["study"], ["bench"], ["bench", "fog"], ["bench", "render"], ["bench", "ila"],
+               ["lidar-fit"], ["lidar-compare"])
 
 
 def run_without_extras(*argv: str, cwd=None) -> subprocess.CompletedProcess:

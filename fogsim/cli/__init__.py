@@ -1,5 +1,5 @@
-"""``fogsim`` — the one front door: ``render | fog | ila | depth | study | bench | fit-fog | levels | demo | schema |
-export``.
+"""``fogsim`` — the one front door: ``render | fog | ila | depth | study | bench | fit-fog | lidar-fit |
+lidar-compare | levels | demo | schema | export``.
 
 Every subcommand's ``--help`` works without Blender, torch or Ultralytics: they are imported
 only when a command needs them. Errors end a command with one line (never a traceback) and
@@ -16,7 +16,7 @@ from fogsim.errors import run_command
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from fogsim.cli import bench, demo, depth, export, fit_fog, fog, ila, render, schema, study
+    from fogsim.cli import bench, demo, depth, export, fit_fog, fog, ila, lidar_fit, render, schema, study
 
     parser = argparse.ArgumentParser(prog="fogsim", description="Labeled images in fog: render street scenes, "
                                      "fog rendered and real datasets, train and evaluate detectors per fog level.")
@@ -30,6 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
     study.add_parsers(sub)
     bench.add_parsers(sub)
     fit_fog.add_parsers(sub)
+    lidar_fit.add_parsers(sub)
     schema.add_parsers(sub)
     export.add_parsers(sub)
     return parser

@@ -55,7 +55,7 @@ def reference_echo(sensor: LidarSensor, beta: float, spec: LidarFogSpec) -> tupl
     while i1 < len(j) - 1 and j[i1] >= half:
         i1 += 1
     right = (i1 - 1) * step + (half - j[i1 - 1]) / (j[i1] - j[i1 - 1]) * step if j[i1] < half else i1 * step
-    signal = math.pi * bb * value * sensor.max_range_m ** 2 / sensor.reference_reflectivity
+    signal = sensor.fog_echo_scale * math.pi * bb * value * sensor.max_range_m ** 2 / sensor.reference_reflectivity
     return signal, pos, right - left
 
 

@@ -90,6 +90,7 @@ class LidarSensor:
     retro_reflective_from: float | None
     retro_reflectivity_max: float
     fluctuation_sigma: float
+    fog_echo_scale: float = 1.0
     calibration: str = "datasheet"
     sources: dict = field(default_factory=dict, hash=False, compare=False)
 
@@ -122,7 +123,7 @@ class LidarSensor:
                    mount_xyz_m=tuple(spec.mount.xyz_m), mount_rpy_deg=tuple(spec.mount.rpy_deg),
                    description=spec.description or "", retro_reflective_from=spec.retro_reflective_from,
                    retro_reflectivity_max=spec.retro_reflectivity_max, fluctuation_sigma=spec.fluctuation_sigma,
-                   sources=dict(spec.sources or {}))
+                   fog_echo_scale=spec.fog_echo_scale, sources=dict(spec.sources or {}))
 
     @classmethod
     def preset(cls, name: str) -> "LidarSensor":

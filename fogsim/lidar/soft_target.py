@@ -10,7 +10,11 @@ received when the pulse's front has reached R_t = c·t/2 is
 and, over the detection threshold (the clear-air return of the reference target ρ_ref at R_max, whose
 peak is P₀·(ρ_ref/π)/R_max²), the fog's signal is
 
-    q_fog(R_t) = π · β_b · J(R_t) · R_max² / ρ_ref.
+    q_fog(R_t) = s_f · π · β_b · J(R_t) · R_max² / ρ_ref,
+
+s_f the sensor's ``fog_echo_scale`` (1 = the LiDAR equation with the backscatter rule as it is; a calibration
+fitted to real foggy scans, :mod:`fogsim.lidar.fit`, sets it: the backscatter rule's uncertainty and a receiver
+that answers a wide soft-target echo less than a pulse-shaped hard one both scale the echo alone).
 
 Its **peak** (value q_f, range r_f, full width at half maximum w_f) is the fog echo a sensor may report:
 it lies a few metres from the sensor (ξ rises as R², so ξ/R² is flat up to R_o and the pulse's window
@@ -122,7 +126,8 @@ def _peak(rt: np.ndarray, j: np.ndarray) -> tuple[float, float, float]:
 def _echo(sensor: LidarSensor, beta_ext: float, backscatter: float) -> FogEcho:
     rt, j = fog_waveform(sensor, beta_ext)
     integral, pos, width = _peak(rt, j)
-    signal = math.pi * backscatter * integral * sensor.max_range_m ** 2 / sensor.reference_reflectivity
+    signal = (sensor.fog_echo_scale * math.pi * backscatter * integral * sensor.max_range_m ** 2
+              / sensor.reference_reflectivity)
     return FogEcho(float(beta_ext), float(backscatter), integral, signal, pos, width)
 
 
@@ -152,5 +157,5 @@ def echo_per_point(sensor: LidarSensor, beta: np.ndarray, spec: LidarFogSpec = L
     log_j = np.interp(ext, nodes, np.log([e.integral for e in table]))
     r = np.interp(ext, nodes, [e.range_m for e in table])
     w = np.interp(ext, nodes, [e.width_m for e in table])
-    q = math.pi * bb * np.exp(log_j) * sensor.max_range_m ** 2 / sensor.reference_reflectivity
+    q = sensor.fog_echo_scale * math.pi * bb * np.exp(log_j) * sensor.max_range_m ** 2 / sensor.reference_reflectivity
     return q, r, w

@@ -61,8 +61,9 @@ REFERENCE_CALIBRATION = {
 }
 #: the sensor keys a calibration may set
 CALIBRATION_KEYS = ("min_range_m", "max_range_m", "reference_reflectivity", "pulse_half_power_ns", "overlap_full_m",
-                    "fluctuation_sigma", "range_noise_m", "range_noise_at_threshold_m", "reflectivity_per_intensity",
-                    "intensity_range_exponent", "intensity_reference_range_m", "retro_reflectivity_max")
+                    "fog_echo_scale", "fluctuation_sigma", "range_noise_m", "range_noise_at_threshold_m",
+                    "reflectivity_per_intensity", "intensity_range_exponent", "intensity_reference_range_m",
+                    "retro_reflectivity_max")
 
 _INCLINATIONS = 'a list of beam inclinations in degrees or "calibration" (read from the data)'
 Inclinations = Annotated[Annotated[word("calibration", _INCLINATIONS), Tag("<calibration>")]
@@ -101,6 +102,9 @@ class LidarSensorSpec(Closed):
     reference_reflectivity: number_in(0, 100, lo_open=True) = 0.8
     pulse_half_power_ns: number_in(0.1, 1000) = 10.0  # τ_H: the sin² pulse's full width at half power
     overlap_full_m: number_in(0, 100) = 5.0  # ξ(R) = min(1, (R / this)²); 0 = full overlap everywhere
+    # a factor on the fog echo's signal (fogsim.lidar.soft_target): 1 = the LiDAR equation with the backscatter
+    # rule as it is; a calibration fitted to real fog (fogsim lidar-fit) sets it
+    fog_echo_scale: number_in(0, 1e6) = 1.0
     range_noise_m: number_in(0, 10) = 0.02  # 1σ at high signal
     range_noise_at_threshold_m: number_in(0, 100) = 0.10  # 1σ added at the detection threshold (see fog model)
     return_mode: Literal[RETURN_MODES] = "strongest"
@@ -146,6 +150,7 @@ class LidarCalibration(Closed):
     reference_reflectivity: number_in(0, 100, lo_open=True) | None = None
     pulse_half_power_ns: number_in(0.1, 1000) | None = None
     overlap_full_m: number_in(0, 100) | None = None
+    fog_echo_scale: number_in(0, 1e6) | None = None
     fluctuation_sigma: number_in(0, 3) | None = None
     range_noise_m: number_in(0, 10) | None = None
     range_noise_at_threshold_m: number_in(0, 100) | None = None
