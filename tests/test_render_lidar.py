@@ -19,7 +19,7 @@ from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.sensors import LidarSensor
 from fogsim.render.boxes3d import box_record, object_box
 from fogsim.render.lidar_rig import camera_offset_pose, ego_to_world, mounted_pose
-from fogsim.render.lidar_scan import GLASS_REFLECTIVITY, Geometry, RayCaster, sweep, sweep_directions
+from fogsim.render.lidar_scan import Geometry, RayCaster, sweep, sweep_directions
 from fogsim.scene.pose import camera_to_world, world_to_camera
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -111,13 +111,23 @@ def test_object_boxes_are_tight_and_kitti_in_the_camera():
     assert rec["lidar"]["yaw"] == pytest.approx(math.radians(110))
 
 
-def test_glass_returns_little_and_materials_by_luminance():
-    from fogsim.render.lidar_scan import material_reflectivity, slot_reflectivity
+def test_slots_take_their_905nm_reflectivity_not_their_colour():
+    """Glass returns little, foliage is bright and carbon-black paint dark at 905 nm whatever they look like;
+    a body's paint family comes from its colour, its spread is drawn per object (same object, same value)."""
+    from fogsim.render.lidar_scan import slot_reflectivity, surface_reflectivity
+    from fogsim.scene.reflectivity import PAINT_FAMILIES, SURFACES
 
-    assert slot_reflectivity({"asset": {}}, "glass") == GLASS_REFLECTIVITY
-    assert slot_reflectivity({"asset": {"materials": {"body_paint": {"color": [0.8, 0.8, 0.8]}}}}, "body_paint") \
-        == pytest.approx(0.8, abs=1e-6)
-    assert material_reflectivity([1, 1, 1, 1], transmission=1.0) == GLASS_REFLECTIVITY
+    car = {"id": 3, "asset": {"materials": {"body_paint": {"color": [0.006, 0.006, 0.007]}}}}  # "#101112"
+    assert slot_reflectivity({"id": 1, "asset": {}}, "glass") == SURFACES["glass"].rho < 0.01
+    assert slot_reflectivity({"id": 1, "asset": {}}, "foliage", 5) > 0.25  # dark green, bright in the NIR
+    black = [slot_reflectivity({**car, "id": i}, "body_paint", 7) for i in range(200)]
+    assert slot_reflectivity(car, "body_paint", 7) == slot_reflectivity(car, "body_paint", 7)
+    assert np.median(black) == pytest.approx(PAINT_FAMILIES["black"].rho, rel=0.2) and np.std(np.log(black)) > 0.3
+    red = {"id": 4, "asset": {"materials": {"body_paint": {"color": [0.25, 0.01, 0.01]}}}}
+    assert slot_reflectivity(red, "body_paint") > 2 * PAINT_FAMILIES["black"].rho * 3  # red looks dark, is not
+    assert surface_reflectivity("Windshield_glass")[1] == "glass"
+    assert surface_reflectivity("Material.001")[1] == "fallback"
+    assert surface_reflectivity("Car Paint", transmission=1.0)[0] == SURFACES["glass"].rho
 
 
 # ----------------------------------------------------------------------------- real Blender
