@@ -284,3 +284,29 @@ def test_the_birds_eye_view_draws_the_empty_rays_clutter():
     assert out.empty_ray_clutter == 40
     orange = lambda img: int((img == OUTCOME_COLOURS[CLUTTER]).all(axis=2).sum())  # noqa: E731
     assert orange(bev_image(scan, out)) >= 20 > orange(bev_image(scan, None))
+
+
+def test_the_default_far_field_lies_between_the_published_models(kitti, nuscenes):
+    """At β 0.03 the share of a sweep's points beyond 30 m still reported as hard returns lies between ¼ of
+    the lower and 2× the higher of the published models on the same sweep: Hahner et al.'s (fogsim.lidar.hahner,
+    its batch path's backscatter frozen at α 0.06) and the STF authors' rule written out here (HDL-64 S2:
+    n 0.05, g 0.35; d_max = ln((I + g)/n)/(2β); beyond it lost with probability 1 − e^(−β d_max), else moved
+    to ln 2/β)."""
+    from fogsim.lidar.hahner import HahnerParameters, fed_intensity, hahner_fog
+
+    beta = 0.03
+    for scan, sensor in ((kitti, "hdl64e"), (nuscenes, "hdl32e")):
+        r = scan.range_m
+        far = r > 30
+        out = LidarFogger(scan, sensor)(beta, np.random.default_rng(0))
+        ours = float(((out.outcome <= 1) & far).mean())  # kept or attenuated
+        frozen = HahnerParameters(backscatter_per_visibility=0.046 * 0.06 / beta)
+        hahner = float(((hahner_fog(scan.xyz, fed_intensity(scan), beta, np.random.default_rng(0), frozen).outcome
+                         != CLUTTER) & far).mean())
+        i = scan.intensity.astype(np.float64)
+        d_max = np.log((i + 0.35) / 0.05) / (2 * beta)
+        lost = np.random.default_rng(0).random(len(r)) < 1 - np.exp(-beta * d_max)
+        stf = float((((r < d_max) | ~lost) & (r >= 2.0) & (np.where(r < d_max, r, np.minimum(r, math.log(2) / beta))
+                                                            > 30)).mean())
+        lo, hi = sorted((hahner, stf))
+        assert lo > 0.002 and 0.25 * lo <= ours <= 2 * hi, (sensor, ours, hahner, stf)
