@@ -134,8 +134,8 @@ def test_painted_cars_at_10_to_100_m_follow_the_lidar_equation_with_the_table():
     """Procedural cars (the renderer's own meshes) in black, grey and white paint at 10–100 m around
     hdl64e, side-on, each on its own bearing: every ray that meets a car is reported exactly when
     (ρ·cos θ/ρ_ref)(R_max/R)²ξ(R) ≥ 1 with ρ the 905 nm table's value for that car's slot (its spread
-    drawn per object), its intensity the sensor's for ρ·cos θ; a black car at 60 m is still seen, and each car's point count is what the
-    equation predicts over the rays the geometry gives it."""
+    drawn per object), its intensity the sensor's for ρ·cos θ; a black car at 60 m is still seen, and
+    each car's point count is what the equation predicts over the rays the geometry gives it."""
     from fogsim.render.frame import scene_meshes
     from fogsim.render.lidar_scan import slot_reflectivity
     from fogsim.scene.assets_vehicles import sample_car
