@@ -4,6 +4,7 @@ surfaces at known ranges and reflectivities built by tests/lidar_fixtures.py."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -25,6 +26,10 @@ PAPER = (0.03, 0.06, 0.09, 0.12)
 # the hdl64e preset, written out: R_max 120 m for ρ_ref 0.8, τ_H 10 ns, ξ = min(1, (R/5)²), ρ = 2.55·I,
 # fluctuation σ_g 0.5 (ln g ~ N(0, σ_g²) per ray: the clear signal max(q·g, e^σ_g), the fog echo q_f·g)
 R_MAX, RHO_REF, TAU, R_O, S, R_MIN, SIGMA0, SIGMA1, SIGMA_G = 120.0, 0.8, 10e-9, 5.0, 2.55, 1.0, 0.02, 0.10, 0.5
+#: the sensor these closed forms are written for: the hdl64e preset with its radiometry pinned to the values
+#: above (they check the model; the bundled calibration's own numbers are checked in test_lidar_fog_rays.py)
+HDL64 = replace(LidarSensor.preset("hdl64e"), reference_reflectivity=RHO_REF, overlap_full_m=R_O,
+                reflectivity_per_intensity=S)
 #: the fluctuation off (σ_g = 0): the deterministic thresholds, for the closed forms of a shape in ρ, R, β
 STEADY = {"calibration": {"fluctuation_sigma": 0.0}}
 L = C * TAU
@@ -91,24 +96,24 @@ def scans(tmp_path_factory):
             "kitti_path": kitti, "stf_path": stf}
 
 
-def fogged(scan, beta, seed=0, sensor="hdl64e", **spec):
+def fogged(scan, beta, seed=0, sensor=HDL64, **spec):
     return LidarFogger(scan, sensor, spec or None)(beta, np.random.default_rng(seed))
 
 
 # ----------------------------------------------------------------------------- the tests
 def test_beta_zero_gives_the_input_back_bit_for_bit(scans, tmp_path):
-    for fmt, sensor in (("kitti", "hdl64e"), ("stf", "hdl64-s3d")):
+    for fmt, sensor in (("kitti", HDL64), ("stf", "hdl64-s3d")):
         out = LidarFogger(scans[fmt], sensor)(0.0)
         assert out.cloud.same_as(scans[fmt]) and (out.outcome == KEPT).all()
         assert np.array_equal(out.output_index, np.arange(len(scans[fmt])))
         write_points(tmp_path / f"{fmt}.bin", out.cloud, fmt)
         assert (tmp_path / f"{fmt}.bin").read_bytes() == scans[f"{fmt}_path"].read_bytes()
-    per_point = LidarFogger(scans["kitti"], "hdl64e")(np.zeros(len(scans["kitti"])))
+    per_point = LidarFogger(scans["kitti"], HDL64)(np.zeros(len(scans["kitti"])))
     assert per_point.cloud.same_as(scans["kitti"])
 
 
 def test_the_soft_target_integral_matches_quadrature():
-    s = LidarSensor.preset("hdl64e")
+    s = HDL64
     for beta in (0.0, 0.01, 0.06, 0.2):
         rt, j = fog_waveform(s, beta)
         for target in (1.0, 2.7, 4.0, 8.0, 15.0):
@@ -210,7 +215,7 @@ def test_a_dark_target_loses_its_points_before_a_bright_one():
     for r, beta in ((40.0, 0.02), (20.0, 0.06)):
         both = PointCloud.from_raw(np.array([[r, 0, 0], [0, r, 0]], np.float32),
                                    np.float32([0.05 / 2.55, 0.9 / 2.55]), "0-1", "car and sign")
-        out = LidarFogger(both, "hdl64e", STEADY)(beta, np.random.default_rng(0))
+        out = LidarFogger(both, HDL64, STEADY)(beta, np.random.default_rng(0))
         assert out.outcome[0] in (LOST, CLUTTER) and out.outcome[1] == ATTENUATED
 
 
@@ -232,7 +237,7 @@ def test_fog_clutter_lies_within_a_few_metres_on_the_same_ray(scans):
 def test_0_1_and_0_255_storage_give_the_same_outcomes(scans):
     for beta in PAPER + (0.0125,):
         for mode in ("strongest", "last"):
-            a = LidarFogger(scans["kitti"], "hdl64e", {"return_mode": mode})(beta, np.random.default_rng(1))
+            a = LidarFogger(scans["kitti"], HDL64, {"return_mode": mode})(beta, np.random.default_rng(1))
             b = LidarFogger(scans["stf"], "hdl64-s3d", {"return_mode": mode})(beta, np.random.default_rng(1))
             assert np.array_equal(a.outcome, b.outcome) and np.array_equal(a.output_index, b.output_index)
             np.testing.assert_allclose(a.cloud.xyz, b.cloud.xyz, rtol=1e-6, atol=1e-6)
@@ -244,11 +249,11 @@ def test_beta_0_09_lies_between_0_06_and_0_12_with_no_plateau():
     ranges = np.arange(5.0, 60.0, 0.01)
     scan = PointCloud.from_raw(np.stack([ranges, 0 * ranges, 0 * ranges], 1).astype(np.float32),
                                np.full(len(ranges), 0.3 / 2.55, np.float32), "0-1", "a long wall")
-    fogger = LidarFogger(scan, "hdl64e", {"model": "attenuation", **STEADY})
+    fogger = LidarFogger(scan, HDL64, {"model": "attenuation", **STEADY})
     grid = np.round(np.arange(0.06, 0.1201, 0.001), 6)
     lost_from = [ranges[fogger(b, np.random.default_rng(0)).outcome != LOST].max() for b in grid]
     assert (np.diff(lost_from) < 0).all()  # strictly falling: every 0.001 1/m moves the loss range
-    s = LidarSensor.preset("hdl64e")
+    s = HDL64
     echoes = [fog_echo(s, b) for b in grid]
     assert (np.diff([e.signal for e in echoes]) > 0).all() and (np.diff([e.range_m for e in echoes]) < 0).all()
     i06, i09, i12 = (int(np.flatnonzero(np.isclose(grid, b))[0]) for b in (0.06, 0.09, 0.12))
@@ -298,7 +303,7 @@ def test_seeded_and_deterministic(scans):
     a, c = fogged(scans["kitti"], 0.06, seed=11, **STEADY), fogged(scans["kitti"], 0.06, seed=12, **STEADY)
     assert np.array_equal(a.outcome, c.outcome) and not a.cloud.same_as(c.cloud)  # σ_g = 0: only the noise differs
     with pytest.raises(ValueError, match="Generator"):
-        LidarFogger(scans["kitti"], "hdl64e")(0.06)
+        LidarFogger(scans["kitti"], HDL64)(0.06)
 
 
 def test_attenuated_points_keep_their_ray_and_fall_by_exp_minus_2_beta_r(scans):
@@ -321,7 +326,7 @@ def test_range_noise_grows_as_the_signal_falls():
     spreads = []
     for r, rho in ((12.0, 0.9), (18.0, 0.3)):
         scan = PointCloud.from_raw((dirs * r).astype(np.float32), np.full(n, rho / 2.55, np.float32), "0-1", "noise")
-        out = LidarFogger(scan, "hdl64e", {"return_mode": "last", **STEADY})(beta, np.random.default_rng(4))
+        out = LidarFogger(scan, HDL64, {"return_mode": "last", **STEADY})(beta, np.random.default_rng(4))
         assert (out.outcome == ATTENUATED).all()
         dr = np.linalg.norm(out.cloud.xyz.astype(np.float64), axis=1) - scan.range_m
         q0 = clear_signal(rho, r)
@@ -337,13 +342,13 @@ def test_heterogeneous_beta(scans):
     n = len(scan)
     values = np.array([0.0, 0.03, 0.07, 0.11])
     beta = values[np.arange(n) % 4]
-    out = LidarFogger(scan, "hdl64e")(beta, np.random.default_rng(9))
+    out = LidarFogger(scan, HDL64)(beta, np.random.default_rng(9))
     for b in values:  # exact: each point as if the whole scan were in its fog (same noise draws)
-        alone = LidarFogger(scan, "hdl64e")(b, np.random.default_rng(9))
+        alone = LidarFogger(scan, HDL64)(b, np.random.default_rng(9))
         pick = beta == b
         assert np.array_equal(out.outcome[pick], alone.outcome[pick])
     # many distinct values: interpolated between nodes ≤ NODE_STEP apart, within the stated bound
-    s = LidarSensor.preset("hdl64e")
+    s = HDL64
     many = np.random.default_rng(0).uniform(0.01, 0.15, 500)
     q, r, w = echo_per_point(s, many)
     exact = [fog_echo(s, b) for b in many]
@@ -351,7 +356,7 @@ def test_heterogeneous_beta(scans):
     assert np.max(np.abs(r - [e.range_m for e in exact])) < 1e-3
     assert NODE_STEP <= 2e-3
     field = np.random.default_rng(1).uniform(0.05, 0.07, n)
-    per_point = LidarFogger(scan, "hdl64e")(field, np.random.default_rng(2))
+    per_point = LidarFogger(scan, HDL64)(field, np.random.default_rng(2))
     assert per_point.record()["beta"] == "per point" and per_point.counts()["lost"] + per_point.counts()["clutter"] > 0
 
 
@@ -362,12 +367,12 @@ def test_record_and_bad_beta(scans):
     assert rec["points_in"] == len(scans["kitti"]) == sum(rec["outcomes"].values())
     assert rec["points_out"] == len(out.cloud) and rec["sensor"] == "hdl64e" and rec["model"] == "soft-target"
     assert rec["fog_echo"]["range_m"] == pytest.approx(echo(0.06)[1], abs=2e-3)
-    f = LidarFogger(scans["kitti"], "hdl64e")
+    f = LidarFogger(scans["kitti"], HDL64)
     for bad in (-0.01, float("nan"), np.zeros(3)):
         with pytest.raises(ValueError, match="β"):
             f(bad, np.random.default_rng(0))
     with pytest.raises(ValueError, match="lidar_fog.model"):
-        LidarFogger(scans["kitti"], "hdl64e", {"model": "hahner"})
+        LidarFogger(scans["kitti"], HDL64, {"model": "hahner"})
 
 
 def test_the_benchmark_runs(capsys):

@@ -83,10 +83,11 @@ def test_the_threshold_is_calibrated_by_the_maximum_range():
     assert s.clear_signal(s.reference_reflectivity, s.max_range_m) == pytest.approx(1.0)
     assert s.clear_signal(s.reference_reflectivity, 2 * s.max_range_m) == pytest.approx(0.25)
     # the overlap: (R / R_o)² below R_o, then 1 — so near targets are not infinitely bright
-    assert s.overlap(2.5) == pytest.approx((2.5 / s.overlap_full_m) ** 2) and s.overlap(7.0) == 1.0
-    assert s.clear_signal(0.8, 1.0) == pytest.approx((120.0 / s.overlap_full_m) ** 2)
-    # intensity ↔ reflectivity (calibrated: no range term) and a range-corrected custom sensor
-    assert s.reflectivity_of(1 / 2.55, 40.0) == pytest.approx(1.0)
+    ro = s.overlap_full_m
+    assert s.overlap(0.5 * ro) == pytest.approx(0.25) and s.overlap(1.4 * ro) == 1.0
+    assert s.clear_signal(s.reference_reflectivity, 1.0) == pytest.approx((120.0 / ro) ** 2)
+    # intensity ↔ reflectivity (KITTI's 0–1: ρ = 0.4·I, no range term) and a range-corrected custom sensor
+    assert s.reflectivity_of(0.5, 40.0) == pytest.approx(0.2) and s.intensity_of(0.2, 7.0) == pytest.approx(0.5)
     raw = LidarSensor.from_dict(dict(CUSTOM, intensity_range_exponent=2.0, intensity_reference_range_m=10.0,
                                      reflectivity_per_intensity=0.5))
     assert raw.reflectivity_of(0.4, 20.0) == pytest.approx(0.5 * 0.4 * 4.0)

@@ -19,7 +19,7 @@ from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.sensors import LidarSensor
 from fogsim.render.boxes3d import box_record, object_box
 from fogsim.render.lidar_rig import camera_offset_pose, ego_to_world, mounted_pose
-from fogsim.render.lidar_scan import GLASS_REFLECTIVITY, Geometry, RayCaster, sweep, sweep_directions
+from fogsim.render.lidar_scan import Geometry, RayCaster, sweep, sweep_directions
 from fogsim.scene.pose import camera_to_world, world_to_camera
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -111,13 +111,81 @@ def test_object_boxes_are_tight_and_kitti_in_the_camera():
     assert rec["lidar"]["yaw"] == pytest.approx(math.radians(110))
 
 
-def test_glass_returns_little_and_materials_by_luminance():
-    from fogsim.render.lidar_scan import material_reflectivity, slot_reflectivity
+def test_slots_take_their_905nm_reflectivity_not_their_colour():
+    """Glass returns little, foliage is bright and carbon-black paint dark at 905 nm whatever they look like;
+    a body's paint family comes from its colour, its spread is drawn per object (same object, same value)."""
+    from fogsim.render.lidar_scan import slot_reflectivity, surface_reflectivity
+    from fogsim.scene.reflectivity import PAINT_FAMILIES, SURFACES
 
-    assert slot_reflectivity({"asset": {}}, "glass") == GLASS_REFLECTIVITY
-    assert slot_reflectivity({"asset": {"materials": {"body_paint": {"color": [0.8, 0.8, 0.8]}}}}, "body_paint") \
-        == pytest.approx(0.8, abs=1e-6)
-    assert material_reflectivity([1, 1, 1, 1], transmission=1.0) == GLASS_REFLECTIVITY
+    car = {"id": 3, "asset": {"materials": {"body_paint": {"color": [0.006, 0.006, 0.007]}}}}  # "#101112"
+    assert slot_reflectivity({"id": 1, "asset": {}}, "glass") == SURFACES["glass"].rho < 0.01
+    assert slot_reflectivity({"id": 1, "asset": {}}, "foliage", 5) > 0.25  # dark green, bright in the NIR
+    black = [slot_reflectivity({**car, "id": i}, "body_paint", 7) for i in range(200)]
+    assert slot_reflectivity(car, "body_paint", 7) == slot_reflectivity(car, "body_paint", 7)
+    assert np.median(black) == pytest.approx(PAINT_FAMILIES["black"].rho, rel=0.2) and np.std(np.log(black)) > 0.3
+    red = {"id": 4, "asset": {"materials": {"body_paint": {"color": [0.25, 0.01, 0.01]}}}}
+    assert slot_reflectivity(red, "body_paint") > 2 * PAINT_FAMILIES["black"].rho * 3  # red looks dark, is not
+    assert surface_reflectivity("Windshield_glass")[1] == "glass"
+    assert surface_reflectivity("Material.001")[1] == "fallback"
+    assert surface_reflectivity("Car Paint", transmission=1.0)[0] == SURFACES["glass"].rho
+
+
+def test_painted_cars_at_10_to_100_m_follow_the_lidar_equation_with_the_table():
+    """Procedural cars (the renderer's own meshes) in black, grey and white paint at 10–100 m around
+    hdl64e, side-on, each on its own bearing: every ray that meets a car is reported exactly when
+    (ρ·cos θ/ρ_ref)(R_max/R)²ξ(R) ≥ 1 with ρ the 905 nm table's value for that car's slot (its spread
+    drawn per object), its intensity the sensor's for ρ·cos θ; a black car at 60 m is still seen, and
+    each car's point count is what the equation predicts over the rays the geometry gives it."""
+    from fogsim.render.frame import scene_meshes
+    from fogsim.render.lidar_scan import slot_reflectivity
+    from fogsim.scene.assets_vehicles import sample_car
+    from fogsim.scene.pose import transform
+    from fogsim.scene.reflectivity import paint_family
+
+    paints = {"black": [0.006, 0.006, 0.007], "grey": [0.1, 0.11, 0.12], "white": [0.89, 0.89, 0.87]}
+    objects, k = [], 0
+    for x in (10.0, 20.0, 30.0, 45.0, 60.0, 80.0, 100.0):
+        for name, colour in paints.items():
+            k += 1
+            a = math.radians(-70.0 + 140.0 * (k - 1) / 20)  # each car on its own bearing: none hides another
+            params, mats = sample_car(np.random.default_rng(k), {})
+            asset = {"type": "car", "params": params, "materials": {**mats, "body_paint": {"color": colour}}}
+            objects.append({"id": k, "class": "car", "paint": name, "asset": asset, "forward": "+y",
+                            "x": x, "transform": transform([x * math.cos(a), x * math.sin(a), 0.0], 90.0).tolist()})
+    desc = {"seed": 11, "objects": objects}
+    meshes = scene_meshes(desc)
+    assert {paint_family(c) for c in paints.values()} == set(paints)
+    geo = Geometry.of_frame(desc, meshes)
+    s = LidarSensor.preset("hdl64e")
+    pose = np.eye(4)
+    pose[2, 3] = 1.73
+    caster = RayCaster(geo)
+    scan = sweep(caster, pose, s, "street")
+    d, _, _ = sweep_directions(s)
+    t, prim, normal = caster.cast(np.broadcast_to(pose[:3, 3], d.shape), d, s.max_range_m)
+    hit = np.flatnonzero(np.isfinite(t) & (t >= s.min_range_m))
+    cos_t = np.abs(np.einsum("ij,ij->i", normal[hit], d[hit]))
+    rho = geo.face_rho[prim[hit]].astype(np.float64)
+    by_id = {o["id"]: o for o in objects}
+    for i, f in zip(hit[:50], prim[hit][:50]):  # each face's ρ is its slot's table value for that object
+        oid = int(geo.face_id[f])
+        assert any(math.isclose(geo.face_rho[f], slot_reflectivity(by_id[oid], slot, 11), rel_tol=1e-6)
+                   for _, _, slot in meshes[oid])
+    q = s.clear_signal(rho * cos_t, t[hit])
+    np.testing.assert_array_equal(scan.cloud.index, hit[q >= 1])  # reported exactly where q ≥ 1
+    np.testing.assert_allclose(scan.cloud.raw_intensity, np.minimum(s.intensity_of((rho * cos_t)[q >= 1],
+                                                                                    t[hit][q >= 1]), 1.0), rtol=1e-5)
+    points = {o["id"]: int((scan.object_id == o["id"]).sum()) for o in objects}
+    rays = {o["id"]: int((geo.face_id[prim[hit]] == o["id"]).sum()) for o in objects}
+    for o in objects:
+        x = o["x"]
+        assert 0 < points[o["id"]] <= rays[o["id"]], (o["paint"], x, points[o["id"]], rays[o["id"]])
+        if x <= 60:  # the body's paint is seen to 60 m even when black; glass and tyres may drop out
+            assert points[o["id"]] >= 0.5 * rays[o["id"]], (o["paint"], x, points[o["id"]], rays[o["id"]])
+    black60 = next(o["id"] for o in objects if o["paint"] == "black" and o["x"] == 60.0)
+    assert points[black60] >= 5
+    white100 = next(o["id"] for o in objects if o["paint"] == "white" and o["x"] == 100.0)
+    assert points[white100] >= 5
 
 
 # ----------------------------------------------------------------------------- real Blender

@@ -63,10 +63,11 @@ def add_options(fog: argparse.ArgumentParser) -> None:
                         "(default: the format's usual one: KITTI hdl64e, STF hdl64-s3d, nuScenes hdl32e, Waymo "
                         "waymo-top with the frame's beams); with --point-format nuscenes-radar a radar (ars408-lr, "
                         "srr-corner, or a JSON; default ars408-lr)")
-    g.add_argument("--lidar-calibration", default=None, metavar="reference|datasheet|FILE",
+    g.add_argument("--lidar-calibration", default=None, metavar="datasheet|hahner-constants|FILE",
                    help="the sensor's parameters: datasheet (the preset's values, each with its source; default), "
-                        "reference (the constants of Hahner et al. 2021: 20 ns pulse, full overlap from 1 m) or a "
-                        "calibration JSON (any of the sensor's radiometric keys, with 'name' and 'sources')")
+                        "hahner-constants (Hahner et al. 2021's pulse and overlap in fogsim's model: 20 ns pulse, "
+                        "full overlap from 1 m; 'reference' is its deprecated name) or a calibration JSON (any of "
+                        "the sensor's radiometric keys, with 'name' and 'sources')")
     g.add_argument("--lidar-extinction-ratio", type=float, default=None, metavar="K",
                    help="β at 905 nm / the camera's β (default 1: fog droplets much larger than both wavelengths)")
     g.add_argument("--lidar-min-points", type=int, default=None, metavar="N",
@@ -142,10 +143,15 @@ def sensor_choice(given: str | None):
 
 
 def calibration_choice(given: str | None):
-    """``--lidar-calibration``: None, ``datasheet``, ``reference``, or a calibration block read from its
-    file (checked: an :class:`~fogsim.errors.InputError` naming it) — what the fog record stores."""
-    from fogsim.schema.lidar import CALIBRATIONS, LidarCalibration
+    """``--lidar-calibration``: None, ``datasheet``, ``hahner-constants`` (``reference``, its deprecated name,
+    becomes it with a note on stderr), or a calibration block read from its file (checked: an
+    :class:`~fogsim.errors.InputError` naming it) — what the fog record stores."""
+    from fogsim.schema.lidar import CALIBRATIONS, DEPRECATED_CALIBRATIONS, LidarCalibration
 
+    if given in DEPRECATED_CALIBRATIONS:
+        print(f"note: --lidar-calibration {given} is deprecated: it is now called {DEPRECATED_CALIBRATIONS[given]} "
+              "(Hahner et al.'s pulse and overlap constants in fogsim's model)", file=sys.stderr)
+        return DEPRECATED_CALIBRATIONS[given]
     if given is None or given in CALIBRATIONS:
         return given
     path = Path(given)

@@ -22,14 +22,16 @@ unknown constants cancel):
   draws g; :mod:`fogsim.lidar.fog`).
 
 Calibrations (:meth:`LidarSensor.calibrated`): ``datasheet`` is the preset as bundled (each value's source
-in its ``sources`` block), ``reference`` puts the constants of Hahner et al. 2021 over it
-(:data:`fogsim.schema.lidar.REFERENCE_CALIBRATION`: 20 ns pulse, full overlap from 1 m), a
+in its ``sources`` block), ``hahner-constants`` puts the pulse and overlap constants of Hahner et al. 2021 over
+it (:data:`fogsim.schema.lidar.HAHNER_CONSTANTS`: 20 ns pulse, full overlap from 1 m; ``reference``, its old
+name, is read with a DeprecationWarning), a
 :class:`~fogsim.schema.lidar.LidarCalibration` block any of its keys.
 """
 from __future__ import annotations
 
 import math
 import os
+import warnings
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -38,7 +40,7 @@ import numpy as np
 from fogsim.fileio import MAX_DOCUMENT_BYTES, read_json
 from fogsim.presets import presets_dir
 from fogsim.schema.base import check, load_json
-from fogsim.schema.lidar import REFERENCE_CALIBRATION, LidarCalibration, LidarSensorSpec
+from fogsim.schema.lidar import DEPRECATED_CALIBRATIONS, HAHNER_CONSTANTS, LidarCalibration, LidarSensorSpec
 
 __all__ = ["LIGHT_SPEED", "LidarSensor", "load_sensor", "sensor_names"]
 
@@ -142,18 +144,25 @@ class LidarSensor:
         return replace(self, inclinations_deg=tuple(incl.tolist()))
 
     def calibrated(self, calibration: "str | LidarCalibration | dict" = "datasheet") -> "LidarSensor":
-        """The sensor under a calibration: ``datasheet`` (as it is), ``reference`` (Hahner et al.'s
-        constants over it) or a :class:`~fogsim.schema.lidar.LidarCalibration` (or its dict): its keys
+        """The sensor under a calibration: ``datasheet`` (as it is), ``hahner-constants`` (Hahner et al.'s
+        pulse and overlap constants over it; ``reference``: its deprecated name) or a
+        :class:`~fogsim.schema.lidar.LidarCalibration` (or its dict): its keys
         replace the sensor's and its ``sources`` join the sensor's. A ValueError when the result is
         inconsistent (min range ≥ max range, full overlap beyond the max range)."""
         if calibration == "datasheet":
             return self
-        if calibration == "reference":
-            calibration = REFERENCE_CALIBRATION
+        if isinstance(calibration, str) and calibration in DEPRECATED_CALIBRATIONS:
+            new = DEPRECATED_CALIBRATIONS[calibration]
+            warnings.warn(f"LiDAR calibration {calibration!r} is now called {new!r} (Hahner et al.'s pulse and "
+                          "overlap constants in fogsim's model, not the reference simulator)", DeprecationWarning,
+                          stacklevel=2)
+            calibration = new
+        if calibration == "hahner-constants":
+            calibration = HAHNER_CONSTANTS
         if isinstance(calibration, dict):
             calibration = LidarCalibration.model_validate(calibration)
         if not isinstance(calibration, LidarCalibration):
-            raise ValueError(f"unknown LiDAR calibration {calibration!r} (datasheet, reference or a block)")
+            raise ValueError(f"unknown LiDAR calibration {calibration!r} (datasheet, hahner-constants or a block)")
         out = replace(self, **calibration.overrides(), calibration=calibration.name or "file",
                       sources={**self.sources, **(calibration.sources or {})})
         if not out.min_range_m < out.max_range_m or not out.overlap_full_m < out.max_range_m:

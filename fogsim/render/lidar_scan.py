@@ -18,48 +18,61 @@ in its intensity scale). A ray is reported when it hits within [min range, max r
 signal (ρ·cos θ/ρ_ref)·(R_max/R)²·ξ(R) reaches the detection threshold (1): dark, grazing or far surfaces
 drop out as on a real sensor. Every point of one sweep is taken at one instant (no rolling-shutter motion).
 
-Reflectivity (at 905 nm, diffuse): a procedural material's base colour luminance (linear); glass
-:data:`GLASS_REFLECTIVITY` (the windows of cars and buildings return little: most of the beam goes through
-or away); emitters by their base colour (a lamp's light is not the laser's); a library model
-:data:`DEFAULT_REFLECTIVITY` (its colours are Blender's). In scene mode a ``fogsim_reflectivity`` custom
-property on the material or the object wins (:mod:`fogsim.render.blender.realise`).
+Reflectivity (at 905 nm, diffuse, Lambertian-equivalent): from the 905 nm table of
+:mod:`fogsim.scene.reflectivity`, never from the visible colour — each material slot its entry, car paint by
+the colour family of the instance's colour, every spread drawn once per object
+(:func:`~fogsim.scene.reflectivity.instance_reflectivity`: frame seed, object id, slot), a library model's
+materials by their names (``library:<name>`` slots, :func:`~fogsim.scene.reflectivity.named_reflectivity`,
+else the stated fallback). In scene mode a ``fogsim_reflectivity`` custom property on the material or the
+object wins (:mod:`fogsim.render.blender.realise`), then the material's name, then the fallback.
+
+Speed (one core): the geometry is culled to the parts that can lie within the sensor's range
+(:meth:`Geometry.of_frame`'s ``within``), Embree builds without its robust mode, rays stop at the maximum
+range, the surface normal comes from Embree's hit record, the sweep's directions are computed once per sensor.
 """
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
-from fogsim.colour import LUMINANCE_WEIGHTS
 from fogsim.lidar.points import PointCloud
 from fogsim.lidar.rays import EmptyRays
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor
 from fogsim.scene.materials import MATERIALS
+from fogsim.scene.reflectivity import SURFACES, instance_reflectivity, named_reflectivity, slot_entry
 
-#: reflectivity of glass (car and building windows), of a library model's surfaces, and the floor of any
-GLASS_REFLECTIVITY, DEFAULT_REFLECTIVITY, MIN_REFLECTIVITY = 0.05, 0.3, 0.01
-GLASS_SLOTS = ("glass", "window")
+#: the prefix of a library model's material slots (``library:<material name>``; ``library`` alone: unnamed)
+LIBRARY_SLOT = "library"
 
 
-def material_reflectivity(color, transmission: float = 0.0) -> float:
-    """A diffuse reflectivity from a linear base colour (its luminance); transmissive (glass) surfaces
-    :data:`GLASS_REFLECTIVITY`."""
+def surface_reflectivity(name: str | None, transmission: float = 0.0) -> tuple[float, str]:
+    """(ρ at 905 nm, the rule) of a material known by its name alone (a user's or a library model's):
+    transmissive (≥ 0.5) surfaces are glass; else :func:`~fogsim.scene.reflectivity.named_reflectivity`."""
     if transmission >= 0.5:
-        return GLASS_REFLECTIVITY
-    rho = float(np.asarray(color, np.float64)[:3] @ np.asarray(LUMINANCE_WEIGHTS, np.float64))
-    return max(MIN_REFLECTIVITY, min(rho, 1.0))
+        return SURFACES["glass"].rho, "glass (transmission)"
+    entry, rule = named_reflectivity(name)
+    return entry.rho, rule
 
 
-def slot_reflectivity(obj: dict, slot: str) -> float:
-    """The reflectivity of one material slot of a procedural object (its instance colour included)."""
-    if slot in GLASS_SLOTS:
-        return GLASS_REFLECTIVITY
-    if slot not in MATERIALS:
-        return DEFAULT_REFLECTIVITY  # a library model ("library"): the model's own materials
-    override = obj.get("asset", {}).get("materials", {}).get(slot, {})
-    base = MATERIALS[slot]
-    return material_reflectivity(override.get("color", base["color"]), base.get("transmission", 0.0))
+def _salt(slot: str) -> int:
+    return zlib.crc32(slot.encode())
+
+
+def slot_reflectivity(obj: dict, slot: str, seed: int = 0) -> float:
+    """ρ (905 nm) of one material slot of a procedural object: the table's entry (``body_paint``: the family
+    of the instance's colour; a ``library:<name>`` slot: by its material name), its spread drawn for this
+    object (``seed``: the frame's)."""
+    if slot == LIBRARY_SLOT or slot.startswith(LIBRARY_SLOT + ":"):
+        entry, _ = named_reflectivity(slot[len(LIBRARY_SLOT) + 1:] or None)
+    else:
+        override = obj.get("asset", {}).get("materials", {}).get(slot, {})
+        colour = override.get("color", MATERIALS[slot]["color"]) if slot in MATERIALS else None
+        entry = slot_entry(slot, colour)
+    return instance_reflectivity(entry, seed, int(obj.get("id", 0)), _salt(slot))
 
 
 @dataclass(frozen=True)
@@ -92,17 +105,30 @@ class Geometry:
                    np.concatenate(ids), np.concatenate(rhos).astype(np.float32))
 
     @classmethod
-    def of_frame(cls, desc: dict, meshes: dict) -> "Geometry":
+    def of_frame(cls, desc: dict, meshes: dict, within: tuple | None = None) -> "Geometry":
         """The procedural frame's geometry: every object's world parts (:func:`fogsim.render.frame.scene_meshes`),
-        each slot's reflectivity from its material."""
+        each slot's reflectivity from the 905 nm table (:func:`slot_reflectivity`, the frame's seed).
+        ``within`` = (origin xyz, radius m): only the parts whose bounding sphere reaches that close (a ray
+        from the origin that hits nothing of them within the radius hits nothing there at all)."""
         by_id = {o["id"]: o for o in desc["objects"]}
-        return cls.from_parts((v, f, oid, slot_reflectivity(by_id[oid], slot))
-                              for oid, parts in meshes.items() for v, f, slot in parts)
+        seed = int(desc.get("seed") or 0)
+        origin = None if within is None else np.asarray(within[0], np.float64)
+
+        def near(v) -> bool:
+            if origin is None or not len(v):
+                return True
+            v = np.asarray(v, np.float64).reshape(-1, 3)
+            lo, hi = v.min(0), v.max(0)
+            centre = (lo + hi) / 2
+            return float(np.linalg.norm(centre - origin) - np.linalg.norm(hi - centre)) <= within[1]
+        return cls.from_parts((v, f, oid, slot_reflectivity(by_id[oid], slot, seed))
+                              for oid, parts in meshes.items() for v, f, slot in parts if near(v))
 
 
 class RayCaster:
     """First hits of many rays against a :class:`Geometry` (Embree, through ``embreex``; built once per
-    frame). :meth:`cast` gives per ray the distance to the first triangle (+inf: none) and its index."""
+    frame, without Embree's robust mode). :meth:`cast` gives per ray the distance to the first triangle
+    (+inf: none within ``max_distance``), its index and its unit normal."""
 
     def __init__(self, geometry: Geometry):
         from fogsim.deps import require
@@ -112,20 +138,32 @@ class RayCaster:
         self.geometry = geometry
         self.scene = None
         if len(geometry.faces):
-            self.scene = rtcs.EmbreeScene()
-            mesh_construction.TriangleMesh(self.scene, np.ascontiguousarray(geometry.vertices, np.float32),
-                                           np.ascontiguousarray(geometry.faces, np.int32))  # indexed: no copies
+            used = np.zeros(len(geometry.vertices), bool)  # embreex copies vertex by vertex: only the used ones
+            used[geometry.faces.reshape(-1)] = True
+            if not used.all():
+                remap = (np.cumsum(used, dtype=np.int32) - 1).astype(np.int32)
+                vertices, faces = geometry.vertices[used], remap[geometry.faces]
+            else:
+                vertices, faces = geometry.vertices, geometry.faces
+            self.scene = rtcs.EmbreeScene(robust=False)
+            mesh_construction.TriangleMesh(self.scene, np.ascontiguousarray(vertices, np.float32),
+                                           np.ascontiguousarray(faces, np.int32))  # indexed: no copies
 
-    def cast(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(distance N float64, +inf on a miss; triangle index N int64, −1 on a miss) of unit-length rays."""
+    def cast(self, origins: np.ndarray, directions: np.ndarray, max_distance: float = np.inf
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(distance N float64, +inf on a miss; triangle index N int64, −1 on a miss; unit geometric normal
+        N×3 float64, zero on a miss) of unit-length rays, looking no farther than ``max_distance``."""
         n = len(directions)
         if self.scene is None or not n:
-            return np.full(n, np.inf), np.full(n, -1, np.int64)
+            return np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))
+        far = float(min(max_distance, 1e37))
         out = self.scene.run(np.ascontiguousarray(origins, np.float32), np.ascontiguousarray(directions, np.float32),
-                             output=1)
+                             dists=np.full(n, far, np.float32), output=1)
         prim = np.asarray(out["primID"], np.int64)
         t = np.where(prim >= 0, np.asarray(out["tfar"], np.float64), np.inf)
-        return t, np.where(prim >= 0, prim, -1)
+        ng = np.asarray(out["Ng"], np.float64)
+        ng /= np.maximum(np.sqrt(np.einsum("ij,ij->i", ng, ng)), 1e-30)[:, None]
+        return t, np.where(prim >= 0, prim, -1), ng
 
     def normals(self, prim: np.ndarray) -> np.ndarray:
         """Unit normals of the triangles ``prim`` (N×3 float64)."""
@@ -137,15 +175,22 @@ class RayCaster:
 def sweep_directions(sensor: LidarSensor) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(unit directions N×3 in the sensor frame, beam N int16, azimuth N radians) of one sweep: for each
     azimuth step (360°: from 0 towards +y; a narrower field of view: centred on +x), every beam, top
-    beam first as the sensor lists them."""
-    incl = sensor.inclinations_rad
-    steps, fov = sensor.steps_per_sweep, np.radians(sensor.horizontal_fov_deg)
-    az = np.arange(steps) * (fov / steps) if sensor.horizontal_fov_deg >= 360 else \
-        -fov / 2 + (np.arange(steps) + 0.5) * (fov / steps)
+    beam first as the sensor lists them. Computed once per sensor geometry (read-only arrays)."""
+    return _directions(sensor.inclinations_deg, sensor.steps_per_sweep, sensor.horizontal_fov_deg)
+
+
+@lru_cache(maxsize=8)
+def _directions(inclinations_deg: tuple, steps: int, fov_deg: float):
+    incl = np.radians(np.asarray(inclinations_deg, np.float64))
+    fov = np.radians(fov_deg)
+    az = np.arange(steps) * (fov / steps) if fov_deg >= 360 else -fov / 2 + (np.arange(steps) + 0.5) * (fov / steps)
     a, i = np.meshgrid(az, incl, indexing="ij")
     d = np.stack([np.cos(i) * np.cos(a), np.cos(i) * np.sin(a), np.sin(i)], -1).reshape(-1, 3)
-    beam = np.broadcast_to(np.arange(len(incl), dtype=np.int16), a.shape).reshape(-1)
-    return d, beam.copy(), a.reshape(-1)
+    beam = np.broadcast_to(np.arange(len(incl), dtype=np.int16), a.shape).reshape(-1).copy()
+    az = a.reshape(-1).copy()
+    for arr in (d, beam, az):
+        arr.flags.writeable = False
+    return d, beam, az
 
 
 @dataclass(frozen=True)
@@ -180,11 +225,11 @@ def sweep(caster: RayCaster, lidar_to_world: np.ndarray, sensor: LidarSensor, so
     T = np.asarray(lidar_to_world, np.float64)
     dirs_world = d @ T[:3, :3].T
     origin = np.broadcast_to(T[:3, 3], dirs_world.shape)
-    t, prim = caster.cast(origin, dirs_world)
+    t, prim, normal = caster.cast(origin, dirs_world, sensor.max_range_m)
     hit = np.isfinite(t) & (t >= sensor.min_range_m) & (t <= sensor.max_range_m)
     idx = np.flatnonzero(hit)
     r, p = t[idx], prim[idx]
-    n_world = caster.normals(p)
+    n_world = normal[idx]
     facing = np.einsum("ij,ij->i", n_world, dirs_world[idx])
     cos_i = np.abs(facing)
     n_world *= -np.sign(facing)[:, None]  # towards the sensor

@@ -221,7 +221,7 @@ def radar_sweep(caster: RayCaster, radar_to_world: np.ndarray, sensor, classes: 
     R, origin = T[:3, :3], T[:3, 3]
     d, az, el, dphi, dtheta = ray_grid(sensor)
     dirs = d @ R.T
-    t, prim = caster.cast(np.broadcast_to(origin, dirs.shape), dirs)
+    t, prim, _ = caster.cast(np.broadcast_to(origin, dirs.shape), dirs)
     scans = _scan_params(sensor)
     scan = np.full(len(d), -1, np.int8)
     for k in range(len(scans) - 1, -1, -1):  # the near scan wins where both see

@@ -46,12 +46,16 @@ BACKSCATTER_PER_VISIBILITY = 0.046
 KEPT_TOLERANCE = 0.5 / 255
 #: the per-ray, per-pulse signal fluctuation's default σ (of its natural log): see LidarSensorSpec
 FLUCTUATION_SIGMA = 0.5
-#: the named calibrations ``--lidar-calibration`` chooses between (or a file: :class:`LidarCalibration`)
-CALIBRATIONS = ("datasheet", "reference")
+#: the named calibrations ``--lidar-calibration`` chooses between (or a file: :class:`LidarCalibration`);
+#: ``reference`` is the deprecated name of ``hahner-constants`` (:data:`DEPRECATED_CALIBRATIONS`)
+CALIBRATIONS = ("datasheet", "hahner-constants", "reference")
+#: old calibration names still read, and the name each now has (the old one promised the reference
+#: simulator's behaviour; it is Hahner et al.'s pulse and overlap constants inside fogsim's own model)
+DEPRECATED_CALIBRATIONS = {"reference": "hahner-constants"}
 #: the constants Hahner et al. (ICCV 2021, "Fog Simulation on Real LiDAR Point Clouds") publish for their
-#: HDL-64, applied over any sensor by the ``reference`` calibration; each with its source
-REFERENCE_CALIBRATION = {
-    "name": "reference",
+#: HDL-64, applied over any sensor by the ``hahner-constants`` calibration; each with its source
+HAHNER_CONSTANTS = {
+    "name": "hahner-constants",
     "pulse_half_power_ns": 20.0,
     "overlap_full_m": 1.0,
     "sources": {
@@ -59,6 +63,8 @@ REFERENCE_CALIBRATION = {
         "overlap_full_m": "Hahner et al. 2021, sec. 3 (beam and receiver fully overlap from about 1 m)",
     },
 }
+#: the deprecated name of :data:`HAHNER_CONSTANTS`
+REFERENCE_CALIBRATION = HAHNER_CONSTANTS
 #: the sensor keys a calibration may set
 CALIBRATION_KEYS = ("min_range_m", "max_range_m", "reference_reflectivity", "pulse_half_power_ns", "overlap_full_m",
                     "fog_echo_scale", "fluctuation_sigma", "range_noise_m", "range_noise_at_threshold_m",
@@ -179,9 +185,9 @@ class LidarFogSpec(Closed):
     droplets much larger than the wavelength). ``return_mode``: overrides the sensor's. ``reflectivity_floor``:
     the darkest reflectivity an estimate may give. ``kept_tolerance``: a detected return whose normalised
     intensity falls by less than this is reported unchanged (``kept``). ``calibration``: the sensor
-    parameters used — ``datasheet`` (the preset's own values, each with its source), ``reference`` (the
-    constants of Hahner et al. 2021 over them: :data:`REFERENCE_CALIBRATION`) or a
-    :class:`LidarCalibration` block."""
+    parameters used — ``datasheet`` (the preset's own values, each with its source), ``hahner-constants``
+    (Hahner et al. 2021's pulse and overlap constants over them, in fogsim's model: :data:`HAHNER_CONSTANTS`;
+    ``reference`` is its deprecated name) or a :class:`LidarCalibration` block."""
 
     model: Literal[LIDAR_FOG_MODELS] = "soft-target"
     backscatter_rule: Literal[BACKSCATTER_RULES] = "visibility"
@@ -207,6 +213,7 @@ class LidarOutcomes(Open):
     output_index: Vector
 
 
-__all__ = ["BACKSCATTER_PER_VISIBILITY", "BACKSCATTER_RULES", "CALIBRATIONS", "CALIBRATION_KEYS", "FLUCTUATION_SIGMA",
+__all__ = ["BACKSCATTER_PER_VISIBILITY", "BACKSCATTER_RULES", "CALIBRATIONS", "CALIBRATION_KEYS",
+           "DEPRECATED_CALIBRATIONS", "FLUCTUATION_SIGMA", "HAHNER_CONSTANTS",
            "KEPT_TOLERANCE", "LIDAR_FOG_MODELS", "LidarCalibration", "LidarFogSpec", "LidarOutcomes", "LidarSensorSpec",
            "Mount", "REFERENCE_CALIBRATION", "RETURN_MODES", "SCALES"]

@@ -20,7 +20,7 @@ import numpy as np
 from fogsim.errors import InputError
 from fogsim.render.blender.library import mesh_triangle_materials, mesh_triangles
 from fogsim.render.blender.scratch import Scratch
-from fogsim.render.lidar_scan import DEFAULT_REFLECTIVITY, material_reflectivity
+from fogsim.render.lidar_scan import surface_reflectivity
 from fogsim.render.scene_classes import PROPERTY, ClassMap
 from fogsim.scene.classes import is_labelled
 
@@ -202,26 +202,23 @@ REFLECTIVITY = "fogsim_reflectivity"  # a custom property on a material or an ob
 
 
 def _reflectivity(material, obj) -> float:
-    """The LiDAR reflectivity of a surface: ``fogsim_reflectivity`` on the object, else on the material,
-    else its Principled BSDF's base colour and transmission (:func:`fogsim.render.lidar_scan.material_reflectivity`;
-    a textured base colour: the material's viewport colour); no material: the default."""
+    """The LiDAR reflectivity (905 nm) of a surface: ``fogsim_reflectivity`` on the object, else on the material,
+    else a transmissive Principled BSDF's glass, else the material's name mapped by the 905 nm table
+    (:func:`fogsim.render.lidar_scan.surface_reflectivity`: keywords such as "glass", "tyre", "paint",
+    "foliage"; no match or no material: the stated fallback, a mid-grey painted surface)."""
     for holder in (obj, material):
         if holder is not None and REFLECTIVITY in holder:
             v = holder[REFLECTIVITY]
-            if not isinstance(v, (int, float)) or isinstance(v, bool) or not 0 <= float(v) <= 10:
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not 0 <= float(v) <= 100:
                 raise InputError(f"{type(holder).__name__} {holder.name!r}",
-                                 f"{REFLECTIVITY} must be a number in [0, 10], got {v!r}")
+                                 f"{REFLECTIVITY} must be a number in [0, 100], got {v!r}")
             return float(v)
     if material is None:
-        return DEFAULT_REFLECTIVITY
+        return surface_reflectivity(None)[0]
     bsdf = next((n for n in (material.node_tree.nodes if material.use_nodes and material.node_tree else ())
                  if n.type == "BSDF_PRINCIPLED"), None)
-    if bsdf is None:
-        return material_reflectivity(material.diffuse_color)
-    base = bsdf.inputs["Base Color"]
-    colour = material.diffuse_color if base.is_linked else base.default_value
-    trans = bsdf.inputs.get("Transmission Weight") or bsdf.inputs.get("Transmission")
-    return material_reflectivity(colour, float(trans.default_value) if trans is not None else 0.0)
+    trans = None if bsdf is None else (bsdf.inputs.get("Transmission Weight") or bsdf.inputs.get("Transmission"))
+    return surface_reflectivity(material.name, float(trans.default_value) if trans is not None else 0.0)[0]
 
 
 def _face_reflectivity(src, obj, material_index: np.ndarray) -> np.ndarray:
