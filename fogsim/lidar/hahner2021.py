@@ -12,8 +12,10 @@ range R₀ and fed intensity i:
   own scale (fed value / 255 normalised).
 * **hard return**: i_h = round(i·e^(−2αR₀)) (numpy's round half to even), always reported.
 * **fog response**: i_s = min(i·R₀²·(β_b/β₀)·I_max(R₀), 255) with β₀ = Γ/π (Γ = 10⁻⁶) and I_max(R₀) the
-  peak of the soft-target integral in front of the point, at R_f(R₀) (≈ 4.6 m for every R₀ beyond it:
-  :func:`fogsim.lidar.hahner.soft_target_peaks`, computed at the exact α). The batch path computes
+  peak of the soft-target integral I(R) over R ≤ R₀, at R_f(R₀) — as the released tables hold it: for
+  R₀ beyond the fog's own peak (≈ 4.6 m) that peak (:func:`fogsim.lidar.hahner.fog_peak`), for a nearer
+  target I(R₀) at R_f = R₀ (:func:`fogsim.lidar.hahner.open_fog_response`), computed at the exact α. A
+  dark near point whose hard return rounds to 0 is therefore scattered too. The batch path computes
   β_b = 0.046/MOR at the released parameter set's default α = 0.06 *before* setting α, so
   β_b = 0.046·0.06/ln 20 at **every** α (``hahner_variant`` ``batch``, the default); its viewer recomputes
   β_b = 0.046·α/ln 20 (``hahner_variant`` ``viewer``; the viewer's other defaults — 'v4' noise, an
@@ -31,8 +33,10 @@ released code reads tables for nine α and takes the nearest (0.09 runs as 0.10;
 check_hahner_released.py`` measures the effect) — and at the exact R₀ (its tables: every 0.1 m to 200 m).
 One β per scan (the released code fogs a scan at one α): a per-point β (patchy fog) is refused.
 
-Random draws from the caller's Generator: one ``uniform(R₀ − 10, R₀ + 10)`` per scattered point, in input
-order, nothing else (the released code draws the same, in the same order, from its module-level Generator).
+Random draws from the caller's Generator, in this order: one ``integers(1, 20)`` (the released code draws it
+for a noise variant it does not use, and discards it), then one ``uniform(R₀ − 10, R₀ + 10)`` per scattered
+point, in input order — what the released code draws from its module-level Generator, in the same order, so
+the same Generator state gives the same clutter ranges.
 """
 from __future__ import annotations
 
@@ -41,7 +45,7 @@ import math
 import numpy as np
 
 from fogsim.lidar.fog import ATTENUATED, CLUTTER, KEPT, FoggedScan
-from fogsim.lidar.hahner import HahnerParameters, fog_peak, soft_target_peaks
+from fogsim.lidar.hahner import HahnerParameters, fog_peak, open_fog_response
 
 __all__ = ["BATCH_ALPHA", "FED_TOP", "Model", "backscatter", "fed_intensity"]
 
@@ -97,11 +101,16 @@ class Model:
         owner, p, a = self.owner, self.params, self.alpha(beta)
         i, r0 = self.fed, self.r0
         i_hard = np.round(i * np.exp(-2.0 * a * r0))
-        imax, rf = soft_target_peaks(a, r0, p)
+        peak, rf_far = fog_peak(a, p)
+        nodes, curve = open_fog_response(p.integral_alpha(a), p)
+        near = r0 < rf_far
+        imax = np.where(near, np.interp(r0, nodes, curve, left=0.0), peak)
+        rf = np.where(near, r0, rf_far)
         gain = backscatter(a, self.variant, p) / (p.target_reflectivity / math.pi)
         i_soft = np.minimum(i * (r0 * r0) * gain * imax, FED_TOP)
         scattered = i_soft > i_hard
         sc = np.flatnonzero(scattered)
+        rng.integers(1, 20)  # drawn and discarded, as the released code does
         u = rng.uniform(r0[sc] - p.scatter_noise_m, r0[sc] + p.scatter_noise_m)  # the draws: one per scattered point
         new_r = owner.range_m.copy()
         new_r[sc] = rf[sc] * r0[sc] / u
