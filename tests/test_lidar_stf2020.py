@@ -239,3 +239,23 @@ def test_the_cli_writes_the_model_its_counts_and_refuses_what_it_cannot(scans, t
         assert fog(*argv, *args, "--out", tmp_path / "o4") == 2
         assert message in capsys.readouterr().err
     assert not (tmp_path / "o4").exists()
+
+
+def test_a_render_preset_with_stf2020_needs_the_sensors_constants(tmp_path):
+    """``fog_model.lidar.model: stf2020`` in a render preset: refused on loading, naming the preset, for a LiDAR
+    without n and g; taken (and handed to the frames' fogger) for one with them."""
+    from fogsim.errors import InputError
+    from fogsim.presets import preset_path
+    from fogsim.render.fog_settings import fog_settings
+    from fogsim.render.preset import load_render_preset
+
+    block = json.loads(preset_path("default").read_text())
+    block.setdefault("fog_model", {})["lidar"] = {"model": "stf2020", "stf_beta_field": "random"}
+    path = tmp_path / "stf.json"
+    path.write_text(json.dumps(block))
+    with pytest.raises(InputError, match="hdl32e has none") as err:
+        load_render_preset(str(path), lidar="hdl32e")
+    assert str(path) in str(err.value)
+    cfg = load_render_preset(str(path), lidar="hdl64e")
+    spec = fog_settings(cfg).lidar
+    assert spec.model == "stf2020" and spec.stf_beta_field == "random"

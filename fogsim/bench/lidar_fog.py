@@ -25,8 +25,9 @@ import tracemalloc
 import numpy as np
 
 from fogsim.bench.timing import median_ms
-from fogsim.lidar.fog import OUTCOMES, LidarFogger
+from fogsim.lidar.fog import LidarFogger
 from fogsim.lidar.hahner import clear_cache
+from fogsim.lidar.outcomes import OUTCOMES
 from fogsim.lidar.points import PointCloud
 from fogsim.lidar.reference import reference_fog
 from fogsim.lidar.sensors import LidarSensor

@@ -23,8 +23,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsim.bench.timing import median_ms
-from fogsim.lidar.fog import CLUTTER, LOST, OUTCOMES, LidarFogger
+from fogsim.lidar.fog import LidarFogger
 from fogsim.lidar.hahner import fed_intensity, hahner_fog
+from fogsim.lidar.outcomes import CLUTTER, LOST, OUTCOMES
 from fogsim.lidar.points import PointCloud
 from fogsim.schema.lidar import CALIBRATIONS
 

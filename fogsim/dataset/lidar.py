@@ -36,10 +36,11 @@ from fogsim.dataset.semantic_kitti import write_sequences
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes, write_json
 from fogsim.lidar.boxes import Box3D
-from fogsim.lidar.fog import OUTCOMES, FoggedScan
+from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.objects import DISTANCE_BINS, MIN_POINTS, cross_sensor_table, table_markdown
 from fogsim.lidar.outcome_file import read_outcomes
+from fogsim.lidar.outcomes import OUTCOMES
 from fogsim.lidar.pictures import bev_levels, points_vs_distance, write_png
 
 __all__ = ["KITTI_IDS", "box_record", "has_lidar", "lidar_summary", "record_box"]

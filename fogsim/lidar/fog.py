@@ -77,12 +77,12 @@ to all its pulses, is folded into σ); fog levels drawn from different Generator
 """
 from __future__ import annotations
 
-import importlib
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, EMPTY_RAY_INDEX, KEPT, LOST, OUTCOMES
 from fogsim.lidar.points import PointCloud
 from fogsim.lidar.rays import EmptyRays
 from fogsim.lidar.scales import scale as scale_named
@@ -94,15 +94,10 @@ from fogsim.schema.lidar import LidarFogSpec
 __all__ = ["ATTENUATED", "checked_beta", "CLUTTER", "EMPTY_RAY_INDEX", "fog_scan", "FoggedScan", "KEPT",
            "lidar_fog_spec", "LidarFogger", "LOST", "OUTCOMES", "PUBLISHED_MODELS"]
 
-OUTCOMES = ("kept", "attenuated", "lost", "clutter")
-KEPT, ATTENUATED, LOST, CLUTTER = range(4)
 #: the smallest range a noisy return is placed at (metres)
 MIN_REPORTED_M = 0.01
-#: the ``index`` of a fogged scan's rows that no input point made (the empty rays' clutter points, and the
-#: points a model adds: stf2020's random scatter)
-EMPTY_RAY_INDEX = -1
-#: the published models and the module of each (imported when chosen: each imports this module)
-PUBLISHED_MODELS = {"hahner2021": "fogsim.lidar.hahner2021", "stf2020": "fogsim.lidar.stf2020"}
+#: the published models (each in its own module, imported when chosen: each imports this one)
+PUBLISHED_MODELS = ("hahner2021", "stf2020")
 
 
 def lidar_fog_spec(spec: LidarFogSpec | dict | None = None) -> LidarFogSpec:
@@ -190,8 +185,12 @@ class LidarFogger:
         self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
         #: the published model's fogger (None: soft-target or attenuation, here)
         self.published = None
+        if self.spec.model == "hahner2021":
+            from fogsim.lidar.hahner2021 import Model
+        elif self.spec.model == "stf2020":
+            from fogsim.lidar.stf2020 import Model
         if self.spec.model in PUBLISHED_MODELS:
-            self.published = importlib.import_module(PUBLISHED_MODELS[self.spec.model]).Model(self)
+            self.published = Model(self)
             return
         rho = np.maximum(self.sensor.reflectivity_of(self.linear, self.range_m), self.spec.reflectivity_floor)
         self.reflectivity = rho

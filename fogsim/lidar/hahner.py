@@ -50,7 +50,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from fogsim.lidar.fog import ATTENUATED, CLUTTER, KEPT
+from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT
 from fogsim.lidar.points import PointCloud
 from fogsim.lidar.sensors import LIGHT_SPEED
 

@@ -44,8 +44,8 @@ import math
 
 import numpy as np
 
-from fogsim.lidar.fog import ATTENUATED, CLUTTER, KEPT, FoggedScan
 from fogsim.lidar.hahner import HahnerParameters, fog_peak, open_fog_response
+from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT
 
 __all__ = ["BATCH_ALPHA", "FED_TOP", "Model", "backscatter", "fed_intensity"]
 
@@ -97,7 +97,7 @@ class Model:
             out |= {"fog_peak_range_m": rf, "fog_peak_integral_s_per_m2": peak}
         return out
 
-    def __call__(self, beta, rng: np.random.Generator) -> FoggedScan:
+    def __call__(self, beta, rng: np.random.Generator):
         owner, p, a = self.owner, self.params, self.alpha(beta)
         i, r0 = self.fed, self.r0
         i_hard = np.round(i * np.exp(-2.0 * a * r0))

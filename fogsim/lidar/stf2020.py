@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fogsim.lidar.fog import ATTENUATED, CLUTTER, KEPT, LOST, FoggedScan
+from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, LOST
 
 __all__ = ["D_MIN_M", "RANDOM_SCATTER", "Model", "RandomBetaField", "constants"]
 
@@ -122,7 +122,7 @@ class Model:
         sc = self.owner.scale
         return sc.from_linear(sc.to_linear(norm))
 
-    def __call__(self, beta, rng: np.random.Generator) -> FoggedScan:
+    def __call__(self, beta, rng: np.random.Generator):
         owner, d, i = self.owner, self.d, self.i
         b = owner.spec.extinction_ratio * (beta if np.ndim(beta) == 0 else np.asarray(beta, np.float64))
         field = RandomBetaField.draw(rng) if self.field == "random" else None
