@@ -259,3 +259,21 @@ def test_a_render_preset_with_stf2020_needs_the_sensors_constants(tmp_path):
     cfg = load_render_preset(str(path), lidar="hdl64e")
     spec = fog_settings(cfg).lidar
     assert spec.model == "stf2020" and spec.stf_beta_field == "random"
+
+
+def test_a_run_recorded_before_the_published_models_resumes(scans, tmp_path, capsys):
+    """A ``fogsim_run.json`` whose ``lidar_fog`` block has no ``hahner_variant`` / ``stf_beta_field`` (fogsim
+    0.5) resumes with the same flags; another model is still refused."""
+    src = tmp_path / "a.bin"
+    src.write_bytes(lf.kitti_bin(scans["kitti"].xyz, scans["kitti"].raw_intensity))
+    out = tmp_path / "out"
+    argv = ["fog", "--quiet", "--points", str(src), "--point-format", "kitti", "--levels", "0,0.06", "--out", str(out)]
+    assert main(argv) == 0
+    run = json.loads((out / "fogsim_run.json").read_text())
+    for key in ("hahner_variant", "stf_beta_field"):
+        del run["parameters"]["lidar_fog"][key]
+    (out / "fogsim_run.json").write_text(json.dumps(run))
+    capsys.readouterr()
+    assert main(argv) == 0 and "1 already done" in capsys.readouterr().out
+    assert main([*argv, "--lidar-model", "hahner2021"]) == 2
+    assert "other parameters" in capsys.readouterr().err
