@@ -185,13 +185,19 @@ def open_fog_response(alpha: float, p: HahnerParameters = HahnerParameters()) ->
 
 
 @lru_cache(maxsize=32)
+def _far_peak(alpha: float, p: HahnerParameters) -> tuple[float, float]:
+    """(I_max, R_f) with no target in the way."""
+    cums, curve = _open_response(alpha, p)
+    value, pos = _refine(cums[0], curve)
+    return float(value[0]), float(pos[0])
+
+
+@lru_cache(maxsize=32)
 def _peak_table(alpha: float, p: HahnerParameters) -> tuple[float, float, np.ndarray, np.ndarray, np.ndarray]:
     """(I_max, R_f) with no target in the way, and the table (R₀, I_max(R₀), R_f(R₀)) of the targets
     closer than R_f, every :data:`PEAK_TABLE_STEP_M`, each maximum searched over R ∈ [R₀, R₀ + L]."""
-    cums, curve = _open_response(alpha, p)
-    nodes = cums[0]
-    value, pos = _refine(nodes, curve)
-    value, pos = float(value[0]), float(pos[0])
+    cums, _ = _open_response(alpha, p)
+    value, pos = _far_peak(alpha, p)
     r0 = np.arange(p.overlap_start_m, pos + PEAK_TABLE_STEP_M, PEAK_TABLE_STEP_M)
     grid = r0[:, None] + np.linspace(0.0, p.pulse_length_m, PEAK_SAMPLES)[None, :]
     imax, rf = _refine(grid, _integral(grid, r0[:, None], p, cums))
@@ -201,14 +207,14 @@ def _peak_table(alpha: float, p: HahnerParameters) -> tuple[float, float, np.nda
 def clear_cache() -> None:
     """Forget the fog peaks computed so far (they are cached per α and parameters)."""
     _peak_table.cache_clear()
+    _far_peak.cache_clear()
     _open_response.cache_clear()
 
 
 def fog_peak(alpha: float, p: HahnerParameters = HahnerParameters()) -> tuple[float, float]:
     """(I_max in s/m², R_f in metres): the peak of the fog's response with no target in the way — the
     same for every target beyond R_f."""
-    value, pos, *_ = _peak_table(p.integral_alpha(alpha), p)
-    return value, pos
+    return _far_peak(p.integral_alpha(alpha), p)
 
 
 def soft_target_peaks(alpha: float, r0, p: HahnerParameters = HahnerParameters()) -> tuple[np.ndarray, np.ndarray]:
