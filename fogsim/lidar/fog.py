@@ -96,7 +96,7 @@ __all__ = ["ATTENUATED", "checked_beta", "CLUTTER", "EMPTY_RAY_INDEX", "fog_scan
 
 #: the smallest range a noisy return is placed at (metres)
 MIN_REPORTED_M = 0.01
-#: the published models (each in its own module, imported when chosen: each imports this one)
+#: the published models, each in its own module (imported when chosen)
 PUBLISHED_MODELS = ("hahner2021", "stf2020")
 
 

@@ -148,7 +148,8 @@ class Model:
         src, u = cand[pick], u[pick]
         # the reported input points, in input order
         idx = np.flatnonzero(~lost)
-        new_i = np.where(cloud, i * np.exp(-b * d_new), i * np.exp(-b * d))[idx]
+        with np.errstate(invalid="ignore"):  # β = 0 rows (a per-point β): d_new = inf, never cloud scatter
+            new_i = np.where(cloud, i * np.exp(-b * d_new), i * np.exp(-b * d))[idx]
         oc = np.where(cloud[idx], CLUTTER, np.where(i[idx] - new_i < owner.spec.kept_tolerance, KEPT, ATTENUATED))
         oc = oc.astype(np.int8)
         new_r = np.where(cloud, d_new, d)[idx]
