@@ -191,8 +191,9 @@ def markdown(results: list[ScanResult], seed: int = 0) -> str:
     for r in results:
         lines += _scan_block(r) + [""]
     lines += [f"Models: `soft-target` fogsim's default; `hahner2021` the released code of Hahner et al. 2021 as it "
-              f"fogs datasets (batch path; its measured agreement with that code: below); `stf2020` the STF "
-              f"authors' chamber-fitted rule. Level k of every model drawn from `default_rng({seed} + k)`. "
+              "fogs datasets (its batch path; agreement with that code measured by "
+              "`scripts/check_hahner_released.py`); `stf2020` the STF authors' chamber-fitted rule. Level k of every "
+              f"model drawn from `default_rng({seed} + k)`. "
               f"Regenerate: `{REGENERATE}`."]
     return "\n".join(lines) + "\n"
 
