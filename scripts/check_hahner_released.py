@@ -32,6 +32,7 @@ import importlib  # noqa: E402
 import pickle  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
+import time  # noqa: E402
 import types  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -127,9 +128,14 @@ def main(argv: list[str] | None = None) -> int:
             print(f"\n{label}: {len(scan)} points, {100 * float((fed == 0).mean()):.1f} % fed 0")
             print(f"  {'β':<6}{'':<18}" + "".join(f"{o:>12}" for o in OUTCOMES) + f"{'max |Δ| pp':>12}"
                   + f"{'clutter range median (m)':>26}")
+            seconds = {"released": 0.0, "fogsim": 0.0}
             for k, beta in enumerate(BETAS):
+                t0 = time.perf_counter()
                 ref, ref_r = released_outcomes(module, scan, fed, beta, args.seed + k, args.variant)
+                t1 = time.perf_counter()
                 got = exact(beta, np.random.default_rng(args.seed + k))
+                seconds["released"] += t1 - t0
+                seconds["fogsim"] += time.perf_counter() - t1
                 tab = table(beta, np.random.default_rng(args.seed + k))
                 rs = shares(ref)
                 ta = min(TABLE_ALPHAS, key=lambda a: abs(a - beta))
@@ -157,6 +163,8 @@ def main(argv: list[str] | None = None) -> int:
                           f"{float(np.median(np.abs(mine - theirs))):.3f} m, 99 % of them by ≤ "
                           f"{100 * float(np.percentile(np.abs(mine - theirs) / theirs, 99)):.1f} % (its tables "
                           "step 0.1 m)")
+            print(f"  time for the {len(BETAS)} levels (one run, wall clock): released code "
+                  f"{seconds['released']:.2f} s, fogsim {1e3 * seconds['fogsim']:.0f} ms")
     verdict = "ok" if worst <= TARGET_PP else "MISSED"
     print(f"\nlargest share difference, fogsim hahner2021 {args.variant} (integral at β) vs the released code: "
           f"{worst:.2f} pp "
