@@ -168,3 +168,26 @@ def nuscenes_sweep(folder: Path, seed: int = 0) -> Path:
     path = folder / "sweep.pcd.bin"
     path.write_bytes(stf_bin(scan.xyz, nuscenes_intensities(len(scan), np.random.default_rng(seed + 1)), ring))
     return path
+
+
+def stf_intensities(n: int, rng: np.random.Generator) -> np.ndarray:
+    """0–255 whole-number intensities distributed like a Seeing Through Fog HDL-64 S3D sweep's: bright (median
+    127: log-normal about 127, σ 0.5, clipped to 1–255), 2 % at 0."""
+    i = np.clip(np.round(np.exp(np.log(127.0) + 0.5 * rng.standard_normal(n))), 1, 255)
+    i[rng.random(n) < 0.02] = 0.0
+    return i.astype(np.float32)
+
+
+def stf_sweep(folder: Path, steps: int = 400, seed: int = 0) -> Path:
+    """A Seeing Through Fog-format sweep (``sweep_stf.bin``: 5 × float32 x y z intensity(0–255) ring(0–63)):
+    the ``hdl64-s3d`` preset's 64 beams × ``steps`` azimuths ray-cast against the street of :func:`kitti_sweep`,
+    intensities :func:`stf_intensities`, ring = the beam (0 = the highest)."""
+    from fogsim.bench.lidar_fog import synthetic_scan
+    from fogsim.lidar.sensors import LidarSensor
+
+    sensor = LidarSensor.preset("hdl64-s3d")
+    scan = synthetic_scan(seed, sensor, steps=steps)
+    ring = scan.estimated_rings(sensor.inclinations_rad).astype(np.float32)
+    path = folder / "sweep_stf.bin"
+    path.write_bytes(stf_bin(scan.xyz, stf_intensities(len(scan), np.random.default_rng(seed + 1)), ring))
+    return path

@@ -381,6 +381,7 @@ def test_the_benchmark_runs(capsys):
     assert main(["bench", "lidar-fog", "--repeat", "1", "--loop-points", "100"]) == 0
     out = capsys.readouterr().out
     assert "per-point loop" in out and out.strip().splitlines()[-1].startswith("bench lidar-fog: 4 levels of 120000")
+    assert "hahner2021, 4 levels" in out and "stf2020, 4 levels" in out and "× the default" in out
 
 
 def test_the_outcome_file_beside_a_fogged_scan(scans, tmp_path):

@@ -1,112 +1,22 @@
-"""fogsim beside the reference re-implementation (fogsim.bench.lidar_side_by_side and
-scripts/lidar_side_by_side.py) on the CI fixture sweep: the table's structure and the invariants it must
-hold whatever fogsim's model is, and docs/lidar-fog.md holding the table exactly as the script makes it."""
+"""The three LiDAR fog models side by side (fogsim.bench.lidar_side_by_side and scripts/lidar_side_by_side.py)
+on the CI fixture sweeps: the invariants each model's rows must hold, the statistics against the fogged scans
+they summarise, and docs/lidar-fog.md holding the block exactly as the script makes it (stale: fails)."""
 from __future__ import annotations
 
 import importlib.util
+import math
 import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-import lidar_fixtures as lfx
 from fogsim.bench import lidar_side_by_side as sbs
-from fogsim.lidar.fog import OUTCOMES
-from fogsim.schema.lidar import LidarFogSpec
+from fogsim.lidar.fog import CLUTTER, LOST, OUTCOMES, LidarFogger
+from fogsim.schema.lidar import CALIBRATIONS
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs" / "lidar-fog.md"
-
-
-@pytest.fixture(scope="module")
-def scan(tmp_path_factory):
-    return lfx.kitti_street_cloud(tmp_path_factory.mktemp("sweep"))
-
-
-@pytest.fixture(scope="module")
-def result(scan):
-    return sbs.side_by_side(scan, label=lfx.SWEEP_LABEL)
-
-
-def test_fixture_is_kitti_like(scan):
-    assert scan.scale == "0-1" and 17_000 <= len(scan) <= 21_000
-    assert 17.0 <= 100.0 * float((scan.raw_intensity == 0).mean()) <= 22.0
-
-
-def test_rows_hold_the_invariants(result, scan):
-    assert [r.beta for r in result.rows] == list(sbs.BETAS)
-    zero = 100.0 * float((scan.raw_intensity == 0).mean())
-    assert result.zero_intensity == pytest.approx(zero)
-    for r in result.rows:
-        for shares in (r.fogsim, r.reference):
-            assert list(shares) == list(OUTCOMES)
-            assert sum(shares.values()) == pytest.approx(100.0, abs=1e-9)
-        assert r.reference["lost"] == 0.0  # the reference never drops a point
-        assert r.reference["kept"] >= zero - 1e-9  # every zero-intensity point is kept
-        assert r.reference_unscaled_clutter > 0.95 * (100.0 - zero)  # the 0–1 trap, unscaled only
-        assert r.reference["clutter"] < 15.0
-        assert r.reference_clutter_m is None or 0.0 < r.reference_clutter_m < 8.0
-    clutter = [r.reference["clutter"] for r in result.rows]
-    assert all(a < b for a, b in zip(clutter, clutter[1:]))  # grows with β
-
-
-def test_zero_intensity_points_kept_point_by_point(scan):
-    from fogsim.lidar.hahner import fed_intensity, hahner_fog
-
-    zero = scan.raw_intensity == 0
-    for beta in sbs.BETAS:
-        level = hahner_fog(scan.xyz, fed_intensity(scan), beta, np.random.default_rng(0))
-        assert (level.outcome[zero] == 0).all()
-
-
-def test_markdown_table_structure(result, scan):
-    text = sbs.markdown(result)
-    lines = text.splitlines()
-    assert lines[0].startswith("| β (1/m) |") and lines[1] == "|---|---|---|---|---|"
-    rows = lines[2:2 + len(sbs.BETAS)]
-    for line, beta in zip(rows, sbs.BETAS):
-        cells = [c.strip() for c in line.strip("|").split("|")]
-        assert len(cells) == 5 and float(cells[0]) == beta
-        for cell in cells[1:3]:
-            assert sum(float(v) for v in cell.split(" / ")) == pytest.approx(100.0, abs=0.3)
-    assert sbs.REGENERATE in text and result.calibration in text
-    assert sbs.markdown(sbs.side_by_side(scan, label=lfx.SWEEP_LABEL)) == text  # seeded: the same table twice
-
-
-def test_docs_hold_the_table_as_generated(result):
-    text = DOCS.read_text(encoding="utf-8")
-    assert text.count(sbs.BEGIN) == 1 and text.count(sbs.END) == 1
-    current = text[text.index(sbs.BEGIN) + len(sbs.BEGIN):text.index(sbs.END)]
-    # the words exactly, the numbers to their last printed digit (a point on a decision boundary may round
-    # the other way under another numpy's exp/log: one point of 20 324 is 0.005 %)
-    number = re.compile(r"(\d+\.\d+)")
-    got, want = number.split(current), number.split("\n" + sbs.markdown(result))
-    stale = f"docs/lidar-fog.md's side-by-side table is stale: run `{sbs.REGENERATE}`"
-    assert got[0::2] == want[0::2] and len(got) == len(want), stale
-    assert all(abs(float(a) - float(b)) <= 0.11 for a, b in zip(got[1::2], want[1::2])), stale
-    assert "## Beside the reference simulator" in text
-
-
-def test_trap_claim_says_unscaled_only():
-    text = DOCS.read_text(encoding="utf-8")
-    assert "the trap applies only to unscaled input" in text
-
-
-def test_calibration_passes_through_when_the_model_has_one():
-    if "calibration" in LidarFogSpec.model_fields:
-        spec, name = sbs.calibration_spec("reference")
-        assert spec == {"calibration": "reference"} and name == "reference"
-    else:
-        assert sbs.calibration_spec(None)[0] is None
-        with pytest.raises(ValueError, match="no calibration choice"):
-            sbs.calibration_spec("reference")
-
-
-def test_replace_block_needs_its_markers():
-    assert sbs.replace_block(f"a\n{sbs.BEGIN}\nold\n{sbs.END}\nb", "new\n") == f"a\n{sbs.BEGIN}\nnew\n{sbs.END}\nb"
-    with pytest.raises(ValueError, match="markers"):
-        sbs.replace_block("no markers here", "x")
 
 
 def _script():
@@ -117,14 +27,103 @@ def _script():
     return module
 
 
-def test_script_rewrites_a_stale_block_and_then_leaves_it(tmp_path, capsys, result):
+@pytest.fixture(scope="module")
+def subjects(tmp_path_factory):
+    return _script().fixture_subjects(tmp_path_factory.mktemp("sweeps"))
+
+
+@pytest.fixture(scope="module")
+def results(subjects):
+    return [sbs.run_scan(s) for s in subjects]
+
+
+def test_the_fixtures_are_one_per_format(subjects):
+    kitti, nuscenes, stf = (s.scan for s in subjects)
+    assert kitti.scale == "0-1" and 17_000 <= len(kitti) <= 21_000
+    assert 17.0 <= 100.0 * float((kitti.raw_intensity == 0).mean()) <= 22.0
+    assert nuscenes.scale == stf.scale == "0-255" and nuscenes.ring.max() == 31 and stf.ring.max() == 63
+    assert [s.sensor for s in subjects] == ["hdl64e", "hdl32e", "hdl64-s3d"]
+
+
+def test_rows_hold_each_models_invariants(results):
+    for r in results:
+        assert [lv.model for lv in r.levels] == [m for m in sbs.MODELS for _ in sbs.BETAS]
+        for lv in r.levels + [x for c in r.calibrations.values() for x in c]:
+            assert list(lv.shares) == list(OUTCOMES) and sum(lv.shares.values()) == pytest.approx(100.0, abs=1e-9)
+            assert sum(lv.far) <= sum(r.clear_far) + 1e-9
+        hahner = [lv for lv in r.levels if lv.model == "hahner2021"]
+        assert all(lv.shares["lost"] == 0.0 and lv.added == 0.0 for lv in hahner)  # it never drops or adds a point
+        assert all(lv.shares["kept"] >= r.zero - 1e-9 for lv in hahner)  # zero-intensity points are kept
+        clutter = [lv.shares["clutter"] for lv in hahner]
+        assert all(a < b for a, b in zip(clutter, clutter[1:]))  # grows with β
+        stf = [lv for lv in r.levels if lv.model == "stf2020"]
+        for lv in stf:  # its clutter all at d_new = ln 2 / β
+            assert lv.clutter_m[0] == pytest.approx(math.log(2) / lv.beta, rel=1e-5)
+            assert lv.clutter_m[2] == pytest.approx(math.log(2) / lv.beta, rel=1e-5)
+        assert all(lv.added > 0 for lv in stf)
+        assert list(r.calibrations) == list(CALIBRATIONS)
+    kitti = results[0]
+    assert kitti.trap is not None and all(v > 0.95 * (100.0 - kitti.zero) for v in kitti.trap)  # the 0–1 trap
+    assert results[1].trap is None and results[2].trap is None
+
+
+def test_statistics_are_those_of_the_fogged_scan(subjects, results):
+    """One level recomputed from its fogged scan: the far field per bin and the clutter's range spread."""
+    s, r = subjects[1], results[1]
+    fogged = LidarFogger(s.scan, s.sensor, sbs.model_specs(s)["hahner2021"])(0.06, np.random.default_rng(1))
+    lv = next(x for x in r.levels if x.model == "hahner2021" and x.beta == 0.06)
+    d = s.scan.range_m
+    hard = (fogged.outcome != LOST) & (fogged.outcome != CLUTTER)
+    want = [100 * float((hard & (d >= 30) & (d < 50)).mean()), 100 * float((hard & (d >= 50) & (d < 80)).mean()),
+            100 * float((hard & (d >= 80)).mean())]
+    assert lv.far == pytest.approx(want, abs=1e-12)
+    rows = fogged.output_index[fogged.outcome == CLUTTER]
+    out, own = fogged.cloud.xyz[rows].astype(np.float64), s.scan.xyz[fogged.outcome == CLUTTER].astype(np.float64)
+    signed = np.linalg.norm(out, axis=1) * np.sign((out * own).sum(axis=1))  # a dark point near the sensor may
+    assert (signed < 0).any()  # be scattered behind it (u < 0 in R_f·R₀/u when R₀ < 10 m)
+    assert lv.clutter_m == pytest.approx(tuple(np.percentile(signed, (5, 50, 95))), rel=1e-9)
+    assert r.clear_far == pytest.approx([100 * float(((d >= lo) & (d < hi)).mean())
+                                         for lo, hi in ((30, 50), (50, 80), (80, math.inf))])
+
+
+def test_markdown_structure_and_determinism(results, subjects):
+    text = sbs.markdown(results)
+    assert text.count("| β (1/m) |") == 3 * len(results) and sbs.REGENERATE in text
+    for line in text.splitlines():
+        if line.startswith("| 0.") and " / " in line and line.count("|") == len(sbs.MODELS) + 3:
+            for cell in line.strip("|").split("|")[1:1 + len(sbs.MODELS)]:
+                assert sum(float(v) for v in cell.split(" / ")) == pytest.approx(100.0, abs=0.3)
+    assert sbs.markdown([sbs.run_scan(subjects[0])]) == sbs.markdown(results[:1])  # seeded: the same twice
+
+
+def test_docs_hold_the_block_as_generated(results):
+    text = DOCS.read_text(encoding="utf-8")
+    assert text.count(sbs.BEGIN) == 1 and text.count(sbs.END) == 1
+    current = text[text.index(sbs.BEGIN) + len(sbs.BEGIN):text.index(sbs.END)]
+    # the words exactly, the numbers to their last printed digit (a point on a decision boundary may round
+    # the other way under another numpy's exp/log: one point of 20 324 is 0.005 %)
+    number = re.compile(r"(\d+\.\d+)")
+    got, want = number.split(current), number.split("\n" + sbs.markdown(results))
+    stale = f"docs/lidar-fog.md's side-by-side block is stale: run `{sbs.REGENERATE}`"
+    assert got[0::2] == want[0::2] and len(got) == len(want), stale
+    assert all(abs(float(a) - float(b)) <= 0.11 for a, b in zip(got[1::2], want[1::2])), stale
+    assert "## Beside the published models" in text and "the trap applies only to unscaled input" in text
+
+
+def test_replace_block_needs_its_markers():
+    assert sbs.replace_block(f"a\n{sbs.BEGIN}\nold\n{sbs.END}\nb", "new\n") == f"a\n{sbs.BEGIN}\nnew\n{sbs.END}\nb"
+    with pytest.raises(ValueError, match="markers"):
+        sbs.replace_block("no markers here", "x")
+
+
+def test_script_rewrites_a_stale_block_and_then_leaves_it(tmp_path, capsys, results):
     page = tmp_path / "lidar-fog.md"
     page.write_text(f"# page\n\n{sbs.BEGIN}\n| stale |\n{sbs.END}\n\nafter\n", encoding="utf-8")
     script = _script()
     assert script.main(["--docs", str(tmp_path)]) == 0
     assert "rewritten" in capsys.readouterr().out
     text = page.read_text(encoding="utf-8")
-    assert sbs.replace_block(text, sbs.markdown(result)) == text and text.endswith(f"{sbs.END}\n\nafter\n")
+    assert sbs.replace_block(text, sbs.markdown(results)) == text and text.endswith(f"{sbs.END}\n\nafter\n")
     assert script.main(["--docs", str(tmp_path)]) == 0
     assert "already current" in capsys.readouterr().out
     (tmp_path / "lidar-fog.md").write_text("no markers\n", encoding="utf-8")

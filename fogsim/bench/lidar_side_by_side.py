@@ -1,139 +1,199 @@
-"""fogsim's LiDAR fog beside the reference simulator (Hahner et al. 2021, re-implemented from its paper in
-:mod:`fogsim.lidar.hahner`) on one scan: per β the outcome shares and the mean clutter range of each, as
-the Markdown table of ``docs/lidar-fog.md`` (``scripts/lidar_side_by_side.py`` regenerates it).
+"""fogsim's LiDAR fog models side by side on the same scans: the default (``soft-target``), Hahner et al.
+2021 as their released code fogs datasets (``hahner2021``) and the STF authors' chamber-fitted rule
+(``stf2020``), per β: the outcome shares, the far field by range bin, the clutter's range distribution, and
+what each named calibration makes of the default — the Markdown block of ``docs/lidar-fog.md``
+(``scripts/lidar_side_by_side.py`` regenerates it).
 
-fogsim runs :class:`~fogsim.lidar.fog.LidarFogger` as the model is at run time (sensor, and the
-calibration where :class:`~fogsim.schema.lidar.LidarFogSpec` offers a ``calibration`` field); the
-reference is fed the intensities its own KITTI viewer feeds (0–1 × 255, rounded), and once more the
-unscaled 0–1 values (its intensity trap). Deterministic: range noise from ``numpy.random.default_rng``
-seeded per β (fogsim ``seed + k``, the reference ``seed + 100 + k``); shares do not depend on the noise.
+Every model runs through :class:`~fogsim.lidar.fog.LidarFogger` as at run time (sensor, spec). Deterministic:
+level k of every model draws from ``numpy.random.default_rng(seed + k)``.
+
+* **outcomes**: kept / attenuated / lost / clutter (% of the input points); stf2020's random-scatter points,
+  which no input point becomes, as "+ added" (% of the input points);
+* **far field**: per range bin of the clear scan (:data:`FAR_BINS`), the share of the scan's points there
+  still reported as hard returns (kept or attenuated), % of all its points;
+* **clutter range**: p5 / median / p95 of the clutter points' distance from the sensor (metres; hahner2021's
+  signed along the ray; stf2020's added points not included);
+* **calibrations**: the default model under each named calibration (:data:`~fogsim.schema.lidar.CALIBRATIONS`, not the deprecated names).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from fogsim.bench.timing import median_ms
-from fogsim.lidar.fog import CLUTTER, OUTCOMES, LidarFogger
-from fogsim.lidar.hahner import HahnerParameters, clear_cache, fed_intensity, hahner_fog
+from fogsim.lidar.fog import LidarFogger
+from fogsim.lidar.hahner import fed_intensity, hahner_fog
+from fogsim.lidar.outcomes import CLUTTER, LOST, OUTCOMES
 from fogsim.lidar.points import PointCloud
-from fogsim.schema.lidar import LidarFogSpec
+from fogsim.schema.lidar import CALIBRATIONS, DEPRECATED_CALIBRATIONS
 
-__all__ = ["BEGIN", "BETAS", "END", "Row", "SideBySide", "calibration_spec", "markdown", "replace_block",
-           "side_by_side", "speed"]
+__all__ = ["BEGIN", "BETAS", "END", "FAR_BINS", "Level", "MODELS", "REGENERATE", "ScanResult", "Subject",
+           "markdown", "model_specs", "replace_block", "run_scan", "speed"]
 
 #: the paper's four levels (1/m)
 BETAS = (0.03, 0.06, 0.09, 0.12)
+#: the models compared, the default first
+MODELS = ("soft-target", "hahner2021", "stf2020")
+#: the far field's range bins (metres, edges)
+FAR_BINS = (30.0, 50.0, 80.0, math.inf)
 #: the markers around the generated block in docs/lidar-fog.md
 BEGIN, END = "<!-- side-by-side table -->", "<!-- /side-by-side table -->"
 REGENERATE = "python scripts/lidar_side_by_side.py --docs docs"
 
 
-def calibration_spec(calibration: str | None) -> tuple[dict | None, str]:
-    """(the ``lidar_fog`` block for :class:`LidarFogger`, the calibration's name for the table): the
-    calibration passed through when :class:`LidarFogSpec` has a ``calibration`` field (None: its
-    default); a calibration asked of a model without one is a ValueError."""
-    field = LidarFogSpec.model_fields.get("calibration")
-    if field is None:
-        if calibration is not None:
-            raise ValueError(f"this fogsim's LiDAR fog model has no calibration choice (asked for {calibration!r})")
-        return None, "none to choose (the model's one set of sensor constants)"
-    if calibration is None:
-        return None, f"{field.default} (the default)"
-    return {"calibration": calibration}, str(calibration)
-
-
 @dataclass(frozen=True)
-class Row:
-    """One β: the shares (%) per outcome of fogsim and of the reference, their mean clutter ranges
-    (metres, None without clutter; the reference's is the mean distance along each point's ray), and
-    the reference's clutter share (%) when fed the unscaled 0–1 values."""
+class Subject:
+    """One scan to compare on: its ``label``, the ``scan`` (sensor frame), the ``sensor`` (a bundled name),
+    the default model's ``calibration`` (None: its default) and ``stf`` — the stf2020 spec's calibration
+    (None: the sensor's own n, g) and what the table calls it."""
 
-    beta: float
-    fogsim: dict[str, float]
-    reference: dict[str, float]
-    fogsim_clutter_m: float | None
-    reference_clutter_m: float | None
-    reference_unscaled_clutter: float | None
-
-
-@dataclass(frozen=True)
-class SideBySide:
-    """The rows, and what made them: the scan's label and size, its zero-intensity share (%), the sensor,
-    the calibration's name, the reference's constants and the seed."""
-
-    rows: list[Row]
-    scan: str
-    points: int
-    zero_intensity: float
+    label: str
+    scan: PointCloud
     sensor: str
-    calibration: str
-    reference: HahnerParameters
-    seed: int
+    calibration: str | dict | None = None
+    stf: tuple[dict | None, str] = (None, "the sensor's")
 
 
-def _shares(outcome: np.ndarray) -> dict[str, float]:
-    counts = np.bincount(outcome, minlength=len(OUTCOMES))
-    return {name: 100.0 * float(counts[k]) / len(outcome) for k, name in enumerate(OUTCOMES)}
+@dataclass(frozen=True)
+class Level:
+    """One model at one β: outcome shares and the added points (% of the input), the far field per bin
+    (% of the input), the clutter's range p5 / p50 / p95 (metres, None without clutter)."""
+
+    model: str
+    beta: float
+    shares: dict[str, float]
+    added: float
+    far: list[float]
+    clutter_m: tuple[float, float, float] | None
 
 
-def _mean(values: np.ndarray) -> float | None:
-    return float(values.mean()) if values.size else None
+@dataclass
+class ScanResult:
+    """What one scan gives: its size, zero-intensity share (%), clear far field per bin (%), the levels of
+    each model (:data:`MODELS`), the default under each calibration, and the 0–1 trap (the released rule's
+    clutter share when a 0–1 scan is fed unscaled; None for other scales)."""
+
+    subject: Subject
+    points: int
+    zero: float
+    clear_far: list[float]
+    levels: list[Level] = field(default_factory=list)
+    calibrations: dict[str, list[Level]] = field(default_factory=dict)
+    trap: list[float] | None = None
 
 
-def side_by_side(scan: PointCloud, sensor: str = "hdl64e", betas=BETAS, seed: int = 0, calibration: str | None = None,
-                 label: str | None = None, params: HahnerParameters = HahnerParameters()) -> SideBySide:
-    """Fog ``scan`` (sensor frame) at each β with fogsim and the reference (module docstring)."""
-    spec, cal_name = calibration_spec(calibration)
-    fogger = LidarFogger(scan, sensor, spec)
-    viewer = fed_intensity(scan, "viewer")
-    unscaled = fed_intensity(scan, "raw") if scan.scale == "0-1" else None
-    rows = []
-    for k, beta in enumerate(betas):
-        level = fogger(beta, np.random.default_rng(seed + k))
-        clutter_rows = level.output_index[level.outcome == CLUTTER]
-        f_range = np.linalg.norm(level.cloud.xyz[clutter_rows].astype(np.float64), axis=1)
-        ref = hahner_fog(scan.xyz, viewer, beta, np.random.default_rng(seed + 100 + k), params)
-        trap = None
-        if unscaled is not None:
-            raw = hahner_fog(scan.xyz, unscaled, beta, np.random.default_rng(seed + 100 + k), params)
-            trap = _shares(raw.outcome)["clutter"]
-        rows.append(Row(float(beta), _shares(level.outcome), _shares(ref.outcome), _mean(f_range),
-                        _mean(ref.ray_distance[ref.scattered]), trap))
-    zero = 100.0 * float((np.asarray(scan.raw_intensity) == 0).mean())
-    return SideBySide(rows, label or scan.source, len(scan), zero, fogger.sensor.name, cal_name, params, seed)
+def _far(ranges: np.ndarray, reported_hard: np.ndarray, n: int) -> list[float]:
+    edges = np.asarray(FAR_BINS)
+    return [100.0 * float((reported_hard & (ranges >= lo) & (ranges < hi)).sum()) / n
+            for lo, hi in zip(edges, edges[1:])]
+
+
+def level_stats(model: str, beta: float, scan: PointCloud, fogged) -> Level:
+    """A :class:`Level` of one fogged scan."""
+    n = len(scan)
+    counts = np.bincount(fogged.outcome, minlength=len(OUTCOMES))
+    shares = {name: 100.0 * float(counts[k]) / n for k, name in enumerate(OUTCOMES)}
+    hard = (fogged.outcome != LOST) & (fogged.outcome != CLUTTER)
+    rows = fogged.output_index[fogged.outcome == CLUTTER]
+    xyz = fogged.cloud.xyz[rows].astype(np.float64)
+    own = scan.xyz[fogged.outcome == CLUTTER].astype(np.float64)
+    signed = np.sign(np.einsum("ij,ij->i", xyz, own)) * np.linalg.norm(xyz, axis=1)
+    spread = tuple(float(v) for v in np.percentile(signed, (5, 50, 95))) if len(rows) else None
+    return Level(model, float(beta), shares, 100.0 * fogged.added_points / n, _far(scan.range_m, hard, n), spread)
+
+
+def model_specs(subject: Subject) -> dict[str, dict]:
+    """The ``lidar_fog`` block of each model (:data:`MODELS`) for ``subject``."""
+    return {"soft-target": {"calibration": subject.calibration} if subject.calibration else {},
+            "hahner2021": {"model": "hahner2021"},
+            "stf2020": {"model": "stf2020"} | ({"calibration": subject.stf[0]} if subject.stf[0] else {})}
+
+
+def run_scan(subject: Subject, betas=BETAS, seed: int = 0) -> ScanResult:
+    """Fog ``subject.scan`` at each β with every model, and the default under each calibration."""
+    scan = subject.scan
+    n = len(scan)
+    result = ScanResult(subject, n, 100.0 * float((np.asarray(scan.raw_intensity) == 0).mean()),
+                        _far(scan.range_m, np.ones(n, bool), n))
+    specs = model_specs(subject)
+    for model in MODELS:
+        fogger = LidarFogger(scan, subject.sensor, specs[model])
+        result.levels += [level_stats(model, b, scan, fogger(b, np.random.default_rng(seed + k)))
+                          for k, b in enumerate(betas)]
+    for name in (c for c in CALIBRATIONS if c not in DEPRECATED_CALIBRATIONS):
+        fogger = LidarFogger(scan, subject.sensor, {"calibration": name})
+        result.calibrations[name] = [level_stats("soft-target", b, scan, fogger(b, np.random.default_rng(seed + k)))
+                                     for k, b in enumerate(betas)]
+    if scan.scale == "0-1":
+        raw = fed_intensity(scan, "raw")
+        result.trap = [100.0 * float((hahner_fog(scan.xyz, raw, b, np.random.default_rng(seed + k)).outcome
+                                      == CLUTTER).mean()) for k, b in enumerate(betas)]
+    return result
+
+
+# ----------------------------------------------------------------------------- Markdown
+def _bin_label(lo: float, hi: float) -> str:
+    return f"≥ {lo:g} m" if math.isinf(hi) else f"{lo:g}–{hi:g} m"
 
 
 def _four(d: dict[str, float]) -> str:
     return " / ".join(f"{d[name]:.1f}" for name in OUTCOMES)
 
 
-def _metres(v: float | None) -> str:
-    return "–" if v is None else f"{v:.1f}"
+def _spread(v) -> str:
+    return "–" if v is None else f"{v[1]:.1f} ({v[0]:.1f}–{v[2]:.1f})"
 
 
-def markdown(result: SideBySide) -> str:
-    """The table and the lines that say what made it (what ``docs/lidar-fog.md`` holds between
-    :data:`BEGIN` and :data:`END`)."""
-    p = result.reference
-    lines = ["| β (1/m) | fogsim kept / attenuated / lost / clutter (%) | reference kept / attenuated / lost / "
-             "clutter (%) | mean clutter range fogsim / reference (m) | reference fed 0–1 unscaled: clutter (%) |",
-             "|---|---|---|---|---|"]
-    for r in result.rows:
-        trap = "–" if r.reference_unscaled_clutter is None else f"{r.reference_unscaled_clutter:.1f}"
-        lines.append(f"| {r.beta:g} | {_four(r.fogsim)} | {_four(r.reference)} | "
-                     f"{_metres(r.fogsim_clutter_m)} / {_metres(r.reference_clutter_m)} | {trap} |")
-    lines += ["",
-              f"Scan: {result.scan} — {result.points} points, {result.zero_intensity:.1f} % of them "
-              f"zero-intensity. fogsim: sensor `{result.sensor}`, calibration: {result.calibration}. "
-              f"Reference (`fogsim.lidar.hahner`): fed 0–1 × 255 rounded as its KITTI viewer does, "
-              f"τ_H {p.pulse_half_power_ns:g} ns, overlap {p.overlap_start_m:g}–{p.overlap_full_m:g} m, "
-              f"Γ {p.target_reflectivity:g}, β_b {p.backscatter_per_visibility:g}/MOR, scattered points "
-              f"±{p.scatter_noise_m:g} m (its clutter range: the mean signed distance along each ray), the "
-              f"integral at each β exactly"
-              f"{' (nearest table)' if p.table_lookup else ''}. Seed {result.seed}. "
+def _by(levels: list[Level], model: str) -> list[Level]:
+    return [lv for lv in levels if lv.model == model]
+
+
+def _scan_block(r: ScanResult) -> list[str]:
+    s = r.subject
+    bins = " / ".join(_bin_label(lo, hi) for lo, hi in zip(FAR_BINS, FAR_BINS[1:]))
+    cal = s.calibration or "datasheet (the default)"
+    lines = [f"**{s.label}** — {r.points} points, {r.zero:.1f} % of them zero-intensity; sensor `{s.sensor}`; "
+             f"soft-target calibration {cal}; stf2020 n, g: {s.stf[1]}.", "",
+             "| β (1/m) | " + " | ".join(f"{m}: kept / attenuated / lost / clutter (%)" for m in MODELS)
+             + " | stf2020 added (%) |", "|---|" + "---|" * (len(MODELS) + 1)]
+    per = {m: _by(r.levels, m) for m in MODELS}
+    for k in range(len(per[MODELS[0]])):
+        lv = [per[m][k] for m in MODELS]
+        lines.append(f"| {lv[0].beta:g} | " + " | ".join(_four(x.shares) for x in lv) + f" | {lv[-1].added:.1f} |")
+    lines += ["", f"Far field, still a hard return, % of the scan ({bins}; clear: "
+              + " / ".join(f"{v:.2f}" for v in r.clear_far) + "), and the clutter's range, median (p5–p95) m:", "",
+              "| β (1/m) | " + " | ".join(f"{m}: far field" for m in MODELS) + " | "
+              + " | ".join(f"{m}: clutter range" for m in MODELS) + " |",
+              "|---|" + "---|" * (2 * len(MODELS))]
+    for k in range(len(per[MODELS[0]])):
+        lv = [per[m][k] for m in MODELS]
+        lines.append(f"| {lv[0].beta:g} | " + " | ".join(" / ".join(f"{v:.2f}" for v in x.far) for x in lv) + " | "
+                     + " | ".join(_spread(x.clutter_m) for x in lv) + " |")
+    lines += ["", "soft-target by calibration — clutter (%), far field ≥ 30 m (%), clutter range median (m):", "",
+              "| β (1/m) | " + " | ".join(f"`{c}`" for c in r.calibrations) + " |",
+              "|---|" + "---|" * len(r.calibrations)]
+    cals = list(r.calibrations.values())
+    for k in range(len(cals[0])):
+        lines.append(f"| {cals[0][k].beta:g} | " + " | ".join(
+            f"{c[k].shares['clutter']:.1f} / {sum(c[k].far):.2f} / "
+            f"{'–' if c[k].clutter_m is None else f'{c[k].clutter_m[1]:.1f}'}" for c in cals) + " |")
+    if r.trap is not None:
+        lines += ["", "The released rule fed this scan's 0–1 values unscaled (the trap applies only to unscaled "
+                  "input) scatters " + " / ".join(f"{v:.1f}" for v in r.trap) + " % at these β."]
+    return lines
+
+
+def markdown(results: list[ScanResult], seed: int = 0) -> str:
+    """The block ``docs/lidar-fog.md`` holds between :data:`BEGIN` and :data:`END`."""
+    lines = []
+    for r in results:
+        lines += _scan_block(r) + [""]
+    lines += [f"Models: `soft-target` fogsim's default; `hahner2021` the released code of Hahner et al. 2021 as it "
+              "fogs datasets (its batch path; agreement with that code measured by "
+              "`scripts/check_hahner_released.py`); `stf2020` the STF authors' chamber-fitted rule. Level k of every "
+              f"model drawn from `default_rng({seed} + k)`. "
               f"Regenerate: `{REGENERATE}`."]
     return "\n".join(lines) + "\n"
 
@@ -147,22 +207,23 @@ def replace_block(text: str, block: str, source: str = "docs/lidar-fog.md") -> s
     return text[:start + len(BEGIN)] + "\n" + block + text[end:]
 
 
-def speed(scan: PointCloud, sensor: str = "hdl64e", betas=BETAS, repeat: int = 5, calibration: str | None = None,
-          params: HahnerParameters = HahnerParameters()) -> dict[str, float]:
-    """Median milliseconds (interleaved repeats) of the len(betas) levels by fogsim (its set-up included)
-    and by the reference re-implementation (the soft-target tables included: its cache is cleared each
-    run), on the calling thread."""
-    spec, _ = calibration_spec(calibration)
-    viewer = fed_intensity(scan, "viewer")
+def speed(subject: Subject, betas=BETAS, repeat: int = 5) -> dict[str, float]:
+    """Median milliseconds (interleaved repeats, the calling thread) of the len(betas) levels of each model
+    (:data:`MODELS`, :func:`model_specs`) on ``subject``, the set-up included (hahner2021's soft-target tables
+    too: their cache is cleared before every model's run), and each model's ratio to the default
+    (``"<model>/soft-target"``)."""
+    from fogsim.lidar.hahner import clear_cache
 
-    def fogsim_levels():
-        fogger = LidarFogger(scan, sensor, spec)
-        return [fogger(b, np.random.default_rng(k)) for k, b in enumerate(betas)]
+    specs = model_specs(subject)
 
-    def reference_levels():
-        clear_cache()
-        return [hahner_fog(scan.xyz, viewer, b, np.random.default_rng(k), params) for k, b in enumerate(betas)]
+    def levels(model):
+        def run():
+            clear_cache()
+            fogger = LidarFogger(subject.scan, subject.sensor, specs[model])
+            return [fogger(b, np.random.default_rng(k)) for k, b in enumerate(betas)]
+        return run
 
-    med = median_ms({"fogsim": fogsim_levels, "reference": reference_levels}, repeat)
-    med["ratio"] = med["reference"] / med["fogsim"] if med["fogsim"] > 0 else math.inf
+    med = median_ms({m: levels(m) for m in MODELS}, repeat)
+    for m in MODELS[1:]:
+        med[f"{m}/{MODELS[0]}"] = med[m] / med[MODELS[0]] if med[MODELS[0]] > 0 else math.inf
     return med

@@ -94,7 +94,8 @@ def add_parsers(sub) -> None:
     lidar.set_defaults(run=lambda args: _lidar(args))
 
     lfog = bsub.add_parser("lidar-fog", help="LiDAR fog speed: a 120 k-point HDL-64-like scan at the paper's four "
-                           "levels, one core, against the per-point loop of the same model")
+                           "levels, one core, against the per-point loop of the same model, with the published "
+                           "models (hahner2021, stf2020) timed beside the default")
     lfog.add_argument("--repeat", type=int, default=5, help="interleaved repeats (medians)")
     lfog.add_argument("--loop-points", type=int, default=4000,
                       help="points of the subsample the per-point loop runs on (scaled to the whole scan)")

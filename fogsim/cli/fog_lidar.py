@@ -19,7 +19,7 @@ from fogsim.errors import EXIT_FAILED, EXIT_OK
 from fogsim.lidar.formats import FORMATS
 from fogsim.lidar.objects import MIN_POINTS
 from fogsim.readers.kitti.samples import KITTI_PARTS, STF_RETURNS
-from fogsim.schema.lidar import LIDAR_FOG_MODELS, SCALES
+from fogsim.schema.lidar import HAHNER_VARIANTS, LIDAR_FOG_MODELS, SCALES, STF_BETA_FIELDS
 
 #: the inputs that have a scan per image (``--lidar`` goes with them)
 SCAN_INPUTS = ("kitti", "stf", "waymo")
@@ -56,8 +56,16 @@ def add_options(fog: argparse.ArgumentParser) -> None:
                         "in the source's format, + per-point outcomes), count each object's points per level, "
                         "and (KITTI, STF) each level as a KITTI tree OUT/kitti/<level>/")
     g.add_argument("--lidar-model", choices=LIDAR_FOG_MODELS, default=None,
-                   help="soft-target (attenuation + the fog's own echo + threshold; default) or attenuation "
-                        "(attenuation + threshold only)")
+                   help="soft-target (attenuation + the fog's own echo + threshold; default), attenuation "
+                        "(attenuation + threshold only), hahner2021 (Hahner et al. 2021's released code as it fogs "
+                        "datasets) or stf2020 (the Seeing Through Fog authors' chamber-fitted rule; needs the "
+                        "sensor's noise level and gain: hdl64e, hdl64-s3d, or a calibration file)")
+    g.add_argument("--hahner-variant", choices=HAHNER_VARIANTS, default=None,
+                   help="--lidar-model hahner2021: batch (the released batch path, backscatter frozen at α 0.06; "
+                        "default) or viewer (the backscatter at each β, as its viewer)")
+    g.add_argument("--stf-beta-field", choices=STF_BETA_FIELDS, default=None,
+                   help="--lidar-model stf2020: homogeneous (one β, the camera's; default) or random (the STF "
+                        "authors' random β field added to it, a new one per scan)")
     g.add_argument("--lidar-sensor", "--sensor", dest="lidar_sensor", metavar="NAME|FILE",
                    help="a bundled sensor (hdl64e, hdl64-s3d, hdl32e, waymo-top) or a custom sensor JSON "
                         "(default: the format's usual one: KITTI hdl64e, STF hdl64-s3d, nuScenes hdl32e, Waymo "
@@ -89,7 +97,8 @@ def add_options(fog: argparse.ArgumentParser) -> None:
 def _lidar_flags_given(args) -> list[str]:
     names = {"lidar_model": "--lidar-model", "lidar_sensor": "--lidar-sensor", "lidar_min_points":
              "--lidar-min-points", "lidar_extinction_ratio": "--lidar-extinction-ratio",
-             "lidar_calibration": "--lidar-calibration"}
+             "lidar_calibration": "--lidar-calibration", "hahner_variant": "--hahner-variant",
+             "stf_beta_field": "--stf-beta-field"}
     given = [flag for key, flag in names.items() if getattr(args, key, None) is not None]
     return given + (["--no-kitti-trees"] if getattr(args, "no_kitti_trees", False) else [])
 
@@ -123,6 +132,8 @@ def normalise(args) -> None:
     for flag in ("--point-format", "--point-scale", "--radar-temperature"):
         if getattr(args, flag[2:].replace("-", "_"), None) is not None:
             raise ValueError(f"{flag} goes with --points")
+    if args.lidar:
+        fog_spec(args)  # the model against the flags and the sensor, before anything is read
 
 
 def sensor_choice(given: str | None):
@@ -164,17 +175,53 @@ def calibration_choice(given: str | None):
 
 
 def fog_spec(args, return_mode: str | None = None):
-    """The fog record's LiDAR part (:class:`~fogsim.schema.lidar.LidarFogSpec`) from the flags."""
+    """The fog record's LiDAR part (:class:`~fogsim.schema.lidar.LidarFogSpec`) from the flags, checked against
+    the model (:func:`check_model`)."""
     from fogsim.lidar.fog import lidar_fog_spec
 
     ratio = args.lidar_extinction_ratio
     if ratio is not None and not ratio > 0:
         raise ValueError(f"--lidar-extinction-ratio must be > 0, got {ratio:g}")
+    variant, field = getattr(args, "hahner_variant", None), getattr(args, "stf_beta_field", None)
+    model = args.lidar_model or "soft-target"
+    if variant is not None and model != "hahner2021":
+        raise ValueError("--hahner-variant goes with --lidar-model hahner2021")
+    if field is not None and model != "stf2020":
+        raise ValueError("--stf-beta-field goes with --lidar-model stf2020")
     block = {k: v for k, v in (("model", args.lidar_model), ("extinction_ratio", ratio),
                                ("return_mode", return_mode),
-                               ("calibration", calibration_choice(getattr(args, "lidar_calibration", None))))
+                               ("calibration", calibration_choice(getattr(args, "lidar_calibration", None))),
+                               ("hahner_variant", variant), ("stf_beta_field", field))
              if v is not None}
-    return lidar_fog_spec(block)
+    spec = lidar_fog_spec(block)
+    check_model(args, spec)
+    return spec
+
+
+#: the sensor each input's scans are fogged with when --lidar-sensor does not say
+USUAL_SENSOR = {"kitti": "hdl64e", "stf": "hdl64-s3d", "waymo": "waymo-top"}
+
+
+def check_model(args, spec) -> None:
+    """What the published models cannot do, refused before anything is read (a ValueError: exit 2):
+    hahner2021 with patchy fog (one β per scan); stf2020 with a sensor without the STF constants n and g (the
+    ``--lidar-sensor``, else the input's usual one, under the run's calibration)."""
+    if spec.model == "hahner2021" and getattr(args, "heterogeneity", 0):
+        raise ValueError("--lidar-model hahner2021 fogs a scan at one β (the released code's one α): drop "
+                         "--heterogeneity, or use soft-target, attenuation or stf2020")
+    if spec.model != "stf2020":
+        return
+    from fogsim.fog.points import DEFAULT_SENSOR
+    from fogsim.lidar.sensors import load_sensor
+    from fogsim.lidar.stf2020 import constants
+
+    given = sensor_choice(args.lidar_sensor)
+    if given is None:
+        given = next((s for k, s in USUAL_SENSOR.items() if getattr(args, k, None)), None)
+    if given is None and getattr(args, "points", None):
+        given = DEFAULT_SENSOR.get(getattr(args, "point_format", None))
+    if given is not None:
+        constants(load_sensor(given).calibrated(spec.calibration))
 
 
 def output(args):

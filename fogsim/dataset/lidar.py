@@ -36,10 +36,11 @@ from fogsim.dataset.semantic_kitti import write_sequences
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes, write_json
 from fogsim.lidar.boxes import Box3D
-from fogsim.lidar.fog import OUTCOMES, FoggedScan
+from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.objects import DISTANCE_BINS, MIN_POINTS, cross_sensor_table, table_markdown
 from fogsim.lidar.outcome_file import read_outcomes
+from fogsim.lidar.outcomes import OUTCOMES
 from fogsim.lidar.pictures import bev_levels, points_vs_distance, write_png
 
 __all__ = ["KITTI_IDS", "box_record", "has_lidar", "lidar_summary", "record_box"]
@@ -84,6 +85,18 @@ def _totals(metas: list[dict], keys: list[str]) -> dict:
     return out
 
 
+def _models(metas: list[dict]) -> list[str]:
+    """The LiDAR fog models the frames' level records name (with hahner2021's variant), in first-seen order."""
+    seen = {}
+    for m in metas:
+        for level in (((m.get("lidar") or {}).get("levels")) or {}).values():
+            model = level.get("model")
+            if model:
+                variant = level.get("hahner_variant")
+                seen[f"{model} ({variant})" if model == "hahner2021" and variant else model] = None
+    return list(seen)
+
+
 def _path(layout: DatasetLayout, given: str) -> Path:
     path = Path(given)
     return path if path.is_absolute() else layout.root / path
@@ -117,10 +130,11 @@ def _bev(layout: DatasetLayout, levels, frames: list[str], metas: list[dict]) ->
                 cloud = read_points(_path(layout, entries[lv.key]["file"]), fmt)
                 outcome, index = read_outcomes(_path(layout, entries[lv.key]["outcome_file"]))
                 extra = int(entries[lv.key].get("empty_ray_clutter") or 0)  # appended after the input's points
-                if len(outcome) != len(scan) or (index >= 0).sum() + extra != len(cloud):
+                added = int(entries[lv.key].get("added_points") or 0)  # then the model's own (stf2020)
+                if len(outcome) != len(scan) or (index >= 0).sum() + extra + added != len(cloud):
                     raise InputError(entries[lv.key]["outcome_file"], "outcomes do not match the scans beside them")
                 fogged[lv.key] = FoggedScan(cloud, outcome, index, {}, int(entries[lv.key].get("empty_rays") or 0),
-                                            extra)
+                                            extra, added)
         except (InputError, ValueError, KeyError) as exc:
             why = f"frame {frame}: {exc}"
             continue
@@ -172,10 +186,13 @@ def lidar_summary(layout: DatasetLayout, levels, frames: list[str], metas: list[
     counted = sum(1 for r in records if r.get("kept", True) and r.get("distance_m") is not None
                   and ("lidar_points" in r or "radar_detections" in r))
     radar_rule = "the radar with ≥ 1 detection on the object, " if radar is not None else ""
+    models = _models(metas)
+    model_rule = f" (LiDAR fog model: {', '.join(models)})" if models else ""
     md = ["# What fog does to each object, seen by each sensor", "",
           f"Share of the kept objects with a 3D box and a distance ({counted} in {len(metas)} frames) that each "
-          f"sensor still sees, per fog level and distance bin: the LiDAR with ≥ {min_points} points in the box, "
-          f"{radar_rule}the camera with a contrast ≥ 5 % (n = objects in the bin).", "", table_markdown(rows)]
+          f"sensor still sees, per fog level and distance bin: the LiDAR with ≥ {min_points} points in the box"
+          f"{model_rule}, {radar_rule}the camera with a contrast ≥ 5 % (n = objects in the bin).", "",
+          table_markdown(rows)]
     if totals:
         md += ["", "## LiDAR outcomes per level", "", "| level | points | kept | attenuated | lost | clutter |",
                "|---|---|---|---|---|---|"]
@@ -194,8 +211,8 @@ def lidar_summary(layout: DatasetLayout, levels, frames: list[str], metas: list[
     atomic_write_bytes(layout.cross_sensor_report(), "\n".join(md).encode())
     out = {"min_points": min_points, "distance_bins_m": _json_bins(bins), "objects_counted": counted,
            "frames_with_scans": sum(1 for m in metas if (m.get("lidar") or {}).get("levels")),
-           "cross_sensor": rows, "outcomes": totals, "report": layout.relative(layout.cross_sensor_report()),
-           "pictures": pictures, "bev_frame": bev_frame}
+           "lidar_fog_models": models, "cross_sensor": rows, "outcomes": totals,
+           "report": layout.relative(layout.cross_sensor_report()), "pictures": pictures, "bev_frame": bev_frame}
     if bev_missing is not None:
         out["bev_missing"] = bev_missing
     kitti = _kitti_image_sets(layout, frames, metas, train, val)

@@ -230,7 +230,9 @@ class Summary:
 def upgrade_parameters(stored: dict) -> dict:
     """A ``fogsim_run.json``'s parameters in today's words (:mod:`fogsim.schema.vocabulary`): before
     fogsim 0.4 a Koschmieder run said ``"model": "standard"`` or ``"extended"``, a scatter run
-    ``"model": "standard"`` beside ``"fog_model": "scatter"`` (with kernel and heterogeneity None)."""
+    ``"model": "standard"`` beside ``"fog_model": "scatter"`` (with kernel and heterogeneity None); before 0.6
+    a ``lidar_fog`` block had no ``hahner_variant`` and ``stf_beta_field`` (their defaults change nothing for
+    the models it could name)."""
     p = dict(stored)
     if "fog_model" in p:
         p["model"] = model_word(p.pop("fog_model"))
@@ -239,6 +241,8 @@ def upgrade_parameters(stored: dict) -> dict:
             p.pop("heterogeneity", None)
     elif isinstance(p.get("model"), str):
         p["model"] = model_word(p["model"])
+    if isinstance(p.get("lidar_fog"), dict):  # before 0.6 the LiDAR fog block had no published models' options
+        p["lidar_fog"] = {"hahner_variant": "batch", "stf_beta_field": "homogeneous", **p["lidar_fog"]}
     return p
 
 

@@ -43,6 +43,11 @@ rays, ln g_f/σ (K) and z (K) for the empty rays in their order. Same Generator 
 
 ``attenuation`` — steps 0–3 and 6 alone: a point is lost when q_h < 1; no fog echo, no empty-ray clutter.
 
+``hahner2021`` — Hahner et al. 2021's released code as it fogs datasets (:mod:`fogsim.lidar.hahner2021`);
+``stf2020`` — the STF authors' chamber-fitted rule (:mod:`fogsim.lidar.stf2020`): each module states its
+equations and its draws. Neither uses the sensor's radiometry above nor the empty rays (counted, never
+fogged); stf2020's random-scatter points are appended last (``FoggedScan.added_points``).
+
 Outcomes (per input point, :data:`OUTCOMES`):
 
 * ``kept`` — the hard return is reported and its normalised intensity falls by less than
@@ -77,6 +82,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, EMPTY_RAY_INDEX, KEPT, LOST, OUTCOMES
 from fogsim.lidar.points import PointCloud
 from fogsim.lidar.rays import EmptyRays
 from fogsim.lidar.scales import scale as scale_named
@@ -86,14 +92,12 @@ from fogsim.schema.base import check
 from fogsim.schema.lidar import LidarFogSpec
 
 __all__ = ["ATTENUATED", "checked_beta", "CLUTTER", "EMPTY_RAY_INDEX", "fog_scan", "FoggedScan", "KEPT",
-           "lidar_fog_spec", "LidarFogger", "LOST", "OUTCOMES"]
+           "lidar_fog_spec", "LidarFogger", "LOST", "OUTCOMES", "PUBLISHED_MODELS"]
 
-OUTCOMES = ("kept", "attenuated", "lost", "clutter")
-KEPT, ATTENUATED, LOST, CLUTTER = range(4)
 #: the smallest range a noisy return is placed at (metres)
 MIN_REPORTED_M = 0.01
-#: the ``index`` of a fogged scan's rows that no input point made (the empty rays' clutter points)
-EMPTY_RAY_INDEX = -1
+#: the published models, each in its own module (imported when chosen)
+PUBLISHED_MODELS = ("hahner2021", "stf2020")
 
 
 def lidar_fog_spec(spec: LidarFogSpec | dict | None = None) -> LidarFogSpec:
@@ -127,8 +131,9 @@ class FoggedScan:
     """One fog level of a scan: ``cloud`` (what the sensor reports: the reported input points in input
     order, then the empty rays' clutter points, ``index`` :data:`EMPTY_RAY_INDEX`), per input point
     ``outcome`` (int8, :data:`OUTCOMES`) and ``output_index`` (int64, its row in ``cloud``, −1 when lost),
-    the ``parameters`` that made it, ``empty_rays`` (how many were given) and ``empty_ray_clutter`` (how
-    many of them became clutter points) (:meth:`record`)."""
+    the ``parameters`` that made it, ``empty_rays`` (how many were given), ``empty_ray_clutter`` (how
+    many of them became clutter points) and ``added_points`` (the points the model added after those:
+    stf2020's random scatter) (:meth:`record`)."""
 
     cloud: PointCloud
     outcome: np.ndarray
@@ -136,6 +141,7 @@ class FoggedScan:
     parameters: dict = field(default_factory=dict)
     empty_rays: int = 0
     empty_ray_clutter: int = 0
+    added_points: int = 0
 
     def counts(self) -> dict[str, int]:
         """Points per outcome."""
@@ -146,7 +152,7 @@ class FoggedScan:
         """The parameters and the counts per outcome (what a sidecar or a report stores)."""
         return {**self.parameters, "points_in": int(len(self.outcome)), "points_out": int(len(self.cloud)),
                 "outcomes": self.counts(), "empty_rays": int(self.empty_rays),
-                "empty_ray_clutter": int(self.empty_ray_clutter)}
+                "empty_ray_clutter": int(self.empty_ray_clutter), "added_points": int(self.added_points)}
 
 
 class LidarFogger:
@@ -173,15 +179,24 @@ class LidarFogger:
         self.range_m = np.maximum(r, 1e-6)
         self.normalised = scan.intensity.astype(np.float64)
         self.linear = self.scale.to_linear(scan.intensity, scan.raw_intensity)
+        self._xyz = scan.xyz.astype(np.float64)
+        if empty_rays is not None and not isinstance(empty_rays, EmptyRays):
+            empty_rays = EmptyRays(empty_rays)
+        self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
+        #: the published model's fogger (None: soft-target or attenuation, here)
+        self.published = None
+        if self.spec.model == "hahner2021":
+            from fogsim.lidar.hahner2021 import Model
+        elif self.spec.model == "stf2020":
+            from fogsim.lidar.stf2020 import Model
+        if self.spec.model in PUBLISHED_MODELS:
+            self.published = Model(self)
+            return
         rho = np.maximum(self.sensor.reflectivity_of(self.linear, self.range_m), self.spec.reflectivity_floor)
         self.reflectivity = rho
         #: ln of the modelled clear-air signal over the threshold, before the fluctuation (step 2)
         with np.errstate(divide="ignore"):
             self.log_signal = np.log(self.sensor.clear_signal(rho, self.range_m))
-        self._xyz = scan.xyz.astype(np.float64)
-        if empty_rays is not None and not isinstance(empty_rays, EmptyRays):
-            empty_rays = EmptyRays(empty_rays)
-        self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
 
     # ------------------------------------------------------------------ the parameters
     def parameters(self, beta, echo=None) -> dict:
@@ -200,6 +215,8 @@ class LidarFogger:
             b = np.asarray(beta)
             beta_rec = {"beta": "per point", "beta_min": float(b.min()), "beta_mean": float(b.mean()),
                         "beta_max": float(b.max())}
+        if self.published is not None:
+            beta_rec.update(self.published.parameters(beta))
         return {"model": self.spec.model, "sensor": self.sensor.name, "calibration": self.sensor.calibration,
                 "return_mode": self.mode, "fluctuation_sigma": self.sensor.fluctuation_sigma,
                 "source": self.scan.source, **beta_rec, "spec": spec}
@@ -208,10 +225,14 @@ class LidarFogger:
     def __call__(self, beta, rng: np.random.Generator | None = None) -> FoggedScan:
         n = len(self.scan)
         beta = checked_beta(beta, n)
+        if self.published is not None:
+            self.published.check(beta)
         if np.ndim(beta) == 0 and beta == 0:
             return self._clear()
         if rng is None:
             raise ValueError("fog with β > 0 draws range noise: pass a seeded numpy.random.Generator")
+        if self.published is not None:
+            return self.published(beta, rng)
         sg = self.sensor.fluctuation_sigma
         z = rng.standard_normal(n, np.float32)  # the draws, in this order (input points): range noise,
         sh = sg * rng.standard_normal(n, np.float32)  # ln g_h, the hard return's fluctuation,
@@ -311,10 +332,13 @@ class LidarFogger:
         xyz = self.empty.directions[rows] * rr[:, None]
         return rows, (xyz, norm, raw)
 
-    def _assemble(self, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameters: dict, extra=None) -> FoggedScan:
+    def _assemble(self, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameters: dict, extra=None,
+                  added=None) -> FoggedScan:
         """The fogged cloud of the reported rows ``idx`` (outcomes ``oc``): kept rows bit for bit (their
         factor R'/R is exactly 1), the others moved along their ray and given their new intensity; then
-        the empty rays' clutter points (``extra``: their rows and (xyz, normalised, raw)), index −1."""
+        the empty rays' clutter points (``extra``: their rows and (xyz, normalised, raw)), index −1; then the
+        points the model adds (``added``: (xyz, normalised, raw, the input rows whose ring and return index
+        they carry)), index −1."""
         scan = self.scan
         xyz = self._xyz.copy() if isinstance(pick, slice) else np.take(self._xyz, idx, axis=0)
         factor = new_r / self.range_m[pick]
@@ -338,12 +362,20 @@ class LidarFogger:
                 ring = np.concatenate([ring, (np.zeros(len(rows), np.int16) if er is None else er[rows])])
             if ret is not None:
                 ret = np.concatenate([ret, np.ones(len(rows), ret.dtype)])
+        n_added = 0 if added is None else len(added[0])
+        if n_added:
+            axyz, anorm, araw, src = added
+            xyz = np.concatenate([xyz, axyz])
+            inten, raw = np.concatenate([inten, anorm]), np.concatenate([raw, araw])
+            index = np.concatenate([index, np.full(n_added, EMPTY_RAY_INDEX, np.int64)])
+            ring = None if ring is None else np.concatenate([ring, scan.ring[src]])
+            ret = None if ret is None else np.concatenate([ret, scan.return_index[src]])
         cloud = PointCloud(xyz.astype(np.float32), inten.astype(np.float32), raw.astype(np.float32), scan.scale,
                            index, scan.source, ring, ret)
         out_index = np.full(len(outcome), -1, np.int64)
         out_index[idx] = np.arange(len(idx))
         return FoggedScan(cloud, outcome, out_index, parameters, 0 if self.empty is None else len(self.empty),
-                          int(len(rows)))
+                          int(len(rows)), n_added)
 
     def _clear(self) -> FoggedScan:
         s = self.scan

@@ -50,12 +50,12 @@ from functools import lru_cache
 
 import numpy as np
 
-from fogsim.lidar.fog import ATTENUATED, CLUTTER, KEPT
+from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT
 from fogsim.lidar.points import PointCloud
 from fogsim.lidar.sensors import LIGHT_SPEED
 
 __all__ = ["FEEDS", "HahnerFog", "HahnerParameters", "TABLE_ALPHAS", "clear_cache", "fed_intensity", "fog_peak",
-           "hahner_fog", "overlap", "soft_target_integral", "soft_target_peaks"]
+           "hahner_fog", "open_fog_response", "overlap", "soft_target_integral", "soft_target_peaks"]
 
 #: the α of the reference code's precomputed integral tables (it uses the nearest one)
 TABLE_ALPHAS = (0.005, 0.01, 0.02, 0.03, 0.06, 0.1, 0.12, 0.15, 0.2)
@@ -171,13 +171,33 @@ def _refine(x: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @lru_cache(maxsize=32)
+def _open_response(alpha: float, p: HahnerParameters) -> tuple[tuple, np.ndarray]:
+    """(the running sums, I(R; ∞) at their nodes)."""
+    cums = _cumulative(alpha, p, _reach(p))
+    return cums, _integral(cums[0], np.inf, p, cums)
+
+
+def open_fog_response(alpha: float, p: HahnerParameters = HahnerParameters()) -> tuple[np.ndarray, np.ndarray]:
+    """(R, I(R; ∞)): the fog's response with no target in the way (s/m²) on the integration grid (metres,
+    from R₁ to R₂ + 3L) at the exact ``alpha`` — cached per α and parameters."""
+    cums, curve = _open_response(float(alpha), p)
+    return cums[0], curve
+
+
+@lru_cache(maxsize=32)
+def _far_peak(alpha: float, p: HahnerParameters) -> tuple[float, float]:
+    """(I_max, R_f) with no target in the way."""
+    cums, curve = _open_response(alpha, p)
+    value, pos = _refine(cums[0], curve)
+    return float(value[0]), float(pos[0])
+
+
+@lru_cache(maxsize=32)
 def _peak_table(alpha: float, p: HahnerParameters) -> tuple[float, float, np.ndarray, np.ndarray, np.ndarray]:
     """(I_max, R_f) with no target in the way, and the table (R₀, I_max(R₀), R_f(R₀)) of the targets
     closer than R_f, every :data:`PEAK_TABLE_STEP_M`, each maximum searched over R ∈ [R₀, R₀ + L]."""
-    cums = _cumulative(alpha, p, _reach(p))
-    nodes = cums[0]
-    value, pos = _refine(nodes, _integral(nodes, np.inf, p, cums))
-    value, pos = float(value[0]), float(pos[0])
+    cums, _ = _open_response(alpha, p)
+    value, pos = _far_peak(alpha, p)
     r0 = np.arange(p.overlap_start_m, pos + PEAK_TABLE_STEP_M, PEAK_TABLE_STEP_M)
     grid = r0[:, None] + np.linspace(0.0, p.pulse_length_m, PEAK_SAMPLES)[None, :]
     imax, rf = _refine(grid, _integral(grid, r0[:, None], p, cums))
@@ -187,13 +207,14 @@ def _peak_table(alpha: float, p: HahnerParameters) -> tuple[float, float, np.nda
 def clear_cache() -> None:
     """Forget the fog peaks computed so far (they are cached per α and parameters)."""
     _peak_table.cache_clear()
+    _far_peak.cache_clear()
+    _open_response.cache_clear()
 
 
 def fog_peak(alpha: float, p: HahnerParameters = HahnerParameters()) -> tuple[float, float]:
     """(I_max in s/m², R_f in metres): the peak of the fog's response with no target in the way — the
     same for every target beyond R_f."""
-    value, pos, *_ = _peak_table(p.integral_alpha(alpha), p)
-    return value, pos
+    return _far_peak(p.integral_alpha(alpha), p)
 
 
 def soft_target_peaks(alpha: float, r0, p: HahnerParameters = HahnerParameters()) -> tuple[np.ndarray, np.ndarray]:

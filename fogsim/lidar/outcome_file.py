@@ -13,7 +13,8 @@ import numpy as np
 
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes
-from fogsim.lidar.fog import LOST, OUTCOMES, FoggedScan
+from fogsim.lidar.fog import FoggedScan
+from fogsim.lidar.outcomes import LOST, OUTCOMES
 from fogsim.schema.base import load_npz
 from fogsim.schema.lidar import LidarOutcomes
 

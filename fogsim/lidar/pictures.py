@@ -19,8 +19,9 @@ import numpy as np
 
 from fogsim.fileio import write_image
 from fogsim.lidar.boxes import Box3D
-from fogsim.lidar.fog import ATTENUATED, CLUTTER, KEPT, LOST, FoggedScan
+from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.objects import MIN_POINTS, distances_and_points
+from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, LOST
 from fogsim.lidar.points import PointCloud
 from fogsim.viz import strip
 

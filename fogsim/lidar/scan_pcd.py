@@ -25,7 +25,8 @@ import os
 
 import numpy as np
 
-from fogsim.lidar.fog import CLUTTER, LOST, FoggedScan
+from fogsim.lidar.fog import FoggedScan
+from fogsim.lidar.outcomes import CLUTTER, LOST
 from fogsim.lidar.pcd import write_pcd
 from fogsim.lidar.points import PointCloud
 

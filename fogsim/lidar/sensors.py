@@ -95,6 +95,8 @@ class LidarSensor:
     fog_echo_scale: float = 1.0
     calibration: str = "datasheet"
     sources: dict = field(default_factory=dict, hash=False, compare=False)
+    stf_noise_level: float | None = None  # the STF chamber-fitted rule's n and g (stf2020; None: unpublished)
+    stf_gain: float | None = None
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -125,7 +127,8 @@ class LidarSensor:
                    mount_xyz_m=tuple(spec.mount.xyz_m), mount_rpy_deg=tuple(spec.mount.rpy_deg),
                    description=spec.description or "", retro_reflective_from=spec.retro_reflective_from,
                    retro_reflectivity_max=spec.retro_reflectivity_max, fluctuation_sigma=spec.fluctuation_sigma,
-                   fog_echo_scale=spec.fog_echo_scale, sources=dict(spec.sources or {}))
+                   fog_echo_scale=spec.fog_echo_scale, sources=dict(spec.sources or {}),
+                   stf_noise_level=spec.stf_noise_level, stf_gain=spec.stf_gain)
 
     @classmethod
     def preset(cls, name: str) -> "LidarSensor":

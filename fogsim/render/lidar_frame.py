@@ -49,10 +49,11 @@ from fogsim.dataset.lidar import box_record as lidar_box_record
 from fogsim.dataset.semantic_kitti import FOG_ID, FOGSIM_TO_SEMANTIC_KITTI, SEQUENCE, SemanticKittiTree, semantic_id
 from fogsim.fileio import atomic_write_bytes
 from fogsim.lidar.boxes import Box3D
-from fogsim.lidar.fog import CLUTTER, FoggedScan
+from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.formats import FORMAT_SUFFIX, write_points
 from fogsim.lidar.objects import attach_lidar_points
 from fogsim.lidar.outcome_file import write_outcomes
+from fogsim.lidar.outcomes import CLUTTER
 from fogsim.lidar.scan_pcd import PCD_SUFFIX, write_level_pcd
 from fogsim.lidar.sensors import LidarSensor
 from fogsim.readers.kitti.calib import KittiCalib

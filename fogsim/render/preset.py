@@ -29,6 +29,7 @@ from fogsim.lidar.sensors import LidarSensor
 from fogsim.presets import preset_path
 from fogsim.radar.sensors import RadarSensor
 from fogsim.render.fog_settings import (
+    fog_model,
     fog_overrides,
     fog_settings,
 )
@@ -236,6 +237,13 @@ def load_render_preset(name_or_path: str | None = None, *, frames: int | None = 
     cfg = replace(cfg, radar=radar_override) if radar_override is not None else cfg
     if cfg.lidar and (why := _unrenderable(cfg.lidar_sensor)):
         raise InputError(cfg.source, f"lidar: {why}")
+    if cfg.lidar and fog_model(cfg).lidar.model == "stf2020":  # its n and g: the sensor's, or the calibration's
+        from fogsim.lidar.stf2020 import constants
+
+        try:
+            constants(cfg.lidar_sensor.calibrated(fog_model(cfg).lidar.calibration))
+        except ValueError as exc:
+            raise InputError(cfg.source, f"fog_model.lidar: {exc}") from None
     return cfg
 
 

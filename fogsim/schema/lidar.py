@@ -37,8 +37,14 @@ from fogsim.schema.documents import Vector
 #: the intensity scales (their conversions: fogsim.lidar.scales)
 SCALES = ("0-1", "0-255", "tanh")
 RETURN_MODES = ("strongest", "last")
-#: the LiDAR fog models: the full LiDAR equation with the fog's own echo, and attenuation + threshold alone
-LIDAR_FOG_MODELS = ("soft-target", "attenuation")
+#: the LiDAR fog models: the full LiDAR equation with the fog's own echo, attenuation + threshold alone, and
+#: the two published models (Hahner et al. 2021's released code: fogsim.lidar.hahner2021; the STF authors'
+#: chamber-fitted rule, Bijelic et al. 2020: fogsim.lidar.stf2020)
+LIDAR_FOG_MODELS = ("soft-target", "attenuation", "hahner2021", "stf2020")
+#: hahner2021's variants: the released code's batch path (the backscatter frozen at α 0.06) or its viewer's
+HAHNER_VARIANTS = ("batch", "viewer")
+#: stf2020's β: one β for every ray (one fog for every sensor) or the STF authors' random β field
+STF_BETA_FIELDS = ("homogeneous", "random")
 BACKSCATTER_RULES = ("visibility", "lidar-ratio")
 #: the visibility rule's default: backscatter β_b = 0.046 / V sr⁻¹ (V = ln 20 / β, the camera's visibility)
 BACKSCATTER_PER_VISIBILITY = 0.046
@@ -69,7 +75,7 @@ REFERENCE_CALIBRATION = HAHNER_CONSTANTS
 CALIBRATION_KEYS = ("min_range_m", "max_range_m", "reference_reflectivity", "pulse_half_power_ns", "overlap_full_m",
                     "fog_echo_scale", "fluctuation_sigma", "range_noise_m", "range_noise_at_threshold_m",
                     "reflectivity_per_intensity", "intensity_range_exponent", "intensity_reference_range_m",
-                    "retro_reflectivity_max")
+                    "retro_reflectivity_max", "stf_noise_level", "stf_gain")
 
 _INCLINATIONS = 'a list of beam inclinations in degrees or "calibration" (read from the data)'
 Inclinations = Annotated[Annotated[word("calibration", _INCLINATIONS), Tag("<calibration>")]
@@ -123,6 +129,9 @@ class LidarSensorSpec(Closed):
     retro_reflectivity_max: number_in(1, 1e6) = 100.0  # the equivalent reflectivity of the top of the scale
     # σ of ln g, g the received-signal factor of one ray's pulse (pulse-energy jitter, beam-to-beam gain)
     fluctuation_sigma: number_in(0, 3) = FLUCTUATION_SIGMA
+    # the STF authors' chamber-fitted noise level n and gain g (stf2020; None: not published for this sensor)
+    stf_noise_level: number_in(0, 1, lo_open=True) | None = None
+    stf_gain: number_in(0, 10) | None = None
     mount: Mount = Mount()
     sources: dict[str, Text] | None = None  # where each parameter's value comes from (key → source)
 
@@ -164,6 +173,8 @@ class LidarCalibration(Closed):
     intensity_range_exponent: number_in(0, 4) | None = None
     intensity_reference_range_m: number_in(0, 1e4, lo_open=True) | None = None
     retro_reflectivity_max: number_in(1, 1e6) | None = None
+    stf_noise_level: number_in(0, 1, lo_open=True) | None = None
+    stf_gain: number_in(0, 10) | None = None
 
     def overrides(self) -> dict:
         """The sensor parameters this calibration sets (the keys given)."""
@@ -178,8 +189,11 @@ Calibration = Annotated[Annotated[Literal[CALIBRATIONS], Tag("<name>")] | Annota
 class LidarFogSpec(Closed):
     """``lidar_fog``: the LiDAR fog model (:mod:`fogsim.lidar.fog`) and its parameters.
 
-    ``model``: ``soft-target`` (two-way attenuation + the fog's own echo + threshold + return mode) or
-    ``attenuation`` (attenuation + threshold, no fog echo). ``backscatter_rule``: ``visibility``
+    ``model``: ``soft-target`` (two-way attenuation + the fog's own echo + threshold + return mode),
+    ``attenuation`` (attenuation + threshold, no fog echo), ``hahner2021`` (Hahner et al. 2021's released code
+    as it fogs datasets, :mod:`fogsim.lidar.hahner2021`; ``hahner_variant`` ``viewer``: its viewer's backscatter)
+    or ``stf2020`` (the STF authors' chamber-fitted rule, :mod:`fogsim.lidar.stf2020`; ``stf_beta_field``
+    ``random``: their random β field over the level's β). ``backscatter_rule``: ``visibility``
     (β_b = ``backscatter_coefficient`` / V, V = ln 20 / β the camera's visibility) or ``lidar-ratio``
     (β_b = β_905 / ``lidar_ratio_sr``). ``extinction_ratio``: β at 905 nm / β in the visible (1 for fog
     droplets much larger than the wavelength). ``return_mode``: overrides the sensor's. ``reflectivity_floor``:
@@ -198,6 +212,8 @@ class LidarFogSpec(Closed):
     reflectivity_floor: number_in(0, 10) = 0.02
     kept_tolerance: number_in(0, 1) = KEPT_TOLERANCE
     calibration: Calibration = "datasheet"
+    hahner_variant: Literal[HAHNER_VARIANTS] = "batch"
+    stf_beta_field: Literal[STF_BETA_FIELDS] = "homogeneous"
 
 
 class LidarOutcomes(Open):
@@ -214,6 +230,6 @@ class LidarOutcomes(Open):
 
 
 __all__ = ["BACKSCATTER_PER_VISIBILITY", "BACKSCATTER_RULES", "CALIBRATIONS", "CALIBRATION_KEYS",
-           "DEPRECATED_CALIBRATIONS", "FLUCTUATION_SIGMA", "HAHNER_CONSTANTS",
+           "DEPRECATED_CALIBRATIONS", "FLUCTUATION_SIGMA", "HAHNER_CONSTANTS", "HAHNER_VARIANTS",
            "KEPT_TOLERANCE", "LIDAR_FOG_MODELS", "LidarCalibration", "LidarFogSpec", "LidarOutcomes", "LidarSensorSpec",
-           "Mount", "REFERENCE_CALIBRATION", "RETURN_MODES", "SCALES"]
+           "Mount", "REFERENCE_CALIBRATION", "RETURN_MODES", "SCALES", "STF_BETA_FIELDS"]
