@@ -131,8 +131,8 @@ def test_the_fogged_scans_are_the_models_for_the_documented_seed(kitti_run):
 
 def test_attenuation_model_against_its_closed_form(tmp_path):
     """``--lidar-model attenuation``: a point is lost exactly when q0·e^(−2βR) < 1, with
-    q0 = max((ρ/ρ_ref)(R_max/R)²·ξ(R), 1), ρ = max(2.55·I, 0.02), ξ = min(1, (R/5)²) — the hdl64e preset's
-    numbers, computed here, with the echo fluctuation off (a ``--lidar-calibration`` file: σ = 0, so the
+    q0 = max((ρ/ρ_ref)(R_max/R)²·ξ(R), 1), ρ = max(s·I, 0.02), ξ = min(1, (R/R_o)²) — with the hdl64e preset's
+    numbers (ρ_ref, R_max, R_o, s read from it), computed here, with the echo fluctuation off (a ``--lidar-calibration`` file: σ = 0, so the
     clear-air floor e^σ is 1); no clutter."""
     root = kt.write_kitti(tmp_path / "in" / "kitti")
     out = tmp_path / "out"
@@ -141,15 +141,18 @@ def test_attenuation_model_against_its_closed_form(tmp_path):
     assert fog("--kitti", root, "--lidar", "--lidar-model", "attenuation", "--lidar-calibration", steady,
                "--levels", "0.06,0.12", "--out", out) == 0
     preset = LidarSensor.preset("hdl64e")
-    assert (preset.reference_reflectivity, preset.max_range_m, preset.overlap_full_m) == (0.8, 120.0, 5.0)
+    rho_ref, r_max, r_o, s = (preset.reference_reflectivity, preset.max_range_m, preset.overlap_full_m,
+                              preset.reflectivity_per_intensity)
+    assert preset.retro_reflective_from is None and preset.intensity_range_exponent == 0.0  # ρ linear in I
     for fid in IDS:
         raw = spec_scan(root / "training" / "velodyne" / f"{fid}.bin")
         r = np.linalg.norm(raw[:, :3].astype(np.float64), axis=1)
-        rho = np.maximum(2.55 * raw[:, 3].astype(np.float64), 0.02)
-        q0 = np.maximum(rho / 0.8 * (120.0 / r) ** 2 * np.minimum(1.0, (r / 5.0) ** 2), 1.0)
+        rho = np.maximum(s * raw[:, 3].astype(np.float64), 0.02)
+        q0 = np.maximum(rho / rho_ref * (r_max / r) ** 2 * np.minimum(1.0, (r / r_o) ** 2), 1.0)
         for level, beta in (("beta0.06", 0.06), ("beta0.12", 0.12)):
             outcome, index = read_outcomes(out / "lidar" / level / f"{frame(fid)}.outcomes.npz")
             lost = q0 * np.exp(-2 * beta * r) < 1.0
+            assert lost.any() and not lost.all()  # both outcomes occur: the rule is tested
             np.testing.assert_array_equal(outcome == LOST, lost)
             assert not (outcome == CLUTTER).any() and (outcome[~lost] != LOST).all()
             got = spec_scan(out / "lidar" / level / f"{frame(fid)}.bin")
