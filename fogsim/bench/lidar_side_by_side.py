@@ -13,7 +13,8 @@ level k of every model draws from ``numpy.random.default_rng(seed + k)``.
   still reported as hard returns (kept or attenuated), % of all its points;
 * **clutter range**: p5 / median / p95 of the clutter points' distance from the sensor (metres; hahner2021's
   signed along the ray; stf2020's added points not included);
-* **calibrations**: the default model under each named calibration (:data:`~fogsim.schema.lidar.CALIBRATIONS`, not the deprecated names).
+* **calibrations**: the default model under each named calibration (:data:`~fogsim.schema.lidar.CALIBRATIONS`,
+  not the deprecated names).
 """
 from __future__ import annotations
 
