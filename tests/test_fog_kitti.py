@@ -132,8 +132,8 @@ def test_the_fogged_scans_are_the_models_for_the_documented_seed(kitti_run):
 def test_attenuation_model_against_its_closed_form(tmp_path):
     """``--lidar-model attenuation``: a point is lost exactly when q0·e^(−2βR) < 1, with
     q0 = max((ρ/ρ_ref)(R_max/R)²·ξ(R), 1), ρ = max(s·I, 0.02), ξ = min(1, (R/R_o)²) — with the hdl64e
-    preset's numbers (ρ_ref, R_max, R_o, s read from it), computed here, with the echo fluctuation off (a ``--lidar-calibration`` file: σ = 0, so the
-    clear-air floor e^σ is 1); no clutter."""
+    preset's numbers (ρ_ref, R_max, R_o, s read from it), computed here, with the echo fluctuation off (a
+    ``--lidar-calibration`` file: σ = 0, so the clear-air floor e^σ is 1); no clutter."""
     root = kt.write_kitti(tmp_path / "in" / "kitti")
     out = tmp_path / "out"
     steady = tmp_path / "steady.json"
