@@ -49,8 +49,9 @@ import numpy as np
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes
 from fogsim.headers import read_npy
-from fogsim.lidar.bounds import check_point_count, file_size
-from fogsim.lidar.pcd import encode_pcd, read_pcd
+from fogsim.lidar.bounds import check_point_count, check_record, file_size
+from fogsim.lidar.formats import check_npy_fields, npy_widest
+from fogsim.lidar.pcd import encode_pcd, read_pcd, read_pcd_header
 from fogsim.radar.detections import RadarScan
 
 __all__ = ["EXTRA_FIELDS", "MODELLED_FIELDS", "NPY_DTYPE", "NUSCENES_DEFAULTS", "NUSCENES_RADAR_DTYPE",
@@ -105,15 +106,17 @@ def read_radar(path: str | os.PathLike, fmt: str | None = None) -> RadarScan:
 
 
 def _read_nuscenes(path: Path) -> RadarScan:
-    _, rec = read_pcd(path)
-    names = rec.dtype.names
+    head = read_pcd_header(path)  # the fields checked from the header, before the body is read
+    names = head.fields
     missing = [n for n in MODELLED_FIELDS if n not in names]
     if missing:
         raise InputError(path, f"not a nuScenes radar sweep: its PCD fields ({' '.join(names)}) lack "
                                f"{' '.join(missing)}")
     for n in names:
-        if rec.dtype[n].shape:
-            raise InputError(path, f"PCD field {n} has COUNT > 1; nuScenes radar fields are single values")
+        if head.dtype[n].shape:
+            raise InputError(path, f"PCD field {n} has COUNT {int(np.prod(head.dtype[n].shape)):,}; nuScenes radar "
+                                   "fields are single values (COUNT 1)")
+    _, rec = read_pcd(path)
     extra_names = [n for n in names if n not in MODELLED_FIELDS]
     if len(rec) and any(np.isnan(rec[0][n]) for n in names if rec.dtype[n].kind == "f"):
         extra = np.zeros(0, [(n, rec.dtype[n]) for n in extra_names]) if extra_names else None
@@ -137,6 +140,8 @@ def _read_npy(path: Path) -> RadarScan:
             raise InputError(path, f"a radar .npy is a 1-D structured array (fields x y z rcs …), got {dtype} "
                                    f"{list(shape)}")
         check_point_count(path, int(shape[0]), size, ".npy header declares a sweep")
+        check_npy_fields(path, dtype, NPY_DTYPE.names)
+        check_record(path, dtype.itemsize, int(shape[0]), "a .npy detection record", npy_widest(dtype))
 
     a = read_npy(path, check).copy()  # fogsim.headers: bounded, never unpickled
     names = set(a.dtype.names)
