@@ -203,6 +203,90 @@ def test_d04_an_ascii_ply_without_newlines_is_refused_at_its_first_long_line(tmp
              "PLY ASCII line 1 is longer than")
 
 
+# ----------------------------------------------------------------------------- D05–D07: sensor grids bounded where read
+LIDAR_SENSOR = {"beams": 64, "vertical_fov_deg": [-24.9, 2.0], "horizontal_resolution_deg": 0.18,
+                "max_range_m": 120.0, "intensity_scale": "0-1"}
+
+
+def _write_json(path: Path, doc: dict) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(doc))
+    return path
+
+
+@pytest.mark.parametrize("change, says", [
+    ({"horizontal_resolution_deg": 1e-6}, "64 beams × horizontal_resolution_deg 1e-06 over 360°: 360,000,000 steps"),
+    ({"beams": 1024, "horizontal_resolution_deg": None, "steps_per_sweep": 200_000},
+     "1024 beams × steps_per_sweep 200,000 = 204,800,000 rays a sweep"),
+])
+def test_d05_a_lidar_grid_is_bounded_where_the_sensor_is_read(tmp_path, change, says):
+    """D05: beams × steps (steps from a resolution too) bounded when the sensor file is read: one line naming
+    it, exit 2, before --out is claimed — never the 21.5 GiB empty-ray grid (run under the 1.5 GB limit)."""
+    doc = {k: v for k, v in (LIDAR_SENSOR | change).items() if v is not None}
+    sensor = _write_json(tmp_path / "in" / "s.json", doc)
+    (tmp_path / "in" / "a.bin").write_bytes(lf.kitti_bin(*_scan_kitti()))
+    res = _fog_points_limited(tmp_path, "a.bin", "kitti", "--sensor", str(sensor))
+    _bounded(res, 2, "s.json", says, "2,000,000")
+    assert not (tmp_path / "out").exists()
+
+
+def _scan_kitti():
+    xyz, rho = _good_scan()
+    return xyz, rho / 2.55
+
+
+def test_d05_the_render_refuses_the_grid_before_blender(tmp_path):
+    """``render --lidar FILE``: the same bound, from the preset's check (before Blender, before --out)."""
+    from fogsim.render.preset import load_render_preset
+
+    sensor = _write_json(tmp_path / "hres.json", LIDAR_SENSOR | {"horizontal_resolution_deg": 1e-6})
+    with pytest.raises(InputError, match="hres.json: .*rays a sweep, more than the 2,000,000"):
+        load_render_preset(None, lidar=str(sensor))
+
+
+def _radar_sensor(tmp_path: Path, **change) -> Path:
+    from fogsim.presets import presets_dir
+
+    doc = json.loads((presets_dir() / "radar" / "ars408-lr.json").read_text())
+    for key, value in change.items():
+        if "." in key:
+            doc[key.split(".")[0]][key.split(".")[1]] = value
+        else:
+            doc[key] = value
+    return _write_json(tmp_path / "radar.json", doc)
+
+
+@pytest.mark.parametrize("change, says", [
+    ({"azimuth_resolution_deg": 1e-9}, "azimuth_resolution_deg 1e-09 is finer than the 0.01°"),  # D06
+    ({"azimuth_resolution_deg": 1e-2}, "makes a render cast 120,000 × 56 = 6,720,000 rays a sweep"),  # D06
+    ({"near_range.azimuth_resolution_deg": 1e-3}, "near_range.azimuth_resolution_deg 0.001 is finer"),
+    ({"range_resolution_m": 1e-6}, "range_resolution_m 1e-06 m over 250 m is 250,000,000 range cells"),  # D07
+    ({"near_range.range_resolution_m": 1e-3}, "near_range.range_resolution_m 0.001 m over 70 m is 70,000 range"),
+])
+def test_d06_d07_a_radar_grid_is_bounded_where_the_sensor_is_read(tmp_path, change, says):
+    """D06: an azimuth resolution that makes the ray grid unbounded; D07: a range resolution whose cells
+    overflow the clustering's 16-bit packing (a KeyError in the trial): refused naming the sensor file, by
+    the render's preset check (before Blender) and by ``fog --points`` alike."""
+    from fogsim.radar.sensors import load_radar_sensor
+    from fogsim.render.preset import load_render_preset
+
+    path = _radar_sensor(tmp_path, **change)
+    with pytest.raises(InputError, match="radar.json") as info:
+        load_render_preset(None, radar=str(path))
+    assert says in str(info.value)
+    with pytest.raises(InputError, match="radar.json"):
+        load_radar_sensor(path)
+
+
+def test_the_bundled_radars_grids_are_as_before():
+    """The bound leaves the bundled radars' ray grids (and hence their renders) as they were."""
+    from fogsim.radar.sensors import RadarSensor
+    from fogsim.render.radar_scan import ray_grid
+
+    assert len(ray_grid(RadarSensor.preset("ars408-lr"))[0]) == 1200 * 56
+    assert len(ray_grid(RadarSensor.preset("srr-corner"))[0]) == 1500 * 80
+
+
 # ----------------------------------------------------------------------------- D19: fogsim's words
 def _ascii_sweep(rows: list[str], points: int | None = None) -> bytes:
     return radar_header(len(rows) if points is None else points, data="ascii") + "".join(

@@ -46,6 +46,9 @@ BACKSCATTER_PER_VISIBILITY = 0.046
 KEPT_TOLERANCE = 0.5 / 255
 #: the per-ray, per-pulse signal fluctuation's default σ (of its natural log): see LidarSensorSpec
 FLUCTUATION_SIGMA = 0.5
+#: the most rays one sweep may fire (beams × azimuth steps; a render casts each, the fog model's empty-ray
+#: grid holds each): 4 × the densest spinning LiDAR sold (128 beams at 0.1°: 460,800)
+MAX_SWEEP_RAYS = 2_000_000
 #: the named calibrations ``--lidar-calibration`` chooses between (or a file: :class:`LidarCalibration`)
 CALIBRATIONS = ("datasheet", "reference")
 #: the constants Hahner et al. (ICCV 2021, "Fog Simulation on Real LiDAR Point Clouds") publish for their
@@ -125,6 +128,13 @@ class LidarSensorSpec(Closed):
             raise ValueError(f"inclinations_deg has {len(self.inclinations_deg)} values for {self.beams} beams")
         if (self.horizontal_resolution_deg is None) == (self.steps_per_sweep is None):
             raise ValueError("needs exactly one of 'horizontal_resolution_deg' and 'steps_per_sweep'")
+        steps = self.steps_per_sweep or max(1, round(self.horizontal_fov_deg / self.horizontal_resolution_deg))
+        if self.beams * steps > MAX_SWEEP_RAYS:
+            given = (f"steps_per_sweep {steps:,}" if self.steps_per_sweep else
+                     f"horizontal_resolution_deg {self.horizontal_resolution_deg:g} over "
+                     f"{self.horizontal_fov_deg:g}°: {steps:,} steps")
+            raise ValueError(f"{self.beams} beams × {given} = {self.beams * steps:,} rays a sweep, more than the "
+                             f"{MAX_SWEEP_RAYS:,} a sweep may fire (128 beams at 0.1° fire 460,800)")
         if not self.min_range_m < self.max_range_m:
             raise ValueError(f"min_range_m ({self.min_range_m:g}) must be below max_range_m ({self.max_range_m:g})")
         if not self.overlap_full_m < self.max_range_m:
@@ -204,4 +214,4 @@ class LidarOutcomes(Open):
 
 __all__ = ["BACKSCATTER_PER_VISIBILITY", "BACKSCATTER_RULES", "CALIBRATIONS", "CALIBRATION_KEYS", "FLUCTUATION_SIGMA",
            "KEPT_TOLERANCE", "LIDAR_FOG_MODELS", "LidarCalibration", "LidarFogSpec", "LidarOutcomes", "LidarSensorSpec",
-           "Mount", "REFERENCE_CALIBRATION", "RETURN_MODES", "SCALES"]
+           "MAX_SWEEP_RAYS", "Mount", "REFERENCE_CALIBRATION", "RETURN_MODES", "SCALES"]
