@@ -287,6 +287,48 @@ def test_the_bundled_radars_grids_are_as_before():
     assert len(ray_grid(RadarSensor.preset("srr-corner"))[0]) == 1500 * 80
 
 
+# ----------------------------------------------------------------------------- D08: an output's subfolders resolved
+def _linked_level(build, level: str, into: str):
+    """``build``'s command after ``OUT/<level>`` was made a link to the input folder ``tmp/in/<into>``."""
+    def wrapped(tmp: Path) -> list[str]:
+        argv = build(tmp)
+        (tmp / "out").mkdir()
+        (tmp / "out" / level).symlink_to(tmp / "in" / into, target_is_directory=True)
+        return argv
+    return wrapped
+
+
+def _deeper_link(tmp: Path) -> list[str]:
+    """OUT/beta0.06/sub links to the input's sub/ (a scan's key has folders: sub/a)."""
+    argv = _points("sub/a.bin", lambda p: p.parent.mkdir() or lf.kitti_bin(*_scan_kitti()), "kitti")(tmp)
+    (tmp / "out" / "beta0.06").mkdir(parents=True)
+    (tmp / "out" / "beta0.06" / "sub").symlink_to(tmp / "in" / "scans" / "sub", target_is_directory=True)
+    return argv
+
+
+LINKS = [
+    Case("d08-points-level-folder-links-into-the-input", _linked_level(
+        _points("a.bin", lambda p: None, "kitti"), "beta0.06", "scans"), 2,
+         ("out/beta0.06", "is a link below --out to", "which is --points", "remove the link")),
+    Case("d08-radar-level-folder-links-into-the-input", _linked_level(
+        _radar(BAD, lambda p: None), "beta0.06", "RADAR_FRONT"), 2, ("out/beta0.06", "which is --points")),
+    Case("d08-link-around-the-input", _linked_level(_points("a.bin", lambda p: None, "kitti"), "beta0.06", "."), 2,
+         ("out/beta0.06", "which contains --points")),
+    Case("d08-link-deeper-into-the-input", _deeper_link, 2, ("out/beta0.06/sub", "which lies inside --points")),
+]
+
+
+def test_d08_a_link_elsewhere_is_written_through(tmp_path):
+    """A level folder linked to a folder that is no input (a scratch disk) is still allowed."""
+    build = _points("a.bin", lambda p: lf.kitti_bin(*_scan_kitti()), "kitti")
+    argv = build(tmp_path)
+    (tmp_path / "scratch").mkdir()
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "beta0.06").symlink_to(tmp_path / "scratch", target_is_directory=True)
+    assert main(argv) == 0
+    assert (tmp_path / "scratch" / "a.bin").is_file()
+
+
 # ----------------------------------------------------------------------------- D19: fogsim's words
 def _ascii_sweep(rows: list[str], points: int | None = None) -> bytes:
     return radar_header(len(rows) if points is None else points, data="ascii") + "".join(
@@ -316,7 +358,7 @@ def _npy_bytes_of(array: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-CASES = WORDING
+CASES = LINKS + WORDING
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
