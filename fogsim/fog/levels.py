@@ -13,6 +13,7 @@ from pathlib import Path
 from fogsim import presets
 from fogsim.errors import InputError
 from fogsim.schema.base import load_json
+from fogsim.schema.documents import level_key
 from fogsim.schema.presets import FogPreset
 
 LN20 = math.log(20.0)
@@ -48,8 +49,7 @@ class FogLevel:
         if self.beta > MAX_BETA:
             raise ValueError(f"fog level {self.key!r}: β = {self.beta:g} 1/m is out of range (at most "
                              f"{MAX_BETA:g} 1/m, a visibility of {MIN_VISIBILITY * 1000:.0f} mm)")
-        if not re.fullmatch(r"[A-Za-z0-9_.\-]+", self.key):
-            raise ValueError(f"fog level key {self.key!r} may hold only letters, digits, '_', '.', '-'")
+        level_key(self.key)  # one folder's name (fogsim.schema.documents: the one rule)
 
     @property
     def visibility(self) -> float:

@@ -98,11 +98,13 @@ def _read_exactly(path: Path, offset: int, count: int) -> bytes:
 
 
 # ----------------------------------------------------------------------------- reading
-def read_points(path: str | os.PathLike, fmt: str | None = None, scale: str | None = None) -> PointCloud:
+def read_points(path: str | os.PathLike, fmt: str | None = None, scale: str | None = None, *,
+                allow_empty: bool = False) -> PointCloud:
     """The scan in ``path`` (``fmt`` one of :data:`FORMATS`; None: from the name, see
     :func:`detect_format`). ``scale`` declares the intensity scale: for the binary formats it must
     match theirs (or be None); for PLY it is used when the file does not say; for ``.npy`` it is the
-    scale of its intensity column (default ``0-1``)."""
+    scale of its intensity column (default ``0-1``). ``allow_empty``: a scan of no points is read (fogsim's
+    own outputs: a sweep that saw nothing) rather than refused (an input to fog)."""
     path = Path(path)
     fmt = _check_format(fmt or detect_format(path))
     if scale is not None and scale not in SCALES:
@@ -110,13 +112,13 @@ def read_points(path: str | os.PathLike, fmt: str | None = None, scale: str | No
     if fmt in COLUMNS:
         if scale is not None and scale != FORMAT_SCALE[fmt]:
             raise ValueError(f"{fmt} scans store intensities on the {FORMAT_SCALE[fmt]} scale, not {scale}")
-        return _read_bin(path, fmt)
+        return _read_bin(path, fmt, allow_empty)
     if fmt == "ply":
-        return _read_ply(path, scale)
-    return _read_npy(path, scale or "0-1")
+        return _read_ply(path, scale, allow_empty)
+    return _read_npy(path, scale or "0-1", allow_empty)
 
 
-def _read_bin(path: Path, fmt: str) -> PointCloud:
+def _read_bin(path: Path, fmt: str, allow_empty: bool = False) -> PointCloud:
     size = file_size(path)
     k = COLUMNS[fmt]
     record = 4 * k
@@ -128,10 +130,10 @@ def _read_bin(path: Path, fmt: str) -> PointCloud:
     ring = a[:, 4] if k == 5 else None
     if ring is not None and not np.isfinite(ring).all():
         raise InputError(path, "ring column holds NaN or infinite values")
-    return PointCloud.from_raw(a[:, :3], a[:, 3], FORMAT_SCALE[fmt], str(path), ring=ring)
+    return PointCloud.from_raw(a[:, :3], a[:, 3], FORMAT_SCALE[fmt], str(path), ring=ring, allow_empty=allow_empty)
 
 
-def _read_npy(path: Path, scale: str) -> PointCloud:
+def _read_npy(path: Path, scale: str, allow_empty: bool = False) -> PointCloud:
     size = file_size(path)
 
     def check(dtype: np.dtype, shape: tuple[int, ...]) -> None:
@@ -163,7 +165,7 @@ def _read_npy(path: Path, scale: str) -> PointCloud:
         ret = None
     if ring is not None and not np.isfinite(np.asarray(ring, np.float64)).all():
         raise InputError(path, "ring column holds NaN or infinite values")
-    return PointCloud.from_raw(xyz, inten, scale, str(path), ring=ring, return_index=ret)
+    return PointCloud.from_raw(xyz, inten, scale, str(path), ring=ring, return_index=ret, allow_empty=allow_empty)
 
 
 def npy_widest(dtype: np.dtype) -> str:
@@ -188,7 +190,7 @@ def check_npy_fields(path, dtype: np.dtype, used: tuple[str, ...]) -> None:
             raise InputError(path, f"field {name} is {sub} (not a number): a point's {name} must be one number")
 
 
-def _read_ply(path: Path, scale: str | None) -> PointCloud:
+def _read_ply(path: Path, scale: str | None, allow_empty: bool = False) -> PointCloud:
     v, comments = read_ply_vertices(path)  # the vertex element alone, bounded (fogsim.lidar.ply)
     names = set(v.dtype.names or ())
     if not {"x", "y", "z"} <= names:
@@ -204,7 +206,8 @@ def _read_ply(path: Path, scale: str | None) -> PointCloud:
     ret = v["return_index"] if "return_index" in names else None
     if ring is not None and not np.isfinite(np.asarray(ring, np.float64)).all():
         raise InputError(path, "ring property holds NaN or infinite values")
-    return PointCloud.from_raw(xyz, inten, said or scale or "0-1", str(path), ring=ring, return_index=ret)
+    return PointCloud.from_raw(xyz, inten, said or scale or "0-1", str(path), ring=ring, return_index=ret,
+                               allow_empty=allow_empty)
 
 
 # ----------------------------------------------------------------------------- writing
