@@ -26,7 +26,7 @@ PAPER = (0.03, 0.06, 0.09, 0.12)
 # fluctuation σ_g 0.5 (ln g ~ N(0, σ_g²) per ray: the clear signal max(q·g, e^σ_g), the fog echo q_f·g)
 R_MAX, RHO_REF, TAU, R_O, S, R_MIN, SIGMA0, SIGMA1, SIGMA_G = 120.0, 0.8, 10e-9, 5.0, 2.55, 1.0, 0.02, 0.10, 0.5
 #: the fluctuation off (σ_g = 0): the deterministic thresholds, for the closed forms of a shape in ρ, R, β
-STEADY = {"calibration": {"fluctuation_sigma": 0.0}}
+STEADY = {"calibration": {"fluctuation_sigma": 0.0, "sources": {"fluctuation_sigma": "assumed: off"}}}
 L = C * TAU
 SURFACES = [lfx.Surface(r, rho) for r in (1.5, 3.0, 4.5, 6.0, 9.0, 13.0, 18.0, 25.0, 33.0, 41.0, 52.0, 63.0, 77.0)
             for rho in (0.05, 0.1, 0.3, 0.6, 0.9)]

@@ -98,6 +98,10 @@ def load_preset(name_or_path: str) -> list[FogLevel]:
 
 def parse_levels(levels: str | None = None, visibility: str | None = None) -> list[FogLevel]:
     """Parse ``--levels`` (a preset name or comma-separated β) or ``--visibility`` (metres)."""
+    for flag, given in (("--levels", levels), ("--visibility", visibility)):
+        if given is not None and not given.strip():
+            raise ValueError(f"{flag} is empty (an unset shell variable?): give a preset name or comma-separated "
+                             "values, or leave the flag out for the default")
     if levels and visibility:
         raise ValueError("give either --levels or --visibility, not both")
     if visibility:
@@ -112,6 +116,9 @@ def parse_levels(levels: str | None = None, visibility: str | None = None) -> li
         if tok in ("clear", "-"):
             out.append(FogLevel("clear", "clear", 0.0))
             continue
+        if not tok:
+            raise ValueError(f"{'--visibility' if what == 'visibility' else '--levels'} {items!r} holds an empty "
+                             "entry (two commas?)")
         try:
             value = float(tok)
         except ValueError:

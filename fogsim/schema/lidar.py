@@ -73,6 +73,27 @@ Inclinations = Annotated[Annotated[word("calibration", _INCLINATIONS), Tag("<cal
                          by_type({"<calibration>": lambda v: isinstance(v, str), "<list>": is_list}, _INCLINATIONS)]
 
 
+def check_sources(model, bookkeeping: tuple[str, ...], what: str = "the sensor") -> None:
+    """Every parameter a document gives (its fields set, less ``bookkeeping``) has a ``sources`` entry (dotted
+    names for nested keys, or the block's name), and every entry names a parameter: a number without its
+    origin is refused (a ValueError, the schema's one line)."""
+    given = model.model_fields_set - set(bookkeeping)
+    sources = model.sources or {}
+    if not given:
+        return
+
+    def sourced(key: str) -> bool:
+        return key in sources or any(s.startswith(key + ".") for s in sources)
+    missing = sorted(k for k in given if not sourced(k))
+    if missing:
+        raise ValueError(f"sources: no entry for {', '.join(missing)} (every parameter says where it comes "
+                         "from: a data sheet, a paper, or 'assumed: why')")
+    known = set(type(model).model_fields) - set(bookkeeping)
+    unknown = sorted(k for k in sources if k.split(".")[0] not in known)
+    if unknown:
+        raise ValueError(f"sources: {', '.join(unknown)} is not a parameter of {what}")
+
+
 class Mount(Closed):
     """``mount``: the sensor's pose in the ego vehicle's frame (x forward, y left, z up, metres;
     roll, pitch, yaw in degrees, R = Rz(yaw)·Ry(pitch)·Rx(roll)): p_ego = R·p_sensor + xyz."""
@@ -146,7 +167,8 @@ class LidarSensorSpec(Closed):
 class LidarCalibration(Closed):
     """A calibration file (``--lidar-calibration FILE``): sensor parameters that replace the preset's
     (any of :data:`CALIBRATION_KEYS`, units as in :class:`LidarSensorSpec`), with a ``name`` and the
-    ``sources`` of its values (key → source)."""
+    ``sources`` of its values (key → source): every value it gives has one, and every source names a value
+    (:func:`check_sources`, the radar sensor's rule)."""
 
     name: Text | None = None
     description: Text | None = None
@@ -163,6 +185,11 @@ class LidarCalibration(Closed):
     intensity_range_exponent: number_in(0, 4) | None = None
     intensity_reference_range_m: number_in(0, 1e4, lo_open=True) | None = None
     retro_reflectivity_max: number_in(1, 1e6) | None = None
+
+    @model_validator(mode="after")
+    def _sourced(self):
+        check_sources(self, ("name", "description", "sources"), "a calibration")
+        return self
 
     def overrides(self) -> dict:
         """The sensor parameters this calibration sets (the keys given)."""
@@ -214,4 +241,4 @@ class LidarOutcomes(Open):
 
 __all__ = ["BACKSCATTER_PER_VISIBILITY", "BACKSCATTER_RULES", "CALIBRATIONS", "CALIBRATION_KEYS", "FLUCTUATION_SIGMA",
            "KEPT_TOLERANCE", "LIDAR_FOG_MODELS", "LidarCalibration", "LidarFogSpec", "LidarOutcomes", "LidarSensorSpec",
-           "MAX_SWEEP_RAYS", "Mount", "REFERENCE_CALIBRATION", "RETURN_MODES", "SCALES"]
+           "MAX_SWEEP_RAYS", "Mount", "check_sources", "REFERENCE_CALIBRATION", "RETURN_MODES", "SCALES"]

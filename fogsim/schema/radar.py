@@ -18,7 +18,7 @@ from pydantic import ConfigDict, Field, model_validator
 
 from fogsim.schema.base import Bool, Closed, NonNegInt, Open, Text, number_in, pair
 from fogsim.schema.documents import Vector
-from fogsim.schema.lidar import MAX_SWEEP_RAYS, Mount
+from fogsim.schema.lidar import MAX_SWEEP_RAYS, Mount, check_sources
 
 #: the visibility–liquid-water relations a radar fog record may name (fogsim.radar.attenuation)
 LWC_RELATIONS = ("kunkel-1984",)
@@ -106,21 +106,9 @@ class RadarSensorSpec(Closed):
             raise ValueError("a sensor that measures elevation needs elevation_fov_deg and elevation_resolution_deg")
         if self.near_range is not None and self.near_range.max_range_m > self.max_range_m:
             raise ValueError("near_range.max_range_m must not exceed max_range_m (the far scan's)")
+        check_sources(self, BOOKKEEPING)  # a document that gives parameters says where each comes from
         self._grids()
-        given = self.model_fields_set - set(BOOKKEEPING)
-        if given:  # a document that gives parameters says where each comes from
-            def sourced(key: str) -> bool:
-                return key in self.sources or any(s.startswith(key + ".") for s in self.sources)
-            missing = sorted(k for k in given if not sourced(k))
-            if missing:
-                raise ValueError(f"sources: no entry for {', '.join(missing)} (every parameter says where it comes "
-                                 "from: a data sheet, a paper, or 'assumed: why')")
-            known = set(type(self).model_fields) - set(BOOKKEEPING)
-            unknown = sorted(k for k in self.sources if k.split(".")[0] not in known)
-            if unknown:
-                raise ValueError(f"sources: {', '.join(unknown)} is not a parameter of the sensor")
         return self
-
 
     def _grids(self) -> None:
         """The render's grids stay bounded: the ray grid (:func:`ray_grid_shape`) ≤ the LiDAR's
