@@ -798,6 +798,20 @@ WORDING = [
 ]
 
 
+def test_d19_running_out_of_memory_is_said_in_words():
+    """D19: a sample that ends in a MemoryError without text (the trial's ``…: MemoryError:``) is reported as
+    memory running out."""
+    from fogsim.fog.batch import _worker
+    from fogsim.fog.points import PointFile
+
+    class Hungry:
+        def fog_one(self, item):
+            raise MemoryError()
+
+    source, error = _worker((Hungry(), PointFile("a", "in/a.bin")))
+    assert source == "in/a.bin" and error.startswith("out of memory (MemoryError)")
+
+
 def _npy_bytes_of(array: np.ndarray) -> bytes:
     import io
 
