@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import lidar_fixtures as lf
-from conftest import run_hostile_case
+from conftest import HANG_S, run_hostile_case
 from fogsim.cli import main
 from fogsim.errors import InputError
 from test_hostile import Case
@@ -243,6 +243,18 @@ def test_d05_the_render_refuses_the_grid_before_blender(tmp_path):
     sensor = _write_json(tmp_path / "hres.json", LIDAR_SENSOR | {"horizontal_resolution_deg": 1e-6})
     with pytest.raises(InputError, match="hres.json: .*rays a sweep, more than the 2,000,000"):
         load_render_preset(None, lidar=str(sensor))
+
+
+@pytest.mark.parametrize("flag", ["--lidar", "--radar"])
+def test_d05_d06_render_refuses_the_sensor_before_claiming_its_output(tmp_path, flag):
+    """The trial's ``render --lidar hres_tiny.json`` / ``--radar az_res_tiny.json``: exit 2 naming the sensor
+    file, no render_run.json — never the 2.68 GiB (8.73 TiB) ray grid (under the 1.5 GB limit)."""
+    sensor = _write_json(tmp_path / "s.json", LIDAR_SENSOR | {"horizontal_resolution_deg": 1e-6}) \
+        if flag == "--lidar" else _radar_sensor(tmp_path, azimuth_resolution_deg=1e-9)
+    res = run_limited(["-m", "fogsim", "render", "--frames", "1", "--resolution", "32x24", "--samples", "1",
+                       "--out", str(tmp_path / "out"), "--quiet", flag, str(sensor)], tmp_path)
+    _bounded(res, 2, sensor.name, "finer than the 0.01°" if flag == "--radar" else "rays a sweep")
+    assert not (tmp_path / "out" / "render_run.json").exists()
 
 
 def _radar_sensor(tmp_path: Path, **change) -> Path:
@@ -570,6 +582,31 @@ def test_d12_empty_sweeps_finalize_and_export(tmp_path, capsys):
         capsys.readouterr().err
     samples = list((tmp_path / "nusc").rglob("*.pcd.bin"))
     assert samples and all(p.stat().st_size == 0 for p in samples)
+
+
+@pytest.mark.blender
+def test_d12_a_render_whose_sweep_sees_nothing_finalizes_and_exports(tmp_path):
+    """D12 as the trial ran it: ``render --lidar near_only.json`` (max range 1.5 m: no return) writes its
+    dataset (no ZeroDivisionError at finalize), ``--finalize-only`` again, and the export reads its empty
+    scans."""
+    import subprocess
+    import sys
+
+    from test_blender import _need_bpy
+
+    _need_bpy()
+    sensor = _write_json(tmp_path / "near_only.json", LIDAR_SENSOR | {"max_range_m": 1.5, "min_range_m": 0.5,
+                                                                      "overlap_full_m": 0.0})
+    out = tmp_path / "out"
+    base = [sys.executable, "-m", "fogsim", "render", "--frames", "1", "--resolution", "32x24", "--samples", "1",
+            "--levels", "clear,0.06", "--lidar", str(sensor), "--out", str(out), "--quiet"]
+    for argv in (base, base + ["--finalize-only"]):
+        res = subprocess.run(argv, capture_output=True, text=True, timeout=HANG_S)
+        assert "Traceback" not in res.stderr and (out / "dataset.json").is_file(), res.stderr[-3000:]
+    outcomes = json.loads((out / "dataset.json").read_text())["lidar"]["outcomes"]
+    assert outcomes and all(level["points"] == 0 for level in outcomes.values())
+    assert main(["export", "nuscenes", str(out), "--out", str(tmp_path / "nusc"), "--quiet"]) == 0
+    assert all(p.stat().st_size == 0 for p in (tmp_path / "nusc").rglob("*.pcd.bin"))
 
 
 # ------------------------------------------------------------ D13, D15, D20–D23: the run's flags, checked up front
