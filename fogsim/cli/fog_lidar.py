@@ -319,8 +319,7 @@ def cmd_points(args) -> int:
         raise ValueError(f"--point-format {fmt} has no usual sensor: give --sensor NAME|FILE")
     levels = tuple(parse_levels(args.levels, args.visibility))
     spec = fog_spec(args)
-    for given in args.points:
-        check_output(args.out, {"--points": given})
+    check_output(args.out, [("--points", given) for given in args.points])
     items = point_files(args.points, fmt)
     recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
     job = PointsJob(levels, args.out, FogSettings(lidar=spec), sensor, fmt, args.point_scale, args.seed, recorded)
@@ -354,8 +353,7 @@ def cmd_radar_points(args) -> int:
     sensor = radar_sensor_choice(args.lidar_sensor) or DEFAULT_RADAR_SENSOR[fmt]
     spec = radar_fog_spec({} if args.radar_temperature is None else {"temperature_c": args.radar_temperature})
     levels = tuple(parse_levels(args.levels, args.visibility))
-    for given in args.points:
-        check_output(args.out, {"--points": given})
+    check_output(args.out, [("--points", given) for given in args.points])
     items = point_files(args.points, fmt)
     recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
     job = RadarPointsJob(levels, args.out, FogSettings(radar=spec), sensor, fmt, recorded)
