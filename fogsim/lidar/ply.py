@@ -205,9 +205,12 @@ def _ascii_vertices(path: Path, head: PlyHeader, at: int, dtype: np.dtype) -> np
                                            "numbers") from None
                 for j, name in enumerate(names):
                     col = table[:, j]
-                    if dtype[name].kind in "iu" and not (np.isfinite(col).all() and (col == np.round(col)).all()):
-                        raise InputError(path, f"PLY vertex property {name} ({dtype[name].base}) holds values that "
-                                               "are not whole numbers")
+                    if dtype[name].kind in "iu":
+                        info = np.iinfo(dtype[name])
+                        if not (np.isfinite(col).all() and (col == np.round(col)).all()) or \
+                                col.min() < info.min or col.max() > info.max:
+                            raise InputError(path, f"PLY vertex property {name} ({dtype[name].base}) holds values "
+                                                   "that are not whole numbers of its type")
                     out[name][done:done + len(rows)] = col
                 done += len(rows)
             if not chunk:
