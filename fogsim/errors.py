@@ -54,6 +54,15 @@ def describe(exc: BaseException) -> str:
     return str(exc)
 
 
+def unexpected(exc: BaseException) -> str:
+    """The one line for an error a unit of work (a frame, a sample) ended with that is no input problem:
+    its type and text; memory running out says so in words (a MemoryError often has no text)."""
+    if isinstance(exc, MemoryError):
+        return f"out of memory (MemoryError{': ' + str(exc) if str(exc) else ''}): the work needed more memory " \
+               "than the machine (or its limit) gives"
+    return f"{type(exc).__name__}: {exc}"
+
+
 def run_command(command, args, prog: str = "fogsim") -> int:
     """Run ``command(args)`` under the one error → exit-code policy: a fogsim error, a bad value
     (``ValueError``), an OS error or Ctrl-C ends it with ``<prog>: error: <one line>`` on stderr

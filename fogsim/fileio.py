@@ -8,6 +8,7 @@ into an existing file, which is what lets one file have two names (:func:`link_o
 from __future__ import annotations
 
 import errno
+import glob
 import json
 import os
 import re
@@ -148,6 +149,58 @@ def link_or_copy(source: str | os.PathLike, target: str | os.PathLike) -> str:
     return "link"
 
 
+@contextmanager
+def atomic_folder(path: str | os.PathLike):
+    """Yield a hidden temporary folder beside ``path``, ``.NAME.<host>-<pid>.<random>.part``; on success it
+    replaces ``path`` whole (an existing folder there is renamed away, then deleted: the caller decides that
+    it may be), so a failed or killed job never leaves a half-written folder under the real name. A failure
+    deletes the temporary folder; a SIGKILL can leave it, which :func:`remove_stale_folders` clears."""
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.{_HOST}-{os.getpid()}.", suffix=PART_SUFFIX,
+                                    dir=path.parent))
+    except OSError as exc:
+        raise _naming(exc, path) from None
+    try:
+        yield tmp
+        os.chmod(tmp, 0o777 & ~_umask())
+        if path.is_dir() and not path.is_symlink():
+            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.{_HOST}-{os.getpid()}.", suffix=PART_SUFFIX,
+                                        dir=path.parent))
+            os.replace(path, old)  # onto the empty folder just made: the old tree moves whole
+            os.replace(tmp, path)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, path)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def remove_stale_folders(path: str | os.PathLike) -> int:
+    """Delete the temporary folders :func:`atomic_folder` left beside ``path`` when its writer was killed
+    (the same staleness rule as :func:`remove_stale_parts`); returns how many."""
+    path = Path(path)
+    removed = 0
+    for part in path.parent.glob(f".{glob.escape(path.name)}.*{PART_SUFFIX}"):
+        if part.is_dir() and not part.is_symlink() and _stale(part):
+            shutil.rmtree(part, ignore_errors=True)
+            removed += 1
+    return removed
+
+
+def _stale(part: Path) -> bool:
+    """Whether the writer of the temporary ``part`` is gone (this host: its process; another: a day)."""
+    host, pid = _writer_of(part.name)
+    if host == _HOST:
+        return not _alive(pid)
+    try:
+        return time.time() - part.stat().st_mtime > STALE_FOREIGN_PART_S
+    except FileNotFoundError:
+        return False
+
+
 def remove_stale_parts(root: str | os.PathLike) -> int:
     """Delete the temporary files of dead writers under ``root``; returns how many.
 
@@ -156,17 +209,8 @@ def remove_stale_parts(root: str | os.PathLike) -> int:
     concurrent shards writing into one folder never lose a file they are still writing.
     """
     removed = 0
-    now = time.time()
     for part in Path(root).rglob(f".*{PART_SUFFIX}"):
-        host, pid = _writer_of(part.name)
-        if host == _HOST:
-            stale = not _alive(pid)
-        else:
-            try:
-                stale = now - part.stat().st_mtime > STALE_FOREIGN_PART_S
-            except FileNotFoundError:
-                continue
-        if stale:
+        if not part.is_dir() and _stale(part):
             part.unlink(missing_ok=True)
             removed += 1
     return removed
@@ -325,11 +369,12 @@ def loop_problem(flag: str | None = None) -> str:
             "other): nothing can be read or written there")
 
 
-def check_path_arguments(args) -> None:
+def check_path_arguments(args, positional: frozenset[str] = frozenset()) -> None:
     """Refuse a symlink loop in any path argument of a parsed command line, before the command runs.
 
     Every string (or list of strings) in ``vars(args)`` is tried as a path: one that the system
-    cannot look up because of a loop of links (ELOOP) is one line naming it and its flag, exit 2.
+    cannot look up because of a loop of links (ELOOP) is one line naming it and its flag (``positional``:
+    the names of arguments given without a flag, named "the NAME argument"), exit 2.
     Strings that are not paths (a level list, inline JSON) do not exist and pass; so a new flag is
     guarded without being declared a path."""
     for dest, value in vars(args).items():
@@ -340,15 +385,16 @@ def check_path_arguments(args) -> None:
                 os.stat(given)
             except OSError as exc:
                 if exc.errno == errno.ELOOP:
-                    raise InputError(given, loop_problem(f"--{dest.replace('_', '-')}")) from None
+                    flag = f"the {dest} argument" if dest in positional else f"--{dest.replace('_', '-')}"
+                    raise InputError(given, loop_problem(flag)) from None
             except ValueError:  # an embedded NUL: not a path
                 continue
 
 
-def with_checked_paths(command):
+def with_checked_paths(command, positional: frozenset[str] = frozenset()):
     """``command(args)`` preceded by :func:`check_path_arguments` (the front doors' one path guard)."""
     def guarded(args):
-        check_path_arguments(args)
+        check_path_arguments(args, positional)
         return command(args)
 
     return guarded

@@ -36,7 +36,9 @@ def check_output(out: str | os.PathLike, inputs: dict[str, str | os.PathLike | N
     ``(flag, path)`` pairs when a flag names several, e.g. positional run folders). The output
     may not equal an input, lie inside one, or contain one (symlinks resolved) — except the
     flags in ``allow_inside_out``, inputs a command keeps in its own folder by design (the
-    study's dataset). ``--out ''`` and an existing file are refused too. Checked before
+    study's dataset). ``--out ''`` and an existing file are refused too. An existing output
+    folder's subfolders are resolved as well: a link below it to a folder (a level folder of a
+    reused or shared ``--out``) may not lead into an input, nor around one. Checked before
     anything is written.
 
     ``file=True``: ``out`` is one file a command writes (``fit-fog --out``): it may not be an input
@@ -49,10 +51,10 @@ def check_output(out: str | os.PathLike, inputs: dict[str, str | os.PathLike | N
         raise InputError(out, "--out is a folder: name the file to write (e.g. OUT/params.json)")
     if not file and target.exists() and not target.is_dir():
         raise InputError(out, "--out exists and is not a folder")
-    for flag, given in (inputs.items() if isinstance(inputs, dict) else inputs):
-        if given is None or str(given) == "":
-            continue
-        src = resolve_path(given, flag)
+    pairs = [(flag, given, resolve_path(given, flag))
+             for flag, given in (inputs.items() if isinstance(inputs, dict) else inputs)
+             if given is not None and str(given) != ""]
+    for flag, given, src in pairs:
         inside_out = not file and (src == target or target in src.parents)
         if src == target or src in target.parents or (inside_out and flag not in allow_inside_out):
             where = ("is" if src == target else "lies inside" if src in target.parents else "contains")
@@ -60,7 +62,33 @@ def check_output(out: str | os.PathLike, inputs: dict[str, str | os.PathLike | N
                                   f"the input; choose an output {'file' if file else 'folder'} outside it")
     if file:
         _check_writable(out, target)
+    elif target.is_dir():
+        _check_linked_folders(target, [(f, g, s) for f, g, s in pairs if f not in allow_inside_out])
     return target
+
+
+def _check_linked_folders(target: Path, inputs: list[tuple]) -> None:
+    """Refuse a link below the output folder ``target`` that leads to a folder in, or around, an input
+    (``inputs``: (flag, given, resolved) triples). A link to a file is harmless (every write replaces the
+    link itself: :func:`fogsim.fileio.atomic_path`), and so is one that leads nowhere (a write through it
+    fails: nothing is created at its end)."""
+    folders = [target]
+    while folders:
+        with os.scandir(folders.pop()) as entries:  # d_type: no stat per file
+            for entry in entries:
+                if entry.is_dir(follow_symlinks=False):
+                    folders.append(Path(entry.path))
+                    continue
+                link = Path(entry.path)
+                if not entry.is_symlink() or (link.exists() and not link.is_dir()):
+                    continue
+                real = resolve_path(link, "--out")
+                for flag, given, src in inputs:
+                    if real == src or src in real.parents or real in src.parents:
+                        where = "is" if real == src else "lies inside" if src in real.parents else "contains"
+                        raise InputError(link, f"is a link below --out to {real}, which {where} {flag} {given}: "
+                                               "the outputs would be written into the input; remove the link or "
+                                               "use another --out")
 
 
 def _check_writable(out, target: Path) -> None:

@@ -137,7 +137,8 @@ def test_attenuation_model_against_its_closed_form(tmp_path):
     root = kt.write_kitti(tmp_path / "in" / "kitti")
     out = tmp_path / "out"
     steady = tmp_path / "steady.json"
-    steady.write_text(json.dumps({"name": "steady", "fluctuation_sigma": 0.0}))
+    steady.write_text(json.dumps({"name": "steady", "fluctuation_sigma": 0.0,
+                                  "sources": {"fluctuation_sigma": "assumed: off, for the closed form"}}))
     assert fog("--kitti", root, "--lidar", "--lidar-model", "attenuation", "--lidar-calibration", steady,
                "--levels", "0.06,0.12", "--out", out) == 0
     preset = LidarSensor.preset("hdl64e")

@@ -31,7 +31,7 @@ R_MAX, RHO_REF, TAU, R_O, S, R_MIN, SIGMA0, SIGMA1, SIGMA_G = 120.0, 0.8, 10e-9,
 HDL64 = replace(LidarSensor.preset("hdl64e"), reference_reflectivity=RHO_REF, overlap_full_m=R_O,
                 reflectivity_per_intensity=S)
 #: the fluctuation off (σ_g = 0): the deterministic thresholds, for the closed forms of a shape in ρ, R, β
-STEADY = {"calibration": {"fluctuation_sigma": 0.0}}
+STEADY = {"calibration": {"fluctuation_sigma": 0.0, "sources": {"fluctuation_sigma": "assumed: off"}}}
 L = C * TAU
 SURFACES = [lfx.Surface(r, rho) for r in (1.5, 3.0, 4.5, 6.0, 9.0, 13.0, 18.0, 25.0, 33.0, 41.0, 52.0, 63.0, 77.0)
             for rho in (0.05, 0.1, 0.3, 0.6, 0.9)]

@@ -23,7 +23,8 @@ from fogsim.lidar.sensors import LidarSensor
 from fogsim.lidar.soft_target import fog_echo
 from fogsim.schema.lidar import LidarFogSpec
 
-STEADY = {"calibration": {"fluctuation_sigma": 0.0}}  # the fluctuation off: the old deterministic thresholds
+STEADY = {"calibration": {"fluctuation_sigma": 0.0,  # the fluctuation off: the old deterministic thresholds
+                          "sources": {"fluctuation_sigma": "assumed: off"}}}
 SIGMA_G = 0.5  # the presets' fluctuation σ (ln units)
 #: the hdl64e preset with the radiometry the formulas below are written for (ρ = 2.55·I, ρ_ref 0.8 at 120 m,
 #: full overlap from 5 m): they check the model; the bundled calibration is checked by its own tests
@@ -217,7 +218,7 @@ def test_the_calibrations_and_their_sources(tmp_path):
     mine = s.calibrated(block)
     assert mine.max_range_m == 100.0 and mine.calibration == "mine" and mine.sources["max_range_m"] == "my measurement"
     with pytest.raises(ValueError, match="overlap_full_m"):
-        s.calibrated({"overlap_full_m": 150.0})
+        s.calibrated({"overlap_full_m": 150.0, "sources": {"overlap_full_m": "assumed: beyond the range"}})
     out = LidarFogger(PointCloud.from_raw(np.array([[9.0, 0, 0]], np.float32), [0.3], "0-1", "p"), "hdl64e",
                       {"calibration": "hahner-constants"})(0.06, np.random.default_rng(0))
     assert out.record()["calibration"] == "hahner-constants"
@@ -266,7 +267,9 @@ def test_a_nuscenes_sweep_keeps_a_far_field_in_light_fog(nuscenes):
     # the cause of the old result: read as ρ 0.8 to 80 m, most returns beyond 30 m had a clear-air signal
     # below the threshold (the preset said the sensor could not have seen them), and retro-reflectors
     # (101–255) were read as ρ ≤ 2.55 instead of Velodyne's retro-reflector range
-    old = LidarFogger(nuscenes, "hdl32e", {"calibration": {"max_range_m": 80.0, "reference_reflectivity": 0.8}})
+    old = LidarFogger(nuscenes, "hdl32e", {"calibration": {
+        "max_range_m": 80.0, "reference_reflectivity": 0.8,
+        "sources": {"max_range_m": "assumed: the old preset", "reference_reflectivity": "assumed: the old preset"}}})
     new_dark = (fogger.log_signal[r > 30] < 0).mean()
     assert (old.log_signal[r > 30] < 0).mean() > 0.85 and new_dark < 0.6
     s = LidarSensor.preset("hdl32e")

@@ -36,7 +36,8 @@ def _street():
 def test_points_per_object_per_level_and_the_cross_sensor_table():
     scan, boxes, n = _street()
     # the echo fluctuation off (σ = 0): the thresholds alone decide, so every point of a car shares its fate
-    fogger = LidarFogger(scan, "hdl64e", {"calibration": {"fluctuation_sigma": 0.0}})
+    fogger = LidarFogger(scan, "hdl64e", {"calibration": {"fluctuation_sigma": 0.0,
+                                                          "sources": {"fluctuation_sigma": "assumed: off"}}})
     levels = {"clear": scan, "b0.03": fogger(0.03, np.random.default_rng(0)).cloud,
               "b0.12": fogger(0.12, np.random.default_rng(0)).cloud}
     counts = object_points(levels, boxes)

@@ -36,11 +36,24 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def positional_names(parser: argparse.ArgumentParser) -> frozenset[str]:
+    """The names of every argument given without a flag, in any subcommand (``dataset`` of ``export``)."""
+    names = set()
+    for action in parser._actions:  # argparse keeps its actions there; no public accessor
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                names |= positional_names(sub)
+        elif not action.option_strings:
+            names.add(action.dest)
+    return frozenset(names)
+
+
 def main(argv: list[str] | None = None) -> int:
     from fogsim.fileio import with_checked_paths
 
-    args = build_parser().parse_args(argv)
-    return run_command(with_checked_paths(args.run), args)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    return run_command(with_checked_paths(args.run, positional_names(parser)), args)
 
 
 if __name__ == "__main__":

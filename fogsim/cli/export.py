@@ -27,7 +27,7 @@ def add_parsers(sub) -> None:
 def cmd_nuscenes(args) -> int:
     from fogsim.dataset.nuscenes import export_nuscenes
 
-    levels = [k.strip() for k in args.levels.split(",") if k.strip()] if args.levels else None
+    levels = None if args.levels is None else [k.strip() for k in args.levels.split(",") if k.strip()]
     summary = export_nuscenes(args.dataset, args.out, levels)
     if not args.quiet:
         counts = ", ".join(f"{k} {n}" for k, n in summary["samples_per_level"].items())

@@ -321,17 +321,16 @@ def cmd_fog(args) -> int:
     from fogsim.fog.batch import run
     from fogsim.fog.labelled import check_labelled, sample_classes
     from fogsim.runs import check_output, is_sharded, parse_shard, select_shard
+    from fogsim.schema.base import check_flag, int_in
 
     if args.finalize_only:
         return _finalize_only(args)
+    check_flag("--workers", args.workers, int_in(1, max_workers()))  # each is a process with its own inputs
     if args.points:
         return fog_lidar.cmd_points(args)
     if not (args.input or args.cityscapes or args.waymo or args.kitti or args.stf):
         raise ValueError("give one of --input, --cityscapes, --waymo, --kitti, --stf, --points "
                          "(or --finalize-only --out OUT)")
-    from fogsim.schema.base import check_flag, int_in
-
-    check_flag("--workers", args.workers, int_in(1, max_workers()))  # each is a process with its own images
     fog_lidar.normalise(args)
     _check_depth_from(args)
     check_output(args.out, {f"--{k.replace('_', '-')}": getattr(args, k)

@@ -26,6 +26,9 @@ SCAN_INPUTS = ("kitti", "stf", "waymo")
 #: the radar formats ``--points`` reads (fogsim.radar.formats)
 RADAR_POINT_FORMATS = ("nuscenes-radar",)
 POINT_FORMATS = FORMATS + RADAR_POINT_FORMATS
+#: the flags of the other inputs (their depth, camera, split, labels), refused with --points
+OTHER_INPUTS_FLAGS = ("depth", "depth_dir", "depth_scale", "intrinsics", "hfov", "depth_from", "lidar_holdout",
+                      "kitti_part", "stf_calib", "stf_returns", "split", "train_fraction", "split_by")
 
 
 def add_inputs(src) -> None:
@@ -136,11 +139,20 @@ def normalise(args) -> None:
         fog_spec(args)  # the model against the flags and the sensor, before anything is read
 
 
+def _not_empty(flag: str, given: str) -> None:
+    """An empty value given to ``flag`` — most often an unset shell variable — is refused, never read as the
+    default."""
+    if not str(given).strip():
+        raise ValueError(f"{flag} is empty (an unset shell variable?): name a value, or leave the flag out for "
+                         "the default")
+
+
 def sensor_choice(given: str | None):
     """``--lidar-sensor``: None, a bundled name (checked), or a custom block read from its file (checked,
     one line naming it) — what the run records and the workers load."""
-    if not given:
+    if given is None:
         return None
+    _not_empty("--sensor", given)
     from fogsim.lidar.sensors import LidarSensor, load_sensor
 
     path = Path(given)
@@ -165,6 +177,7 @@ def calibration_choice(given: str | None):
         return DEPRECATED_CALIBRATIONS[given]
     if given is None or given in CALIBRATIONS:
         return given
+    _not_empty("--lidar-calibration", given)
     path = Path(given)
     if path.suffix != ".json" and not path.is_file():
         raise ValueError(f"--lidar-calibration must be {', '.join(CALIBRATIONS)} or a calibration JSON file, "
@@ -194,34 +207,59 @@ def fog_spec(args, return_mode: str | None = None):
                                ("hahner_variant", variant), ("stf_beta_field", field))
              if v is not None}
     spec = lidar_fog_spec(block)
+    _check_calibration(args, spec)
     check_model(args, spec)
     return spec
 
 
-#: the sensor each input's scans are fogged with when --lidar-sensor does not say
-USUAL_SENSOR = {"kitti": "hdl64e", "stf": "hdl64-s3d", "waymo": "waymo-top"}
+def run_sensor(args):
+    """The LiDAR a run fogs for (what ``--sensor`` names, else the input's usual one; None: not known up
+    front)."""
+    from fogsim.fog.points import DEFAULT_SENSOR
+    from fogsim.readers.kitti.samples import SENSORS
+
+    chosen = sensor_choice(getattr(args, "lidar_sensor", None))
+    if chosen is not None:
+        return chosen
+    if getattr(args, "points", None):
+        return DEFAULT_SENSOR.get(args.point_format)
+    if getattr(args, "kitti", None) or getattr(args, "stf", None):
+        return SENSORS["kitti" if args.kitti else "stf"]
+    return "waymo-top" if getattr(args, "waymo", None) else None
 
 
 def check_model(args, spec) -> None:
     """What the published models cannot do, refused before anything is read (a ValueError: exit 2):
     hahner2021 with patchy fog (one β per scan); stf2020 with a sensor without the STF constants n and g (the
-    ``--lidar-sensor``, else the input's usual one, under the run's calibration)."""
+    run's sensor, :func:`run_sensor`, under the run's calibration)."""
     if spec.model == "hahner2021" and getattr(args, "heterogeneity", 0):
         raise ValueError("--lidar-model hahner2021 fogs a scan at one β (the released code's one α): drop "
                          "--heterogeneity, or use soft-target, attenuation or stf2020")
     if spec.model != "stf2020":
         return
-    from fogsim.fog.points import DEFAULT_SENSOR
     from fogsim.lidar.sensors import load_sensor
     from fogsim.lidar.stf2020 import constants
 
-    given = sensor_choice(args.lidar_sensor)
-    if given is None:
-        given = next((s for k, s in USUAL_SENSOR.items() if getattr(args, k, None)), None)
-    if given is None and getattr(args, "points", None):
-        given = DEFAULT_SENSOR.get(getattr(args, "point_format", None))
+    given = run_sensor(args)
     if given is not None:
         constants(load_sensor(given).calibrated(spec.calibration))
+
+
+def _check_calibration(args, spec) -> None:
+    """A calibration that does not fit the run's sensor (its ranges after the calibration) is one line naming
+    the calibration, before the output folder is claimed — not a failure of every scan."""
+    from fogsim.errors import InputError
+    from fogsim.lidar.sensors import load_sensor
+
+    given = getattr(args, "lidar_calibration", None)
+    sensor = run_sensor(args)
+    if given in (None, "datasheet") or sensor is None:
+        return
+    loaded = load_sensor(sensor)  # checked where it was chosen
+    try:
+        loaded.calibrated(spec.calibration)
+    except ValueError as exc:
+        raise InputError(given, f"--lidar-calibration does not fit the sensor {loaded.name}: {exc}") from None
 
 
 def output(args):
@@ -304,6 +342,10 @@ def cmd_points(args) -> int:
     fmt = args.point_format
     if not fmt:
         raise ValueError(f"--points needs --point-format ({', '.join(POINT_FORMATS)})")
+    for key in OTHER_INPUTS_FLAGS:
+        if getattr(args, key, None) is not None:
+            raise ValueError(f"--{key.replace('_', '-')} goes with another input (--input, --kitti, --stf, --waymo, "
+                             "--cityscapes), not --points")
     if fmt in RADAR_POINT_FORMATS:
         return cmd_radar_points(args)
     if args.radar_temperature is not None:
@@ -315,15 +357,12 @@ def cmd_points(args) -> int:
     for flag in ("lidar", "no_kitti_trees", "lidar_min_points"):
         if getattr(args, flag, None):
             raise ValueError(f"--{flag.replace('_', '-')} goes with a dataset (--kitti, --stf, --waymo), not --points")
-    if args.workers < 1:
-        raise ValueError("--workers must be ≥ 1")
     sensor = sensor_choice(args.lidar_sensor) or DEFAULT_SENSOR.get(fmt)
     if sensor is None:
         raise ValueError(f"--point-format {fmt} has no usual sensor: give --sensor NAME|FILE")
     levels = tuple(parse_levels(args.levels, args.visibility))
     spec = fog_spec(args)
-    for given in args.points:
-        check_output(args.out, {"--points": given})
+    check_output(args.out, [("--points", given) for given in args.points])
     items = point_files(args.points, fmt)
     recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
     job = PointsJob(levels, args.out, FogSettings(lidar=spec), sensor, fmt, args.point_scale, args.seed, recorded)
@@ -351,16 +390,13 @@ def cmd_radar_points(args) -> int:
     if args.heterogeneity:
         raise ValueError("--heterogeneity needs a camera image (its density field): --points fogs homogeneous fog")
     for flag in ("lidar", "no_kitti_trees", "lidar_min_points", "lidar_model", "lidar_extinction_ratio",
-                 "point_scale"):
-        if getattr(args, flag, None):
+                 "point_scale", "lidar_calibration"):
+        if getattr(args, flag, None) is not None and getattr(args, flag) is not False:
             raise ValueError(f"--{flag.replace('_', '-')} is for LiDAR scans, not --point-format {fmt}")
-    if args.workers < 1:
-        raise ValueError("--workers must be ≥ 1")
     sensor = radar_sensor_choice(args.lidar_sensor) or DEFAULT_RADAR_SENSOR[fmt]
     spec = radar_fog_spec({} if args.radar_temperature is None else {"temperature_c": args.radar_temperature})
     levels = tuple(parse_levels(args.levels, args.visibility))
-    for given in args.points:
-        check_output(args.out, {"--points": given})
+    check_output(args.out, [("--points", given) for given in args.points])
     items = point_files(args.points, fmt)
     recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
     job = RadarPointsJob(levels, args.out, FogSettings(radar=spec), sensor, fmt, recorded)
@@ -375,8 +411,9 @@ def cmd_radar_points(args) -> int:
 def radar_sensor_choice(given: str | None):
     """``--sensor`` for radar sweeps: None, a bundled radar's name (checked), or a custom block read from its
     file (checked, one line naming it)."""
-    if not given:
+    if given is None:
         return None
+    _not_empty("--sensor", given)
     from fogsim.radar.sensors import RadarSensor, load_radar_sensor
 
     path = Path(given)

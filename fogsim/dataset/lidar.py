@@ -79,9 +79,9 @@ def _totals(metas: list[dict], keys: list[str]) -> dict:
             level = ((m.get("lidar") or {}).get("levels") or {}).get(key) or {}
             total.update(level.get("outcomes") or {})
         if total:
-            n = sum(total.values())
+            n = sum(total.values())  # 0: every sweep of the level saw nothing (shares of 0 points: 0)
             out[key] = {"points": n, **{k: int(total.get(k, 0)) for k in OUTCOMES},
-                        "shares": {k: round(total.get(k, 0) / n, 6) for k in OUTCOMES}}
+                        "shares": {k: round(total.get(k, 0) / n, 6) if n else 0.0 for k in OUTCOMES}}
     return out
 
 

@@ -26,6 +26,14 @@ timed drive in a mapped world (renders are independent scenes; KITTI's object se
 tables would state times and places that never were. The sample files are what ``LidarPointCloud.from_file``
 (the devkit), mmdetection3d's ``LoadPointsFromFile(load_dim=5)`` and OpenPCDet's nuScenes loader read.
 
+All or nothing: every frame record is checked before anything is written — each level key by the level key
+rule (:func:`fogsim.schema.documents.level_key`: a key names a folder of the export, never a path), each
+level file relative to the dataset and inside it once its links are resolved — and the export is written
+into a hidden folder beside ``NUSC`` that replaces it whole when every file is written: a failure leaves
+``NUSC`` as it was, a killed run's folder is deleted by the next run. ``NUSC`` must be new, empty or an
+earlier export, and inside the dataset only as a folder of its own directly in it (``DATASET/nuscenes``),
+never in one of the dataset's folders.
+
 Radar: a render with ``--radar`` already writes each level's sweep in nuScenes' radar PCD (18 fields,
 :mod:`fogsim.radar.formats`); it is read (checked) and hard-linked (else copied) into the channel nuScenes
 gives a radar facing that way (:func:`radar_channel`: the sensor mount's yaw — ``ars408-lr`` RADAR_FRONT,
@@ -41,10 +49,19 @@ import numpy as np
 
 from fogsim.dataset.reader import read_metas
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_write_bytes, link_or_copy, write_json
+from fogsim.fileio import (
+    PART_SUFFIX,
+    atomic_folder,
+    atomic_write_bytes,
+    link_or_copy,
+    remove_stale_folders,
+    resolve_path,
+    write_json,
+)
 from fogsim.lidar.formats import FORMATS, encode_points, read_points
 from fogsim.radar.formats import read_radar
 from fogsim.radar.sensors import load_radar_sensor
+from fogsim.schema.documents import level_key, relative_path
 
 __all__ = ["CHANNEL", "SUMMARY_NAME", "TABLES_NOT_WRITTEN", "export_nuscenes", "radar_channel", "sample_path"]
 
@@ -69,9 +86,38 @@ def radar_channel(yaw_deg: float) -> str:
     return f"RADAR_FRONT_{side}" if abs(yaw) <= 90.0 else f"RADAR_BACK_{side}"
 
 
-def _export_radar(root: Path, out: Path, meta: dict, where: Path, levels: list[str] | None,
-                  written: dict[str, dict[str, int]]) -> None:
-    """Link (else copy) a frame's radar level sweeps into their nuScenes channel, each read (checked) first."""
+def _level_file(root: Path, entry, where: Path, what: str) -> Path:
+    """The file a level entry of a frame record names: relative to the dataset, inside it once its links are
+    resolved (a record may not make the export read, or link, a file elsewhere)."""
+    if not isinstance(entry, dict) or not isinstance(entry.get("file"), str):
+        raise InputError(where, f"{what}: has no {'sweep' if what.startswith('radar') else 'scan'} file")
+    try:
+        relative_path(entry["file"])
+    except ValueError as exc:
+        raise InputError(where, f"{what}.file: {exc} (got {entry['file']!r})") from None
+    path = root / entry["file"]
+    real, inside = resolve_path(path), resolve_path(root)
+    if inside not in real.parents:
+        raise InputError(where, f"{what}.file: {entry['file']} leads to {real}, outside the dataset")
+    return path
+
+
+def _levels(block: dict, where: Path, what: str, levels: list[str] | None) -> dict:
+    """The entries of a ``lidar``/``radar`` block's ``levels`` to export, each key held to the level key rule
+    (a key names a folder of the export: never a path)."""
+    out = {}
+    for key, entry in block["levels"].items():
+        try:
+            level_key(key)
+        except ValueError as exc:
+            raise InputError(where, f"{what}.levels: {exc}") from None
+        if levels is None or key in levels:
+            out[key] = entry
+    return out
+
+
+def _radar_plan(root: Path, meta: dict, where: Path, levels: list[str] | None) -> tuple[str, dict[str, Path]]:
+    """(channel, {level: sweep file}) of a frame's radar block, checked before anything is written."""
     radar = meta["radar"]
     entries = radar.get("levels") if isinstance(radar, dict) else None
     if not isinstance(entries, dict) or radar.get("format") != "nuscenes-radar":
@@ -80,17 +126,9 @@ def _export_radar(root: Path, out: Path, meta: dict, where: Path, levels: list[s
         sensor = load_radar_sensor(radar.get("sensor_spec") or radar.get("sensor"))
     except (ValueError, TypeError) as exc:
         raise InputError(where, f"radar.sensor: {exc}") from None
-    channel = radar_channel(sensor.mount_rpy_deg[2])
-    for key, entry in entries.items():
-        if levels is not None and key not in levels:
-            continue
-        if not isinstance(entry, dict) or not isinstance(entry.get("file"), str):
-            raise InputError(where, f"radar.levels.{key}: has no sweep file")
-        path = Path(entry["file"])
-        path = path if path.is_absolute() else root / path
-        read_radar(path, "nuscenes-radar")  # a damaged sweep is named, never exported
-        link_or_copy(path, Path(out) / key / "samples" / channel / f"{meta['frame']}.pcd")
-        written.setdefault(channel, {})[key] = written.setdefault(channel, {}).get(key, 0) + 1
+    chosen = _levels(radar, where, "radar", levels)
+    return radar_channel(sensor.mount_rpy_deg[2]), {k: _level_file(root, e, where, f"radar.levels.{k}")
+                                                   for k, e in chosen.items()}
 
 
 def _lidar_block(meta: dict, where: Path) -> tuple[str, dict, dict] | None:
@@ -102,9 +140,6 @@ def _lidar_block(meta: dict, where: Path) -> tuple[str, dict, dict] | None:
     if fmt not in FORMATS or not isinstance(levels, dict) or not isinstance(sensor, dict):
         raise InputError(where, "lidar: needs a point format (one of " + ", ".join(FORMATS) + "), its levels "
                                 "and its sensor (written by fogsim render --lidar or fogsim fog … --lidar)")
-    for key, entry in levels.items():
-        if not isinstance(entry, dict) or not isinstance(entry.get("file"), str):
-            raise InputError(where, f"lidar.levels.{key}: has no scan file")
     return fmt, levels, sensor
 
 
@@ -121,54 +156,130 @@ def _inclinations_rad(sensor: dict, where: Path) -> np.ndarray:
     return out
 
 
+def _check_dataset(root: Path) -> None:
+    """The dataset is a folder with frame records (one line naming it otherwise)."""
+    real = resolve_path(root, "the dataset argument")
+    if not real.exists():
+        raise InputError(root, "not found")
+    if not real.is_dir():
+        raise InputError(root, "is a file, not a folder (a fogsim dataset is a folder with meta/)")
+    if not (real / "meta").is_dir():
+        raise InputError(root, "not a fogsim dataset (no meta/ folder of frame records)")
+
+
+def _earlier_export(out: Path) -> bool:
+    """Whether the existing folder ``out`` holds nothing but what an export writes (its summary, level
+    folders of ``samples/``, temporary files of a killed writer): what a new export may replace."""
+    for folder, dirs, files in os.walk(out):
+        rel = Path(folder).relative_to(out).parts
+        for name in files:
+            if name.endswith(PART_SUFFIX) and name.startswith("."):
+                continue
+            if not (rel == () and name == SUMMARY_NAME) and not (len(rel) >= 2 and rel[1] == "samples"):
+                return False
+        if len(rel) == 1 and any(d != "samples" for d in dirs):
+            return False
+    return True
+
+
+def _check_out(root: Path, out: Path) -> Path:
+    """The resolved output folder: not a file, not the dataset, inside it only as a folder of its own
+    directly in it, and new, empty or an earlier export (which the new one replaces whole)."""
+    if not str(out).strip():
+        raise ValueError("--out must name a folder, got ''")
+    target, real_root = resolve_path(out, "--out"), resolve_path(root)
+    if target.exists() and not target.is_dir():
+        raise InputError(out, "is a file, not a folder: --out names the folder the export is written to")
+    if target == real_root:
+        raise InputError(out, "is the dataset itself: export to another folder (e.g. DATASET/nuscenes)")
+    if target in real_root.parents:
+        raise InputError(out, "contains the dataset: export to a folder of its own (e.g. DATASET/nuscenes)")
+    if real_root in target.parents and target.parent != real_root:
+        where = target.relative_to(real_root).parts[0]
+        raise InputError(out, f"lies inside the dataset's {where}/: the export would mix with the dataset's own "
+                              "files; export to a new folder directly in it (e.g. DATASET/nuscenes) or outside it")
+    if target.is_dir() and not _earlier_export(target):
+        inside = " (one of the dataset's own folders)" if target.parent == real_root else ""
+        raise InputError(out, f"holds files that are not an earlier export{inside}: export to a new or empty folder, "
+                              "which the export fills (an earlier export there is replaced whole)")
+    return target
+
+
 def export_nuscenes(dataset: str | os.PathLike, out: str | os.PathLike, levels: list[str] | None = None) -> dict:
     """Write every committed frame's level scans under ``out`` (the module docstring) and
     ``out/fogsim_nuscenes.json``; return that summary. ``levels``: only these (None: every level). A frame
-    without scans is skipped; a record or a scan that cannot be read is an :class:`InputError` naming it."""
-    root, out = Path(dataset), Path(out)
-    if out.resolve() == root.resolve():
-        raise InputError(out, "is the dataset itself: export to another folder (e.g. DATASET/nuscenes)")
+    without scans is skipped; a record or a scan that cannot be read is an :class:`InputError` naming it.
+
+    All or nothing: every frame record is checked first (level keys by the level key rule, level files inside
+    the dataset), then the export is written into a hidden folder beside ``out`` that replaces it whole at the
+    end — a failure leaves ``out`` as it was, and a killed run's folder is deleted by the next."""
+    root = Path(dataset)
+    _check_dataset(root)
+    if levels is not None:
+        if not levels:
+            raise ValueError("--levels names no level (give level keys, e.g. --levels clear,beta0.06)")
+        for key in levels:
+            level_key(key)
+    target = _check_out(root, Path(out))
     metas = read_metas(root)
-    written: dict[str, int] = {}
-    frames, without = [], []
-    radar: dict[str, dict[str, int]] = {}
+    plan = []  # (frame, lidar (format, {level: file}, sensor) or None, radar (channel, {level: file}) or None)
     for meta in metas:
         where = root / "meta" / f"{meta['frame']}.json"
         block = _lidar_block(meta, where)
-        if meta.get("radar"):
-            _export_radar(root, out, meta, where, levels, radar)
-        if block is None:
-            without.append(meta["frame"])
-            continue
-        fmt, entries, sensor_block = block
-        inclinations = None
-        for key, entry in entries.items():
-            if levels is not None and key not in levels:
-                continue
-            path = Path(entry["file"])
-            cloud = read_points(path if path.is_absolute() else root / path, fmt)
-            if cloud.ring is None:
-                if inclinations is None:
-                    inclinations = _inclinations_rad(sensor_block, where)
-                cloud = replace(cloud, ring=cloud.estimated_rings(inclinations))
-            atomic_write_bytes(sample_path(out, key, meta["frame"]), encode_points(cloud, "nuscenes"))
+        lidar = None
+        if block is not None:
+            fmt, _, sensor = block
+            chosen = _levels(meta["lidar"], where, "lidar", levels)
+            lidar = fmt, {k: _level_file(root, e, where, f"lidar.levels.{k}") for k, e in chosen.items()}, sensor
+        radar = _radar_plan(root, meta, where, levels) if meta.get("radar") else None
+        plan.append((meta["frame"], where, lidar, radar))
+    written: dict[str, int] = {}
+    radar_written: dict[str, dict[str, int]] = {}
+    for _, _, lidar, radar in plan:
+        for key in (lidar[1] if lidar else {}):
             written[key] = written.get(key, 0) + 1
-        frames.append(meta["frame"])
-    exported = set(written) | {key for per_level in radar.values() for key in per_level}
+        if radar:
+            for key in radar[1]:
+                per = radar_written.setdefault(radar[0], {})
+                per[key] = per.get(key, 0) + 1
+    exported = set(written) | {key for per_level in radar_written.values() for key in per_level}
     if levels is not None and (unknown := sorted(set(levels) - exported)):
         raise InputError(root, f"no frame has LiDAR or radar level(s) {', '.join(unknown)}")
-    if not written and not radar:
+    if not written and not radar_written:
         raise InputError(root, "no frame has per-level LiDAR scans or radar sweeps to export (render with --lidar "
                                "or --radar, or fogsim fog --kitti/--stf/--waymo … --lidar)")
-    summary = {"dataset": str(root.resolve()), "layout": f"<level>/samples/{CHANNEL}/<frame>.pcd.bin",
-               "point_record": "5 × float32 little-endian: x, y, z (m, the sensor frame), intensity 0-255, ring",
-               "frames": frames, "samples_per_level": written, "frames_without_lidar": without,
-               "tables_not_written": list(TABLES_NOT_WRITTEN),
-               "why_no_tables": "nuScenes' tables describe a timed drive in a mapped world (tokens, ego poses, "
-                                "timestamps, maps, global boxes); fogsim's frames are none, so only the sample "
-                                "files are written",
-               "radar": {"layout": "<level>/samples/<RADAR channel>/<frame>.pcd (nuScenes radar PCD, 18 fields, "
-                                   "the render's own files: hard links where the file system allows)",
-                         "samples_per_channel_and_level": radar} if radar else "no radar in this dataset"}
-    write_json(out / SUMMARY_NAME, summary)
+    remove_stale_folders(target)  # a killed export's hidden folder
+    with atomic_folder(target) as stage:
+        for frame, where, lidar, radar in plan:
+            if radar:
+                channel, files = radar
+                for key, path in files.items():
+                    read_radar(path, "nuscenes-radar")  # a damaged sweep is named, never exported
+                    link_or_copy(path, stage / key / "samples" / channel / f"{frame}.pcd")
+            if lidar:
+                fmt, files, sensor_block = lidar
+                inclinations = None
+                for key, path in files.items():
+                    cloud = read_points(path, fmt, allow_empty=True)  # fogsim's own: a sweep that saw nothing
+                    if cloud.ring is None:
+                        if inclinations is None:
+                            inclinations = _inclinations_rad(sensor_block, where)
+                        cloud = replace(cloud, ring=cloud.estimated_rings(inclinations))
+                    atomic_write_bytes(sample_path(stage, key, frame), encode_points(cloud, "nuscenes"))
+        summary = _summary(root, plan, written, radar_written)
+        write_json(stage / SUMMARY_NAME, summary)
     return summary
+
+
+def _summary(root: Path, plan: list, written: dict, radar: dict) -> dict:
+    return {"dataset": str(root.resolve()), "layout": f"<level>/samples/{CHANNEL}/<frame>.pcd.bin",
+            "point_record": "5 × float32 little-endian: x, y, z (m, the sensor frame), intensity 0-255, ring",
+            "frames": [frame for frame, _, lidar, _ in plan if lidar],
+            "samples_per_level": written, "frames_without_lidar": [frame for frame, _, lidar, _ in plan if not lidar],
+            "tables_not_written": list(TABLES_NOT_WRITTEN),
+            "why_no_tables": "nuScenes' tables describe a timed drive in a mapped world (tokens, ego poses, "
+                             "timestamps, maps, global boxes); fogsim's frames are none, so only the sample "
+                             "files are written",
+            "radar": {"layout": "<level>/samples/<RADAR channel>/<frame>.pcd (nuScenes radar PCD, 18 fields, "
+                                "the render's own files: hard links where the file system allows)",
+                      "samples_per_channel_and_level": radar} if radar else "no radar in this dataset"}

@@ -46,7 +46,7 @@ from fogsim.console import progress_bar
 from fogsim.dataset.layout import DatasetLayout, frame_from_key
 from fogsim.dataset.reader import frame_records
 from fogsim.dataset.writer import check_train_fraction, finalize, write_frame_labels
-from fogsim.errors import InputError
+from fogsim.errors import InputError, unexpected
 from fogsim.fileio import (
     MAX_PIXELS,
     TO_8BIT,
@@ -260,7 +260,7 @@ def _worker(args):
     except (InputError, ValueError, OSError) as exc:
         return sample.source, str(exc)
     except Exception as exc:  # keep going; report the unexpected with its type
-        return sample.source, f"{type(exc).__name__}: {exc}"
+        return sample.source, unexpected(exc)
 
 
 def run(samples: list[Sample], job: FogJob, workers: int = 1, resume: bool = True,

@@ -13,6 +13,7 @@ from pathlib import Path
 from fogsim import presets
 from fogsim.errors import InputError
 from fogsim.schema.base import load_json
+from fogsim.schema.documents import level_key
 from fogsim.schema.presets import FogPreset
 
 LN20 = math.log(20.0)
@@ -48,8 +49,7 @@ class FogLevel:
         if self.beta > MAX_BETA:
             raise ValueError(f"fog level {self.key!r}: β = {self.beta:g} 1/m is out of range (at most "
                              f"{MAX_BETA:g} 1/m, a visibility of {MIN_VISIBILITY * 1000:.0f} mm)")
-        if not re.fullmatch(r"[A-Za-z0-9_.\-]+", self.key):
-            raise ValueError(f"fog level key {self.key!r} may hold only letters, digits, '_', '.', '-'")
+        level_key(self.key)  # one folder's name (fogsim.schema.documents: the one rule)
 
     @property
     def visibility(self) -> float:
@@ -98,6 +98,10 @@ def load_preset(name_or_path: str) -> list[FogLevel]:
 
 def parse_levels(levels: str | None = None, visibility: str | None = None) -> list[FogLevel]:
     """Parse ``--levels`` (a preset name or comma-separated β) or ``--visibility`` (metres)."""
+    for flag, given in (("--levels", levels), ("--visibility", visibility)):
+        if given is not None and not given.strip():
+            raise ValueError(f"{flag} is empty (an unset shell variable?): give a preset name or comma-separated "
+                             "values, or leave the flag out for the default")
     if levels and visibility:
         raise ValueError("give either --levels or --visibility, not both")
     if visibility:
@@ -112,6 +116,9 @@ def parse_levels(levels: str | None = None, visibility: str | None = None) -> li
         if tok in ("clear", "-"):
             out.append(FogLevel("clear", "clear", 0.0))
             continue
+        if not tok:
+            raise ValueError(f"{'--visibility' if what == 'visibility' else '--levels'} {items!r} holds an empty "
+                             "entry (two commas?)")
         try:
             value = float(tok)
         except ValueError:

@@ -82,8 +82,11 @@ def point_files(paths: list[str | os.PathLike], fmt: str) -> list[PointFile]:
             items += [PointFile(_key(p.relative_to(path), suffix), str(p)) for p in found]
         elif path.is_file():
             items.append(PointFile(_key(Path(path.name), suffix), str(path)))
+        elif path.exists():
+            raise SetupError(path, "is not a regular file or a folder (a FIFO, device or socket): fogsim reads scan "
+                                   "files")
         else:
-            raise SetupError(path, "no such file or folder")
+            raise SetupError(path, "not found (no such file or folder)")
     seen: dict[str, str] = {}
     for item in items:
         if item.key in seen:

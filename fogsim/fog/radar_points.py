@@ -5,8 +5,9 @@ Layout under ``OUT`` (``<name>`` = the sweep's path below the input folder, or i
 ``.pcd``), as ``--points`` writes LiDAR scans (:mod:`fogsim.fog.points`)::
 
     <level>/<name>.pcd               the level's sweep in nuScenes' format: the kept detections, every field
-                                     as read (a level that keeps every detection — β = 0 — is the input file,
-                                     byte for byte)
+                                     as read, in its own type (a level that keeps every detection — β = 0 —
+                                     is the input file, byte for byte, when the devkit can read that file:
+                                     DATA binary, its header lines in order; else re-encoded so)
     <level>/<name>.outcomes.npz      every input detection's outcome, row and SNR in fog (fogsim.radar.outcome_file)
     <level>/<name>.json              the sidecar, written last (it marks the sweep's level done)
     fogsim_run.json                  the run's parameters (resume refuses others)
@@ -26,7 +27,14 @@ from fogsim.fog.levels import FogLevel
 from fogsim.fog.points import PointFile
 from fogsim.lidar.bounds import max_scan_points
 from fogsim.radar.fog import KEPT
-from fogsim.radar.formats import RADAR_SUFFIX, read_radar, write_radar
+from fogsim.radar.formats import (
+    RADAR_SUFFIX,
+    devkit_readable,
+    encode_nuscenes_records,
+    read_nuscenes_records,
+    read_radar,
+    write_radar,
+)
 from fogsim.radar.outcome_file import OUTCOME_SUFFIX, write_radar_outcomes
 from fogsim.radar.sensors import load_radar_sensor
 from fogsim.schema.radar import RadarFogSpec
@@ -73,16 +81,24 @@ class RadarPointsJob:
         max_scan_points()
 
     def fog_one(self, item: PointFile) -> None:
-        """Every level of one sweep: sweep, outcomes, then the sidecar."""
+        """Every level of one sweep: sweep, outcomes, then the sidecar. A nuScenes level is the input's kept
+        records in the input's own layout (every field, its type); the input's bytes when every detection is
+        kept and the file is as the devkit reads it."""
         scan = read_radar(item.source, self.fmt)
         sensor = load_radar_sensor(self.sensor)
         fogger = self.fog.radar_fogger(scan, sensor)
-        original = Path(item.source).read_bytes()
+        records = original = None
+        if self.fmt == "nuscenes-radar":
+            head, records = read_nuscenes_records(item.source)
+            original = Path(item.source).read_bytes() if devkit_readable(item.source, head) else None
         for level in self.levels:
             fogged = fogger(level.beta)
             sweep_path, outcome_path, sidecar = self.paths(item, level)
-            if (fogged.outcome == KEPT).all():
+            kept = fogged.outcome == KEPT
+            if kept.all() and original is not None:
                 atomic_write_bytes(sweep_path, original)  # nothing lost: the input, byte for byte
+            elif records is not None:
+                atomic_write_bytes(sweep_path, encode_nuscenes_records(records[kept]))
             else:
                 write_radar(sweep_path, fogged.scan, self.fmt)
             write_radar_outcomes(outcome_path, fogged)

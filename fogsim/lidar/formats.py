@@ -21,14 +21,16 @@ format         record (little-endian)                       scale    where
   normalised value (``0-255`` raw = normalised × 255, …); a 5-column format needs rings.
 * PLY: fogsim writes binary little-endian with ``comment fogsim intensity_scale <scale>``; reading,
   that comment (else the caller's ``scale``, else ``0-1``) gives the scale; a file without
-  ``intensity`` reads as intensity 0. The library is ``plyfile`` (see docs/dependencies.md).
+  ``intensity`` reads as intensity 0. ``plyfile`` writes (see docs/dependencies.md); reading takes the
+  vertex element alone, bounded (:mod:`fogsim.lidar.ply`: plyfile reads every element whole).
 * ``.npy``: float32 layouts round-trip bit for bit; float64 is read and converted to float32; a
   structured array is written back as plain float32 N×k. Pickled (object) files are refused.
 * Reading is bounded (:mod:`fogsim.lidar.bounds`): the points a file declares — a ``.bin``'s size over its
   record, a ``.npy``'s header shape, a PLY's ``element vertex`` count — are checked against the file's size
-  (a header that claims more than the file holds is refused naming the header) and against
-  :func:`~fogsim.lidar.bounds.max_scan_points` *before* the body is read, so a sparse 16 GB file or a lying
-  header costs a ``stat`` and a few kilobytes.
+  (a header that claims more than the file holds is refused naming the header), against
+  :func:`~fogsim.lidar.bounds.max_scan_points` and, by bytes, a record against
+  :func:`~fogsim.lidar.bounds.check_record` (a ``.npy`` field of 100 MB) *before* the body is read, so a
+  sparse 16 GB file or a lying header costs a ``stat`` and a few kilobytes.
 """
 from __future__ import annotations
 
@@ -41,7 +43,8 @@ import numpy as np
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes
 from fogsim.headers import read_npy
-from fogsim.lidar.bounds import check_point_count, file_size
+from fogsim.lidar.bounds import check_point_count, check_record, file_size
+from fogsim.lidar.ply import read_ply_vertices
 from fogsim.lidar.points import PointCloud
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.schema.lidar import SCALES
@@ -55,12 +58,6 @@ COLUMNS = {"kitti": 4, "nuscenes": 5, "stf": 5}
 #: the file-name ending of each format (what a folder of scans is searched for, what fogged levels are named)
 FORMAT_SUFFIX = {"kitti": ".bin", "nuscenes": ".pcd.bin", "stf": ".bin", "ply": ".ply", "npy": ".npy"}
 PLY_SCALE_COMMENT = "fogsim intensity_scale"
-#: the most bytes a PLY header (up to ``end_header``) or a ``.npy`` header may take before it is refused
-MAX_HEADER_BYTES = 64 * 1024
-#: bytes per element of the PLY scalar types (``char``/``int8`` … ``double``/``float64``)
-PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
-             "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
-             "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
 
 
 def detect_format(path: str | os.PathLike) -> str:
@@ -101,11 +98,13 @@ def _read_exactly(path: Path, offset: int, count: int) -> bytes:
 
 
 # ----------------------------------------------------------------------------- reading
-def read_points(path: str | os.PathLike, fmt: str | None = None, scale: str | None = None) -> PointCloud:
+def read_points(path: str | os.PathLike, fmt: str | None = None, scale: str | None = None, *,
+                allow_empty: bool = False) -> PointCloud:
     """The scan in ``path`` (``fmt`` one of :data:`FORMATS`; None: from the name, see
     :func:`detect_format`). ``scale`` declares the intensity scale: for the binary formats it must
     match theirs (or be None); for PLY it is used when the file does not say; for ``.npy`` it is the
-    scale of its intensity column (default ``0-1``)."""
+    scale of its intensity column (default ``0-1``). ``allow_empty``: a scan of no points is read (fogsim's
+    own outputs: a sweep that saw nothing) rather than refused (an input to fog)."""
     path = Path(path)
     fmt = _check_format(fmt or detect_format(path))
     if scale is not None and scale not in SCALES:
@@ -113,13 +112,13 @@ def read_points(path: str | os.PathLike, fmt: str | None = None, scale: str | No
     if fmt in COLUMNS:
         if scale is not None and scale != FORMAT_SCALE[fmt]:
             raise ValueError(f"{fmt} scans store intensities on the {FORMAT_SCALE[fmt]} scale, not {scale}")
-        return _read_bin(path, fmt)
+        return _read_bin(path, fmt, allow_empty)
     if fmt == "ply":
-        return _read_ply(path, scale)
-    return _read_npy(path, scale or "0-1")
+        return _read_ply(path, scale, allow_empty)
+    return _read_npy(path, scale or "0-1", allow_empty)
 
 
-def _read_bin(path: Path, fmt: str) -> PointCloud:
+def _read_bin(path: Path, fmt: str, allow_empty: bool = False) -> PointCloud:
     size = file_size(path)
     k = COLUMNS[fmt]
     record = 4 * k
@@ -131,10 +130,10 @@ def _read_bin(path: Path, fmt: str) -> PointCloud:
     ring = a[:, 4] if k == 5 else None
     if ring is not None and not np.isfinite(ring).all():
         raise InputError(path, "ring column holds NaN or infinite values")
-    return PointCloud.from_raw(a[:, :3], a[:, 3], FORMAT_SCALE[fmt], str(path), ring=ring)
+    return PointCloud.from_raw(a[:, :3], a[:, 3], FORMAT_SCALE[fmt], str(path), ring=ring, allow_empty=allow_empty)
 
 
-def _read_npy(path: Path, scale: str) -> PointCloud:
+def _read_npy(path: Path, scale: str, allow_empty: bool = False) -> PointCloud:
     size = file_size(path)
 
     def check(dtype: np.dtype, shape: tuple[int, ...]) -> None:
@@ -142,10 +141,13 @@ def _read_npy(path: Path, scale: str) -> PointCloud:
             if len(shape) != 1:
                 raise InputError(path, f"a structured point array must be 1-D (one record per point), got shape "
                                        f"{list(shape)}")
+            check_npy_fields(path, dtype, ("x", "y", "z", "intensity", "ring", "return_index"))
         elif len(shape) != 2 or shape[1] not in (3, 4, 5) or dtype.kind not in "fiu":
             raise InputError(path, f"expected a numeric N×3, N×4 or N×5 array (x y z [intensity [ring]]) or a "
                                    f"structured array, got {dtype} {list(shape)}")
         check_point_count(path, shape[0], size, ".npy header declares a scan")
+        record = dtype.itemsize * (1 if dtype.names else shape[1])
+        check_record(path, record, shape[0], "a .npy point record", npy_widest(dtype))
 
     a = read_npy(path, check)
     if a.dtype.names:
@@ -163,89 +165,37 @@ def _read_npy(path: Path, scale: str) -> PointCloud:
         ret = None
     if ring is not None and not np.isfinite(np.asarray(ring, np.float64)).all():
         raise InputError(path, "ring column holds NaN or infinite values")
-    return PointCloud.from_raw(xyz, inten, scale, str(path), ring=ring, return_index=ret)
+    return PointCloud.from_raw(xyz, inten, scale, str(path), ring=ring, return_index=ret, allow_empty=allow_empty)
 
 
-def ply_header(path: Path) -> tuple[str, list[tuple[str, int, list[tuple[str, ...]]]], int]:
-    """(format, [(element, count, [property words…])…], body offset) of the PLY file ``path``, from at most
-    :data:`MAX_HEADER_BYTES` (an :class:`InputError` naming the header when it is not one)."""
-    try:
-        with open(path, "rb") as f:
-            raw = f.read(MAX_HEADER_BYTES)
-    except IsADirectoryError:
-        raise InputError(path, "is a folder, not a point-cloud file") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot be read ({exc.strerror or exc})") from None
-    if not raw.startswith(b"ply"):
-        raise InputError(path, "not a readable PLY file (it does not start with 'ply')")
-    end = raw.find(b"end_header")
-    stop = raw.find(b"\n", end) if end >= 0 else -1
-    if stop < 0:
-        raise InputError(path, f"not a readable PLY file (no end_header line in its first {len(raw):,} bytes)")
-    fmt, elements = None, []
-    for line in raw[:end].decode("ascii", "replace").splitlines()[1:]:
-        words = line.split()
-        if not words or words[0] in ("comment", "obj_info"):
+def npy_widest(dtype: np.dtype) -> str:
+    """What makes a structured ``.npy`` record large: its widest field (``field pad: |V100000000``)."""
+    if not dtype.names:
+        return ""
+    name = max(dtype.names, key=lambda n: dtype[n].itemsize)
+    return f"field {name}: {dtype[name].str if not dtype[name].shape else dtype[name]}"
+
+
+def check_npy_fields(path, dtype: np.dtype, used: tuple[str, ...]) -> None:
+    """The fields of a structured ``.npy`` that fogsim reads (``used``) are single numbers (not a sub-array,
+    not text or bytes): an :class:`InputError` naming the field otherwise, from the header alone."""
+    for name in used:
+        if name not in dtype.names:
             continue
-        try:
-            if words[0] == "format":
-                fmt = words[1]
-            elif words[0] == "element":
-                count = int(words[2])
-                if count < 0:
-                    raise ValueError(f"negative count {count}")
-                elements.append((words[1], count, []))
-            elif words[0] == "property" and elements:
-                elements[-1][2].append(tuple(words[1:]))
-            else:
-                raise ValueError(f"unexpected line {line.strip()[:60]!r}")
-        except (IndexError, ValueError) as exc:
-            raise InputError(path, f"PLY header is malformed ({exc})") from None
-    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
-        raise InputError(path, f"PLY header names no known format (got {fmt!r})")
-    return fmt, elements, stop + 1
+        sub = dtype[name]
+        if sub.shape:
+            raise InputError(path, f"field {name} is a sub-array of shape {sub.shape}: a point's {name} must be one "
+                                   "number")
+        if sub.kind not in "fiub":
+            raise InputError(path, f"field {name} is {sub} (not a number): a point's {name} must be one number")
 
 
-def _check_ply_header(path: Path) -> None:
-    """Refuse a PLY whose header claims more vertices than its body can hold, or more than the bound."""
-    size = file_size(path)
-    fmt, elements, offset = ply_header(path)
-    vertex = next((count for name, count, _ in elements if name == "vertex"), None)
-    if vertex is None:
-        raise InputError(path, "PLY file has no vertex element")
-    need = 0  # the fewest bytes the declared elements take
-    for _, count, props in elements:
-        row = 0
-        for words in props:
-            if words[0] == "list":  # a list of at least zero items: its count's bytes
-                row += np.dtype(PLY_TYPES.get(words[1], "u1")).itemsize if fmt != "ascii" else 2
-            else:
-                row += np.dtype(PLY_TYPES.get(words[0], "u1")).itemsize if fmt != "ascii" else 2
-        need += count * row
-    body = size - offset
-    if need > body:
-        raise InputError(path, f"PLY header claims {vertex:,} points (element vertex; at least {need:,} bytes of "
-                               f"{fmt} data) but the file holds only {body:,} bytes after its header: truncated, "
-                               "or the header lies")
-    check_point_count(path, vertex, size, "PLY header declares a scan")
-
-
-def _read_ply(path: Path, scale: str | None) -> PointCloud:
-    from plyfile import PlyData, PlyParseError
-
-    _check_ply_header(path)
-    try:
-        with open(path, "rb") as f:
-            ply = PlyData.read(f, mmap=False)
-    except (PlyParseError, ValueError, EOFError, IndexError, KeyError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"not a readable PLY file ({exc})") from None
-    if "vertex" not in [e.name for e in ply.elements]:
-        raise InputError(path, "PLY file has no vertex element")
-    v = ply["vertex"].data
+def _read_ply(path: Path, scale: str | None, allow_empty: bool = False) -> PointCloud:
+    v, comments = read_ply_vertices(path)  # the vertex element alone, bounded (fogsim.lidar.ply)
     names = set(v.dtype.names or ())
     if not {"x", "y", "z"} <= names:
         raise InputError(path, f"PLY vertices need x, y, z (have {', '.join(sorted(names))})")
-    said = next((c[len(PLY_SCALE_COMMENT):].strip() for c in ply.comments if c.startswith(PLY_SCALE_COMMENT)), None)
+    said = next((c[len(PLY_SCALE_COMMENT):].strip() for c in comments if c.startswith(PLY_SCALE_COMMENT)), None)
     if said is not None and said not in SCALES:
         raise InputError(path, f"PLY comment names an unknown intensity scale {said!r} (known: {', '.join(SCALES)})")
     if said is not None and scale is not None and said != scale:
@@ -256,7 +206,8 @@ def _read_ply(path: Path, scale: str | None) -> PointCloud:
     ret = v["return_index"] if "return_index" in names else None
     if ring is not None and not np.isfinite(np.asarray(ring, np.float64)).all():
         raise InputError(path, "ring property holds NaN or infinite values")
-    return PointCloud.from_raw(xyz, inten, said or scale or "0-1", str(path), ring=ring, return_index=ret)
+    return PointCloud.from_raw(xyz, inten, said or scale or "0-1", str(path), ring=ring, return_index=ret,
+                               allow_empty=allow_empty)
 
 
 # ----------------------------------------------------------------------------- writing

@@ -13,14 +13,19 @@ radar's nuScenes ``RADAR_*`` files go through it. Written from PCL's published f
   columns (read when the ``lzf`` module is installed; fogsim writes ``binary`` or ``ascii``).
 
 Reading is bounded: the header (≤ :data:`MAX_HEADER_BYTES`) is parsed first, its POINTS checked against
-:func:`fogsim.lidar.bounds.check_point_count` and against what the file's size can hold — a header that
-claims more points than the body holds is refused naming the header, and so is a body far longer than its
-points need (a file copied whole stays bounded) — and only then is the body read.
+:func:`fogsim.lidar.bounds.check_point_count`, its record (a field of COUNT 10⁸ …) and the bytes of all
+records against :func:`fogsim.lidar.bounds.check_record`, and both against what the file's size can hold —
+a header that claims more points than the body holds is refused naming the header, and so is a body far
+longer than its points need (a file copied whole stays bounded) — and only then is the body read: a
+binary body exactly the records' bytes; a binary_compressed body its 8-byte size prefix first (checked
+against the header and the file), then only the compressed bytes; an ASCII body a chunk at a time
+(:data:`ASCII_CHUNK_BYTES`), each row at most :data:`ASCII_CHARS_PER_ELEMENT` characters a number.
 """
 from __future__ import annotations
 
 import io
 import os
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,7 +33,7 @@ import numpy as np
 
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes
-from fogsim.lidar.bounds import check_point_count, file_size
+from fogsim.lidar.bounds import check_point_count, check_record, file_size
 
 __all__ = ["DATA_KINDS", "MAX_HEADER_BYTES", "PcdHeader", "encode_pcd", "read_pcd", "read_pcd_header", "write_pcd"]
 
@@ -130,6 +135,14 @@ def read_pcd_header(path: str | os.PathLike) -> PcdHeader:
         return _parse_header(f.read(MAX_HEADER_BYTES), path)
 
 
+def _widest(head: PcdHeader) -> str:
+    """What makes a record large: its widest field (``field junk: COUNT 100,000,000 × SIZE 8``)."""
+    name = max(head.fields, key=lambda n: head.dtype[n].itemsize)
+    sub = head.dtype[name]
+    count = int(np.prod(sub.shape or (1,)))
+    return f"field {name}: COUNT {count:,} × SIZE {sub.base.itemsize}"
+
+
 def read_pcd(path: str | os.PathLike) -> tuple[PcdHeader, np.ndarray]:
     """(header, records) of the PCD file ``path``: a structured array of ``header.points`` rows with the
     header's fields, in bounded memory (see the module docstring)."""
@@ -138,70 +151,130 @@ def read_pcd(path: str | os.PathLike) -> tuple[PcdHeader, np.ndarray]:
     with open(path, "rb") as f:
         head = _parse_header(f.read(MAX_HEADER_BYTES), path)
         check_point_count(path, head.points, size, "PCD header declares a cloud")
+        need = check_record(path, head.dtype.itemsize, head.points, "the PCD header's point record", _widest(head))
         body = size - head.offset
         f.seek(head.offset)
         if head.data == "binary":
-            need = head.points * head.dtype.itemsize
             if need > body:
                 raise InputError(path, f"PCD header declares {head.points:,} points ({need:,} bytes) but the file "
                                        f"holds {body:,} bytes after its header: truncated, or the header lies")
             if body > need + MAX_HEADER_BYTES:  # what a caller copying the file whole would read
                 raise InputError(path, f"PCD binary body of {body:,} bytes is far longer than its {head.points:,} "
                                        f"points need ({need:,} bytes): the header lies or the file is not PCD")
-            array = np.frombuffer(f.read(need), head.dtype).copy()
+            data = bytearray(need)
+            if f.readinto(data) != need:
+                raise InputError(path, "ended while it was read (changed meanwhile?)")
+            array = np.frombuffer(data, head.dtype)
         elif head.data == "ascii":
-            elements = sum(int(np.prod(head.dtype[n].shape or (1,))) for n in head.fields)
-            if body > max(head.points, 1) * elements * ASCII_CHARS_PER_ELEMENT:
+            if body > max(head.points, 1) * _elements(head) * ASCII_CHARS_PER_ELEMENT:
                 raise InputError(path, f"PCD ASCII body of {body:,} bytes is far longer than {head.points:,} points "
                                        "need: the header lies or the file is not PCD")
-            array = _ascii_body(f.read(body), head, path)
+            array = _ascii_body(f, body, head, path)
         else:
-            array = _compressed_body(f.read(body), head, path)
+            array = _compressed_body(f, body, head, path)
     return head, array
 
 
-def _ascii_body(raw: bytes, head: PcdHeader, source) -> np.ndarray:
+def _elements(head: PcdHeader) -> int:
+    """The numbers one ASCII row holds (a field of COUNT n: n of them)."""
+    return sum(int(np.prod(head.dtype[n].shape or (1,))) for n in head.fields)
+
+
+#: how much of an ASCII body is read and parsed at a time
+ASCII_CHUNK_BYTES = 1 << 20
+
+
+def _ascii_rows(f, body: int, longest: int, source):
+    """The non-blank lines of an ASCII body of ``body`` bytes, read a chunk at a time: per chunk, (the number
+    of its first row, counted from 1, and each row's words); a line longer than ``longest`` characters is
+    refused as soon as it is seen (a body without newlines is never held whole)."""
+    left, rest, row = body, b"", 0
+    while True:
+        chunk = f.read(min(ASCII_CHUNK_BYTES, left)) if left > 0 else b""
+        left -= len(chunk)
+        data = rest + chunk
+        cut = len(data) if not chunk else data.rfind(b"\n") + 1
+        rest = data[cut:]
+        rows = []
+        for line in data[:cut].split(b"\n") + [rest]:
+            if len(line) > longest:
+                raise InputError(source, f"PCD ASCII row {row + len(rows) + 1:,} is longer than the {longest:,} "
+                                         "characters its numbers may take: the file is not an ASCII PCD")
+            if line is not rest and (words := line.split()):
+                rows.append(words)
+        if rows:
+            yield row + 1, rows
+            row += len(rows)
+        if not chunk:
+            return
+
+
+def _ascii_body(f, body: int, head: PcdHeader, source) -> np.ndarray:
+    """The records of an ASCII body, parsed a chunk at a time (memory: the records and one chunk)."""
     flat = [(name, head.dtype[name].base, int(np.prod(head.dtype[name].shape or (1,)))) for name in head.fields]
-    width = sum(c for _, _, c in flat)
-    lines = [ln for ln in raw.decode("ascii", "replace").splitlines() if ln.strip()]
-    if len(lines) != head.points:
-        raise InputError(source, f"PCD header declares {head.points:,} points, the ASCII body has {len(lines):,} lines")
-    try:
-        table = np.loadtxt(io.StringIO("\n".join(lines)), dtype=np.float64, ndmin=2) if lines \
-            else np.zeros((0, width))
-    except ValueError as exc:
-        raise InputError(source, f"PCD ASCII body is not numbers ({exc})") from None
-    if table.shape[1] != width:
-        raise InputError(source, f"PCD ASCII rows hold {table.shape[1]} numbers, the header declares {width}")
+    width = _elements(head)
     out = np.zeros(head.points, head.dtype)
-    col = 0
-    for name, base, count in flat:
-        values = table[:, col:col + count]
-        if base.kind in "iu":
-            if not np.isfinite(values).all() or (values != np.round(values)).any():
-                raise InputError(source, f"PCD field {name} ({base}) holds values that are not whole numbers")
-            info = np.iinfo(base)
-            if values.size and (values.min() < info.min or values.max() > info.max):
-                raise InputError(source, f"PCD field {name} holds values outside its type {base}")
-        out[name] = values.reshape(out[name].shape).astype(base)
-        col += count
+    done = 0
+    for first, rows in _ascii_rows(f, body, width * ASCII_CHARS_PER_ELEMENT, source):
+        if done + len(rows) > head.points:
+            raise InputError(source, f"PCD header declares {head.points:,} points, the ASCII body has more lines")
+        for i, words in enumerate(rows):
+            if len(words) != width:
+                raise InputError(source, f"PCD ASCII row {first + i:,} has {len(words)} numbers, the header declares "
+                                         f"{width} per point")
+        try:
+            table = np.array(rows).astype(np.float64)
+        except ValueError:
+            bad = next(i for i, words in enumerate(rows) if not _numbers(words))
+            raise InputError(source, f"PCD ASCII row {first + bad:,} is not numbers "
+                                     f"({b' '.join(rows[bad]).decode('ascii', 'replace')[:60]!r})") from None
+        col = 0
+        part = out[done:done + len(rows)]
+        for name, base, count in flat:
+            values = table[:, col:col + count]
+            if base.kind in "iu":
+                if not np.isfinite(values).all() or (values != np.round(values)).any():
+                    raise InputError(source, f"PCD field {name} ({base}) holds values that are not whole numbers")
+                info = np.iinfo(base)
+                if values.size and (values.min() < info.min or values.max() > info.max):
+                    raise InputError(source, f"PCD field {name} holds values outside its type {base}")
+            part[name] = values.reshape(part[name].shape).astype(base)
+            col += count
+        done += len(rows)
+    if done != head.points:
+        raise InputError(source, f"PCD header declares {head.points:,} points, the ASCII body has {done:,} lines")
     return out
 
 
-def _compressed_body(raw: bytes, head: PcdHeader, source) -> np.ndarray:
+def _numbers(words: list[bytes]) -> bool:
+    try:
+        [float(w) for w in words]
+    except ValueError:
+        return False
+    return True
+
+
+def _compressed_body(f, body: int, head: PcdHeader, source) -> np.ndarray:
+    """The records of a binary_compressed body: its 8-byte size prefix checked against the header and the
+    file first, then only the compressed bytes read."""
     try:
         import lzf  # python-lzf: optional, only binary_compressed files need it
     except ImportError:
         raise InputError(source, "PCD DATA binary_compressed (LZF) needs the 'python-lzf' package "
                                  "(pip install python-lzf), or save the file as DATA binary") from None
-    if len(raw) < 8:
+    prefix = f.read(8)
+    if len(prefix) < 8:
         raise InputError(source, "PCD binary_compressed body is shorter than its 8-byte size prefix")
-    compressed, uncompressed = (int(v) for v in np.frombuffer(raw[:8], "<u4"))
+    compressed, uncompressed = struct.unpack("<II", prefix)
     need = head.points * head.dtype.itemsize
-    if uncompressed != need or compressed > len(raw) - 8:
+    if uncompressed != need or compressed > body - 8 or (need and not compressed):
         raise InputError(source, f"PCD binary_compressed sizes ({compressed:,} → {uncompressed:,} bytes) do not "
                                  f"match the header's {head.points:,} points ({need:,} bytes) or the file")
-    columns = lzf.decompress(raw[8:8 + compressed], uncompressed) if need else b""
+    if body - 8 - compressed > MAX_HEADER_BYTES:
+        raise InputError(source, f"PCD binary_compressed body of {body:,} bytes is far longer than its "
+                                 f"{compressed:,} compressed bytes: the header lies or the file is not PCD")
+    raw = f.read(compressed)
+    columns = lzf.decompress(raw, uncompressed) if need else b""
     if columns is None or len(columns) != need:
         raise InputError(source, "PCD binary_compressed body does not decompress to the declared size")
     out = np.zeros(head.points, head.dtype)

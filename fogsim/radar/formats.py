@@ -29,9 +29,13 @@ fogsim models x y z, rcs and the four velocities; the other ten fields are carri
 (:attr:`RadarScan.extra`) and written back as read. A sweep that has none (a rendered one) is written with
 :data:`NUSCENES_DEFAULTS` (dyn_prop from the compensated radial speed: moving above
 :data:`STATIONARY_SPEED_MPS`, else stationary). The devkit reads a first record with a NaN as an empty sweep
-(and refuses a file of zero records): fogsim reads it so and writes an empty sweep that way. A file is
-refused (one line naming it) when it is not PCD, lacks one of the modelled fields, declares more detections
-than :mod:`fogsim.lidar.bounds` allows, or holds NaN in a record other than that first one.
+(and refuses a file of zero records): fogsim reads one record whose modelled fields are all NaN so and
+writes an empty sweep that way. A file is refused (one line naming it) when it is not PCD, lacks one of the
+modelled fields, has a field of COUNT > 1, declares more detections (or bytes) than
+:mod:`fogsim.lidar.bounds` allows, or holds NaN in any other record (a NaN in the first of several records
+included: it is not the empty convention). :func:`read_nuscenes_records` gives a sweep's records as stored,
+every field in its own type, so a fogged level keeps the input's record layout
+(:func:`encode_nuscenes_records`).
 
 ``npy`` — a structured array (``np.save``, never pickled) with the record's columns: x y z vx vy vx_comp
 vy_comp rcs snr (float32), object_id (int32), kind (int8), index (int64), then any extra fields. Read: x y z
@@ -49,13 +53,15 @@ import numpy as np
 from fogsim.errors import InputError
 from fogsim.fileio import atomic_write_bytes
 from fogsim.headers import read_npy
-from fogsim.lidar.bounds import check_point_count, file_size
-from fogsim.lidar.pcd import encode_pcd, read_pcd
+from fogsim.lidar.bounds import check_point_count, check_record, file_size
+from fogsim.lidar.formats import check_npy_fields, npy_widest
+from fogsim.lidar.pcd import PcdHeader, encode_pcd, read_pcd, read_pcd_header
 from fogsim.radar.detections import RadarScan
 
 __all__ = ["EXTRA_FIELDS", "MODELLED_FIELDS", "NPY_DTYPE", "NUSCENES_DEFAULTS", "NUSCENES_RADAR_DTYPE",
-           "RADAR_FORMATS", "RADAR_SUFFIX", "STATIONARY_SPEED_MPS", "detect_radar_format", "encode_radar",
-           "nuscenes_records", "read_radar", "write_radar"]
+           "RADAR_FORMATS", "RADAR_SUFFIX", "STATIONARY_SPEED_MPS", "detect_radar_format", "devkit_readable",
+           "encode_nuscenes_records", "encode_radar", "nuscenes_records", "read_nuscenes_records", "read_radar",
+           "write_radar"]
 
 RADAR_FORMATS = ("nuscenes-radar", "npy")
 #: the file-name ending of each format (what a folder of sweeps is searched for, what levels are named)
@@ -104,20 +110,32 @@ def read_radar(path: str | os.PathLike, fmt: str | None = None) -> RadarScan:
     return _read_nuscenes(path) if fmt == "nuscenes-radar" else _read_npy(path)
 
 
-def _read_nuscenes(path: Path) -> RadarScan:
-    _, rec = read_pcd(path)
-    names = rec.dtype.names
+def read_nuscenes_records(path: str | os.PathLike) -> tuple[PcdHeader, np.ndarray]:
+    """(header, records) of a nuScenes radar PCD as stored — every field in its own type, extra fields
+    included — checked as :func:`read_radar` checks it (the modelled fields present, COUNT 1, from the header
+    before the body). The empty sweep's convention — one record whose modelled fields are all NaN, what the
+    devkit and fogsim write for no detections — reads as 0 records; a NaN in any other record is the
+    sweep's problem (:meth:`RadarScan.checked` names it)."""
+    path = Path(path)
+    head = read_pcd_header(path)  # the fields checked from the header, before the body is read
+    names = head.fields
     missing = [n for n in MODELLED_FIELDS if n not in names]
     if missing:
         raise InputError(path, f"not a nuScenes radar sweep: its PCD fields ({' '.join(names)}) lack "
                                f"{' '.join(missing)}")
     for n in names:
-        if rec.dtype[n].shape:
-            raise InputError(path, f"PCD field {n} has COUNT > 1; nuScenes radar fields are single values")
-    extra_names = [n for n in names if n not in MODELLED_FIELDS]
-    if len(rec) and any(np.isnan(rec[0][n]) for n in names if rec.dtype[n].kind == "f"):
-        extra = np.zeros(0, [(n, rec.dtype[n]) for n in extra_names]) if extra_names else None
-        return RadarScan.checked(np.zeros((0, 3)), np.zeros(0), source=str(path), extra=extra)  # the devkit's empty
+        if head.dtype[n].shape:
+            raise InputError(path, f"PCD field {n} has COUNT {int(np.prod(head.dtype[n].shape)):,}; nuScenes radar "
+                                   "fields are single values (COUNT 1)")
+    _, rec = read_pcd(path)
+    if len(rec) == 1 and all(rec.dtype[n].kind == "f" and np.isnan(rec[0][n]) for n in MODELLED_FIELDS):
+        rec = rec[:0]  # the devkit's (and fogsim's) empty sweep
+    return head, rec
+
+
+def _read_nuscenes(path: Path) -> RadarScan:
+    _, rec = read_nuscenes_records(path)
+    extra_names = [n for n in rec.dtype.names if n not in MODELLED_FIELDS]
     xyz = np.stack([rec["x"], rec["y"], rec["z"]], 1)
     v = np.stack([rec["vx"], rec["vy"]], 1)
     vc = np.stack([rec["vx_comp"], rec["vy_comp"]], 1)
@@ -129,6 +147,29 @@ def _read_nuscenes(path: Path) -> RadarScan:
     return RadarScan.checked(xyz, rec["rcs"], v, vc, source=str(path), extra=extra)
 
 
+def devkit_readable(path: str | os.PathLike, head: PcdHeader) -> bool:
+    """Whether the nuScenes PCD ``path`` (its ``head``) is as the devkit's ``RadarPointCloud.from_file`` reads
+    it: a comment line, then VERSION, FIELDS, SIZE, TYPE, COUNT (all 1), WIDTH (> 0), HEIGHT 1, VIEWPOINT,
+    POINTS, DATA binary, one a line and split by single spaces (it reads them by position)."""
+    with open(path, "rb") as f:
+        lines = f.read(head.offset).decode("ascii", "replace").splitlines()
+    keys = ["VERSION", "FIELDS", "SIZE", "TYPE", "COUNT", "WIDTH", "HEIGHT", "VIEWPOINT", "POINTS", "DATA"]
+    return (len(lines) == 11 and lines[0].startswith("#") and head.data == "binary" and head.width > 0
+            and head.height == 1 and all(ln.split(" ")[0] == k and "  " not in ln and "\t" not in ln
+                                         and ln == ln.strip() for ln, k in zip(lines[1:], keys)))
+
+
+def encode_nuscenes_records(records: np.ndarray) -> bytes:
+    """The bytes of a nuScenes radar PCD holding ``records`` in their own layout (fields, types; 0 records:
+    the empty sweep's convention, one record with the modelled fields NaN), as :func:`encode_radar` writes
+    them (binary, the devkit's header, a trailing newline)."""
+    if not len(records):
+        records = np.zeros(1, records.dtype)
+        for name in MODELLED_FIELDS:
+            records[name] = np.nan
+    return encode_pcd(records, "binary") + b"\n"
+
+
 def _read_npy(path: Path) -> RadarScan:
     size = file_size(path)
 
@@ -137,6 +178,8 @@ def _read_npy(path: Path) -> RadarScan:
             raise InputError(path, f"a radar .npy is a 1-D structured array (fields x y z rcs …), got {dtype} "
                                    f"{list(shape)}")
         check_point_count(path, int(shape[0]), size, ".npy header declares a sweep")
+        check_npy_fields(path, dtype, NPY_DTYPE.names)
+        check_record(path, dtype.itemsize, int(shape[0]), "a .npy detection record", npy_widest(dtype))
 
     a = read_npy(path, check).copy()  # fogsim.headers: bounded, never unpickled
     names = set(a.dtype.names)
@@ -207,7 +250,7 @@ def encode_radar(scan: RadarScan, fmt: str) -> bytes:
     is the devkit's: one comment line, then the keys (it reads them by line number)."""
     fmt = _check_format(fmt)
     if fmt == "nuscenes-radar":
-        return encode_pcd(nuscenes_records(scan), "binary") + b"\n"  # no comment: the devkit reads lines by position
+        return encode_nuscenes_records(nuscenes_records(scan))  # no comment: the devkit reads lines by position
     buf = io.BytesIO()
     np.save(buf, _npy_records(scan), allow_pickle=False)
     return buf.getvalue()

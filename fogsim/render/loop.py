@@ -15,6 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable
 
+from fogsim.errors import unexpected
+
 
 @dataclass
 class FrameLoop:
@@ -40,7 +42,7 @@ class FrameLoop:
         except Exception as exc:  # one bad frame must not stop a long run; it is reported
             if index in self.job.todo:
                 self.job.todo.remove(index)
-            error = f"{type(exc).__name__}: {exc}"
+            error = unexpected(exc)
             self.failed.append((index, error))
             return index, None, error
         self.done += 1

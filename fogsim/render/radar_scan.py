@@ -58,9 +58,8 @@ from fogsim.radar.detections import GROUND_CLUTTER as CLUTTER
 from fogsim.render.lidar_scan import RayCaster
 from fogsim.render.radar_rcs import AREA_SIGMA0_DB, GROUND_CLASSES, GROUND_SIGMA0_DB, aspect_rad, object_rcs_dbsm
 from fogsim.scene.lights import VEHICLE_CLASSES
+from fogsim.schema.radar import DEFAULT_HALF_ELEVATION_DEG, ELEVATION_STEP_DEG, RAY_STEP_DEG, ray_grid_shape
 
-#: ray grid steps (degrees: azimuth, elevation), the elevation half-FOV of a sensor that gives none
-RAY_STEP_DEG, ELEVATION_STEP_DEG, DEFAULT_HALF_ELEVATION_DEG = 0.1, 0.25, 7.0
 #: multipath ghost: one bounce off the road, dB below the detection it mirrors (stated: asphalt's
 #: reflectivity at 77 GHz and grazing incidence, |Γ|² ≈ −3 … −10 dB)
 GHOST_LOSS_DB = 6.0
@@ -146,8 +145,7 @@ def ray_grid(sensor) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
     resolutions = [float(sensor.azimuth_resolution_deg)]
     if sensor.near_range is not None:
         resolutions.append(float(sensor.near_range["azimuth_resolution_deg"]))
-    da = min(RAY_STEP_DEG, min(resolutions) / 10)
-    na, ne = max(1, math.ceil((a1 - a0) / da)), max(1, math.ceil((e1 - e0) / ELEVATION_STEP_DEG))
+    na, ne = ray_grid_shape((a0, a1), (e0, e1), resolutions)  # bounded where the sensor is read (the schema)
     az = np.radians(a0 + (np.arange(na) + 0.5) * (a1 - a0) / na)
     el = np.radians(e0 + (np.arange(ne) + 0.5) * (e1 - e0) / ne)
     a, e = np.meshgrid(az, el, indexing="ij")
@@ -183,7 +181,7 @@ def _quantised(v: np.ndarray, step: float) -> np.ndarray:
 def _cells(oid, scan, rcell, acell) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The distinct (object, scan, range cell, azimuth cell) rows (M×4, sorted), each hit's row and the hits
     per row — np.unique over one int64 key (cells are < 2¹⁶ on either axis: ranges < 2¹⁶ resolution steps,
-    azimuth steps ≥ 0.01°)."""
+    azimuth steps ≥ 0.01°, as :class:`fogsim.schema.radar.RadarSensorSpec` holds every sensor to)."""
     key = ((np.asarray(oid, np.int64) * 2 + scan) << 32) | (np.asarray(rcell, np.int64) << 16) | acell
     uniq, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
     rows = np.stack([(uniq >> 32) // 2, (uniq >> 32) % 2, (uniq >> 16) & 0xFFFF, uniq & 0xFFFF], 1)

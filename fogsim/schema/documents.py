@@ -25,6 +25,7 @@ run-wide (exit 2).
 """
 from __future__ import annotations
 
+import re
 from pathlib import PurePosixPath, PureWindowsPath
 from typing import Annotated, Any, ClassVar
 
@@ -34,7 +35,8 @@ from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field, RootMod
 from fogsim.schema.base import Bool, Closed, Int, NonNegInt, Number, Open, Text, int_in, items, number_in
 
 __all__ = ["ClassMapFile", "CocoFile", "DatasetManifest", "DoneFile", "FogFrameMeta", "FogRunFile", "FrameCamera",
-           "FrameMeta", "Holdout", "Predictions", "RenderRunFile", "StudyFile", "relative_path"]
+           "FrameMeta", "Holdout", "LEVEL_KEY", "Predictions", "RenderRunFile", "StudyFile", "level_key",
+           "relative_path"]
 
 Name = Annotated[str, Field(strict=True, min_length=1)]
 Box = items(Number, 4, "[x0, y0, x1, y1] box")
@@ -47,6 +49,19 @@ def relative_path(v: str) -> str:
     if PurePosixPath(v).is_absolute() or PureWindowsPath(v).is_absolute() or PureWindowsPath(v).drive \
             or "\\" in v or ".." in PurePosixPath(v).parts:
         raise ValueError("must be a path inside the dataset (relative, no '..')")
+    return v
+
+
+#: the characters a fog level's key may hold: it names a folder (``images/<key>/``, ``OUT/<key>/samples/…``)
+LEVEL_KEY = re.compile(r"[A-Za-z0-9_.\-]+")
+
+
+def level_key(v: str) -> str:
+    """A fog level's key: letters, digits, ``_``, ``.``, ``-``, and not ``.`` or ``..`` — one folder's name,
+    never a path (the rule of :class:`fogsim.fog.levels.FogLevel`, and of every key read back from a dataset)."""
+    if not isinstance(v, str) or not LEVEL_KEY.fullmatch(v) or v in (".", ".."):
+        raise ValueError(f"fog level key {v!r} may hold only letters, digits, '_', '.', '-' (and is not '.' or "
+                         "'..'): it names a folder")
     return v
 
 

@@ -52,6 +52,9 @@ BACKSCATTER_PER_VISIBILITY = 0.046
 KEPT_TOLERANCE = 0.5 / 255
 #: the per-ray, per-pulse signal fluctuation's default σ (of its natural log): see LidarSensorSpec
 FLUCTUATION_SIGMA = 0.5
+#: the most rays one sweep may fire (beams × azimuth steps; a render casts each, the fog model's empty-ray
+#: grid holds each): 4 × the densest spinning LiDAR sold (128 beams at 0.1°: 460,800)
+MAX_SWEEP_RAYS = 2_000_000
 #: the named calibrations ``--lidar-calibration`` chooses between (or a file: :class:`LidarCalibration`);
 #: ``reference`` is the deprecated name of ``hahner-constants`` (:data:`DEPRECATED_CALIBRATIONS`)
 CALIBRATIONS = ("datasheet", "hahner-constants", "reference")
@@ -81,6 +84,27 @@ _INCLINATIONS = 'a list of beam inclinations in degrees or "calibration" (read f
 Inclinations = Annotated[Annotated[word("calibration", _INCLINATIONS), Tag("<calibration>")]
                          | Annotated[Annotated[list[number_in(-90, 90)], Field(min_length=1)], Tag("<list>")],
                          by_type({"<calibration>": lambda v: isinstance(v, str), "<list>": is_list}, _INCLINATIONS)]
+
+
+def check_sources(model, bookkeeping: tuple[str, ...], what: str = "the sensor") -> None:
+    """Every parameter a document gives (its fields set, less ``bookkeeping``) has a ``sources`` entry (dotted
+    names for nested keys, or the block's name), and every entry names a parameter: a number without its
+    origin is refused (a ValueError, the schema's one line)."""
+    given = model.model_fields_set - set(bookkeeping)
+    sources = model.sources or {}
+    if not given:
+        return
+
+    def sourced(key: str) -> bool:
+        return key in sources or any(s.startswith(key + ".") for s in sources)
+    missing = sorted(k for k in given if not sourced(k))
+    if missing:
+        raise ValueError(f"sources: no entry for {', '.join(missing)} (every parameter says where it comes "
+                         "from: a data sheet, a paper, or 'assumed: why')")
+    known = set(type(model).model_fields) - set(bookkeeping)
+    unknown = sorted(k for k in sources if k.split(".")[0] not in known)
+    if unknown:
+        raise ValueError(f"sources: {', '.join(unknown)} is not a parameter of {what}")
 
 
 class Mount(Closed):
@@ -144,6 +168,13 @@ class LidarSensorSpec(Closed):
             raise ValueError(f"inclinations_deg has {len(self.inclinations_deg)} values for {self.beams} beams")
         if (self.horizontal_resolution_deg is None) == (self.steps_per_sweep is None):
             raise ValueError("needs exactly one of 'horizontal_resolution_deg' and 'steps_per_sweep'")
+        steps = self.steps_per_sweep or max(1, round(self.horizontal_fov_deg / self.horizontal_resolution_deg))
+        if self.beams * steps > MAX_SWEEP_RAYS:
+            given = (f"steps_per_sweep {steps:,}" if self.steps_per_sweep else
+                     f"horizontal_resolution_deg {self.horizontal_resolution_deg:g} over "
+                     f"{self.horizontal_fov_deg:g}°: {steps:,} steps")
+            raise ValueError(f"{self.beams} beams × {given} = {self.beams * steps:,} rays a sweep, more than the "
+                             f"{MAX_SWEEP_RAYS:,} a sweep may fire (128 beams at 0.1° fire 460,800)")
         if not self.min_range_m < self.max_range_m:
             raise ValueError(f"min_range_m ({self.min_range_m:g}) must be below max_range_m ({self.max_range_m:g})")
         if not self.overlap_full_m < self.max_range_m:
@@ -155,7 +186,8 @@ class LidarSensorSpec(Closed):
 class LidarCalibration(Closed):
     """A calibration file (``--lidar-calibration FILE``): sensor parameters that replace the preset's
     (any of :data:`CALIBRATION_KEYS`, units as in :class:`LidarSensorSpec`), with a ``name`` and the
-    ``sources`` of its values (key → source)."""
+    ``sources`` of its values (key → source): every value it gives has one, and every source names a value
+    (:func:`check_sources`, the radar sensor's rule)."""
 
     name: Text | None = None
     description: Text | None = None
@@ -175,6 +207,11 @@ class LidarCalibration(Closed):
     retro_reflectivity_max: number_in(1, 1e6) | None = None
     stf_noise_level: number_in(0, 1, lo_open=True) | None = None
     stf_gain: number_in(0, 10) | None = None
+
+    @model_validator(mode="after")
+    def _sourced(self):
+        check_sources(self, ("name", "description", "sources"), "a calibration")
+        return self
 
     def overrides(self) -> dict:
         """The sensor parameters this calibration sets (the keys given)."""
@@ -232,4 +269,4 @@ class LidarOutcomes(Open):
 __all__ = ["BACKSCATTER_PER_VISIBILITY", "BACKSCATTER_RULES", "CALIBRATIONS", "CALIBRATION_KEYS",
            "DEPRECATED_CALIBRATIONS", "FLUCTUATION_SIGMA", "HAHNER_CONSTANTS", "HAHNER_VARIANTS",
            "KEPT_TOLERANCE", "LIDAR_FOG_MODELS", "LidarCalibration", "LidarFogSpec", "LidarOutcomes", "LidarSensorSpec",
-           "Mount", "REFERENCE_CALIBRATION", "RETURN_MODES", "SCALES", "STF_BETA_FIELDS"]
+           "MAX_SWEEP_RAYS", "Mount", "REFERENCE_CALIBRATION", "RETURN_MODES", "SCALES", "STF_BETA_FIELDS", "check_sources"]

@@ -11,18 +11,38 @@ Units: GHz, metres, degrees, m/s, dBm (power), dBi (antenna gain), dB (noise fig
 """
 from __future__ import annotations
 
+import math
 from typing import ClassVar
 
 from pydantic import ConfigDict, Field, model_validator
 
 from fogsim.schema.base import Bool, Closed, NonNegInt, Open, Text, number_in, pair
 from fogsim.schema.documents import Vector
-from fogsim.schema.lidar import Mount
+from fogsim.schema.lidar import MAX_SWEEP_RAYS, Mount, check_sources
 
 #: the visibility–liquid-water relations a radar fog record may name (fogsim.radar.attenuation)
 LWC_RELATIONS = ("kunkel-1984",)
+#: the render's ray grid (fogsim.render.radar_scan.ray_grid): azimuth and elevation steps in degrees (the
+#: azimuth step a tenth of the finest azimuth resolution when that is finer), the elevation half-FOV of a
+#: sensor that gives none
+RAY_STEP_DEG, ELEVATION_STEP_DEG, DEFAULT_HALF_ELEVATION_DEG = 0.1, 0.25, 7.0
+#: the finest azimuth resolution a sensor may state: the clustering packs azimuth cells (360° of them) in 16 bits
+MIN_AZIMUTH_RESOLUTION_DEG = 0.01
+#: the most range cells (max range / range resolution) a scan may have: the clustering packs them in 16 bits
+MAX_RANGE_CELLS = (1 << 16) - 1
 #: fields of a sensor block that are bookkeeping, not parameters (they need no ``sources`` entry)
 BOOKKEEPING = ("name", "description", "version", "sources")
+
+
+def ray_grid_shape(azimuth_fov_deg, elevation_fov_deg, azimuth_resolutions_deg) -> tuple[int, int]:
+    """(azimuth rays, elevation rays) of the render's ray grid over ``azimuth_fov_deg`` × ``elevation_fov_deg``
+    ([lo, hi] degrees; None: ±:data:`DEFAULT_HALF_ELEVATION_DEG`): azimuth steps of :data:`RAY_STEP_DEG` or a
+    tenth of the finest resolution, elevation steps of :data:`ELEVATION_STEP_DEG`."""
+    (a0, a1) = (float(v) for v in azimuth_fov_deg)
+    e0, e1 = (-DEFAULT_HALF_ELEVATION_DEG, DEFAULT_HALF_ELEVATION_DEG) if elevation_fov_deg is None else \
+        (float(v) for v in elevation_fov_deg)
+    da = min(RAY_STEP_DEG, min(float(r) for r in azimuth_resolutions_deg) / 10)
+    return max(1, math.ceil((a1 - a0) / da)), max(1, math.ceil((e1 - e0) / ELEVATION_STEP_DEG))
 
 
 class NearRange(Closed):
@@ -86,19 +106,31 @@ class RadarSensorSpec(Closed):
             raise ValueError("a sensor that measures elevation needs elevation_fov_deg and elevation_resolution_deg")
         if self.near_range is not None and self.near_range.max_range_m > self.max_range_m:
             raise ValueError("near_range.max_range_m must not exceed max_range_m (the far scan's)")
-        given = self.model_fields_set - set(BOOKKEEPING)
-        if given:  # a document that gives parameters says where each comes from
-            def sourced(key: str) -> bool:
-                return key in self.sources or any(s.startswith(key + ".") for s in self.sources)
-            missing = sorted(k for k in given if not sourced(k))
-            if missing:
-                raise ValueError(f"sources: no entry for {', '.join(missing)} (every parameter says where it comes "
-                                 "from: a data sheet, a paper, or 'assumed: why')")
-            known = set(type(self).model_fields) - set(BOOKKEEPING)
-            unknown = sorted(k for k in self.sources if k.split(".")[0] not in known)
-            if unknown:
-                raise ValueError(f"sources: {', '.join(unknown)} is not a parameter of the sensor")
+        check_sources(self, BOOKKEEPING)  # a document that gives parameters says where each comes from
+        self._grids()
         return self
+
+    def _grids(self) -> None:
+        """The render's grids stay bounded: the ray grid (:func:`ray_grid_shape`) ≤ the LiDAR's
+        :data:`~fogsim.schema.lidar.MAX_SWEEP_RAYS`, each scan's azimuth and range cells within the
+        clustering's 16-bit packing."""
+        scans = [("", self)] + ([("near_range.", self.near_range)] if self.near_range is not None else [])
+        for where, scan in scans:
+            if scan.azimuth_resolution_deg < MIN_AZIMUTH_RESOLUTION_DEG:
+                raise ValueError(f"{where}azimuth_resolution_deg {scan.azimuth_resolution_deg:g} is finer than the "
+                                 f"{MIN_AZIMUTH_RESOLUTION_DEG:g}° a sensor may resolve (an ARS 408 resolves 1.6°)")
+            cells = scan.max_range_m / scan.range_resolution_m
+            if cells > MAX_RANGE_CELLS:
+                raise ValueError(f"{where}range_resolution_m {scan.range_resolution_m:g} m over {scan.max_range_m:g} m "
+                                 f"is {cells:,.0f} range cells, more than the {MAX_RANGE_CELLS:,} a scan may have")
+        az = list(self.azimuth_fov_deg)
+        if self.near_range is not None:
+            az = [min(az[0], self.near_range.azimuth_fov_deg[0]), max(az[1], self.near_range.azimuth_fov_deg[1])]
+        na, ne = ray_grid_shape(az, self.elevation_fov_deg, [s.azimuth_resolution_deg for _, s in scans])
+        if na * ne > MAX_SWEEP_RAYS:
+            raise ValueError(f"azimuth_resolution_deg {min(s.azimuth_resolution_deg for _, s in scans):g} over "
+                             f"{az[1] - az[0]:g}° makes a render cast {na:,} × {ne:,} = {na * ne:,} rays a sweep, "
+                             f"more than the {MAX_SWEEP_RAYS:,} it may cast")
 
 
 class RadarFogSpec(Closed):
@@ -139,4 +171,6 @@ class RadarOutcomes(Open):
     snr_fog_db: Vector
 
 
-__all__ = ["BOOKKEEPING", "LWC_RELATIONS", "NearRange", "RadarFogSpec", "RadarOutcomes", "RadarSensorSpec"]
+__all__ = ["BOOKKEEPING", "DEFAULT_HALF_ELEVATION_DEG", "ELEVATION_STEP_DEG", "LWC_RELATIONS", "MAX_RANGE_CELLS",
+           "MIN_AZIMUTH_RESOLUTION_DEG", "NearRange", "RAY_STEP_DEG", "RadarFogSpec", "RadarOutcomes",
+           "RadarSensorSpec", "ray_grid_shape"]
