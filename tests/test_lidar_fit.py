@@ -46,13 +46,17 @@ TOLERANCE = {"fog_echo_scale": 0.15, "max_range_m": 0.10}
 def sensor_dict() -> dict:
     d = json.loads((presets_dir() / "lidar" / "hdl64e.json").read_text())
     d.pop("horizontal_resolution_deg")
-    return {**d, "steps_per_sweep": STEPS, "name": "hdl64e-400"}
+    # the 0.5.0 radiometry (0.8 at 120 m, 5 m overlap, ρ = 2.55 I): a sensor whose threshold margin the fog
+    # uses up at β 0.03, so a fitted max_range_m is identifiable (0.6.0's hdl64e loses almost nothing there)
+    return {**d, "steps_per_sweep": STEPS, "name": "hdl64e-400", "reference_reflectivity": 0.8, "overlap_full_m": 5.0,
+            "reflectivity_per_intensity": 2.55}
 
 
 def foggy(scan: PointCloud, calibration: dict, seed: int, beta: float = BETA) -> PointCloud:
     """``scan`` fogged as ``fogsim fog --points`` fogs it (its empty rays included) under ``calibration``."""
     sensor = load_sensor(sensor_dict())
-    fogger = LidarFogger(scan, sensor, {"calibration": {"name": "truth", **calibration}}, empty_rays(scan, sensor))
+    block = {"name": "truth", **calibration, "sources": dict.fromkeys(calibration, "test")}
+    fogger = LidarFogger(scan, sensor, {"calibration": block}, empty_rays(scan, sensor))
     return fogger(beta, np.random.default_rng(seed)).cloud
 
 
@@ -144,7 +148,8 @@ def test_fit_recovers_the_visibility(data):
     """Visibility unknown: β and the echo scale fitted together (max_range_m known, 100 evaluations): β within
     10 %, the echo scale within 25 %."""
     _, clear, real = data
-    p = FitProblem(clear, real, sensor_dict(), {"calibration": {"max_range_m": 200.0}}, None, ("fog_echo_scale",))
+    start = {"max_range_m": 200.0, "sources": {"max_range_m": "test"}}
+    p = FitProblem(clear, real, sensor_dict(), {"calibration": start}, None, ("fog_echo_scale",))
     r = fit(p, 100)
     assert r.beta_fitted and r.beta == pytest.approx(BETA, rel=0.10)
     assert r.values["fog_echo_scale"] == pytest.approx(0.2, rel=0.25)
@@ -153,7 +158,8 @@ def test_fit_recovers_the_visibility(data):
 def test_fit_never_worsens_its_distance(data):
     """From the truth itself, a fit can only keep or lower the distance; one evaluation scores the start alone."""
     _, clear, real = data
-    p = FitProblem(clear, real, sensor_dict(), {"calibration": TRUTH}, BETA, ("fog_echo_scale", "fluctuation_sigma"))
+    truth = {**TRUTH, "sources": dict.fromkeys(TRUTH, "test")}
+    p = FitProblem(clear, real, sensor_dict(), {"calibration": truth}, BETA, ("fog_echo_scale", "fluctuation_sigma"))
     start = p.evaluate({**TRUTH, "fluctuation_sigma": 0.5}, BETA)[0]
     r = fit(p, 12)
     assert r.start_distance == start and r.distance <= start
@@ -246,7 +252,7 @@ def test_lidar_compare_scores_without_fitting(data, tmp_path, capsys):
     """The truth calibration scores lower than the datasheet; the number is FitProblem's distance."""
     root, clear, real = data
     truth_file = tmp_path / "truth.json"
-    truth_file.write_text(json.dumps({"name": "truth", **TRUTH}))
+    truth_file.write_text(json.dumps({"name": "truth", **TRUTH, "sources": dict.fromkeys(TRUTH, "test")}))
     scores = {}
     for cal in ("datasheet", truth_file):
         out = tmp_path / f"cmp-{'file' if cal == truth_file else cal}"

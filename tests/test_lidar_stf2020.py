@@ -24,7 +24,8 @@ from fogsim.runs import level_seed
 #: (range m, STF intensity 0–255) — 40 rays each
 SURFACES = [(1.5, 100.0), (8.0, 0.0), (25.0, 102.0), (40.0, 102.0), (60.0, 255.0), (120.0, 30.0)]
 RAYS = 40
-S2 = {"name": "stf-s2", "stf_noise_level": 0.05, "stf_gain": 0.35, "sources": {"stf_noise_level": "test"}}
+S2 = {"name": "stf-s2", "stf_noise_level": 0.05, "stf_gain": 0.35,
+      "sources": {"stf_noise_level": "test", "stf_gain": "test"}}
 
 
 def write_scans(folder):
@@ -134,7 +135,8 @@ def test_a_point_between_d_max_and_d_new_is_lost_but_may_scatter(scans):
     ln(1.75)/(2β) = 5.60 m at β 0.05, d_new 13.86 m: the 8 m surface is lost whatever the draw, and its rays
     spared by the draw are random-scatter candidates (u < 5.60 m)."""
     scan = scans["stf"]
-    cal = {"name": "wide", "stf_noise_level": 0.2, "stf_gain": 0.35}
+    cal = {"name": "wide", "stf_noise_level": 0.2, "stf_gain": 0.35,
+           "sources": {"stf_noise_level": "test", "stf_gain": "test"}}
     at8 = np.isclose(scan.range_m, 8.0, atol=1e-3)
     added = 0
     fogger = LidarFogger(scan, "hdl64-s3d", {"model": "stf2020", "calibration": cal})

@@ -37,7 +37,13 @@ from fogsim.lidar.points import PointCloud
 from fogsim.lidar.rays import empty_rays
 from fogsim.lidar.scan_stats import DEFAULT_WEIGHTS, ScanStatistics, distance, statistics
 from fogsim.lidar.sensors import LidarSensor, load_sensor
-from fogsim.schema.lidar import CALIBRATION_KEYS, REFERENCE_CALIBRATION, LidarCalibration, LidarFogSpec
+from fogsim.schema.lidar import (
+    CALIBRATION_KEYS,
+    DEPRECATED_CALIBRATIONS,
+    HAHNER_CONSTANTS,
+    LidarCalibration,
+    LidarFogSpec,
+)
 
 __all__ = ["BETA", "BETA_GRID", "FitProblem", "FitResult", "MODEL_PARAMETERS", "PARAMETER_SPACE", "ParameterRange",
            "VISIBILITY_RANGE_M", "beta_of_visibility", "fit", "fitted_calibration", "visibility_of_beta"]
@@ -110,11 +116,13 @@ def visibility_of_beta(beta: float) -> float | None:
 
 
 def _start_calibration(calibration) -> dict:
-    """The keys a start calibration (``datasheet``, ``reference`` or a block) sets, with its name and sources."""
+    """The keys a start calibration (``datasheet``, ``hahner-constants`` or a block) sets, with its name and
+    sources."""
+    calibration = DEPRECATED_CALIBRATIONS.get(calibration, calibration) if isinstance(calibration, str) else calibration
     if calibration == "datasheet":
         return {}
-    if calibration == "reference":
-        return dict(REFERENCE_CALIBRATION)
+    if calibration == "hahner-constants":
+        return dict(HAHNER_CONSTANTS)
     block = calibration if isinstance(calibration, dict) else calibration.model_dump(exclude_none=True)
     return {k: v for k, v in block.items() if v is not None}
 
@@ -164,7 +172,10 @@ class FitProblem:
         """The calibration block of ``values`` (calibration keys; β is not one) over the start calibration."""
         block = {k: v for k, v in self.start_block.items() if k in CALIBRATION_KEYS}
         block.update({k: float(v) for k, v in values.items() if k in CALIBRATION_KEYS})
-        return {"name": name, **block}
+        start_sources = self.start_block.get("sources") or {}
+        sources = {k: start_sources.get(k, "the start calibration") for k in block}
+        sources.update({k: "a trial value of fogsim lidar-fit" for k in values if k in CALIBRATION_KEYS})
+        return {"name": name, **block, "sources": sources}
 
     def simulate(self, values: dict[str, float], beta: float) -> ScanStatistics:
         """The statistics of the clear scans fogged at ``beta`` under ``values`` (common random numbers)."""
@@ -338,6 +349,5 @@ def fitted_calibration(problem: FitProblem, result: FitResult, name: str, source
                             f"distance {result.start_distance:.4f} (start) → {result.distance:.4f} on "
                             f"{len(problem.clear)} clear and {len(problem.real)} foggy scans, visibility "
                             f"{vis:.0f} m ({'fitted' if result.beta_fitted else 'given'})")
-    start_sources = dict(problem.start_block.get("sources") or {})
-    block["sources"] = {**{k: v for k, v in start_sources.items() if k in block}, **sources}
+    block["sources"] = {**{k: v for k, v in block["sources"].items() if k not in result.values}, **sources}
     return LidarCalibration.model_validate(block).model_dump(exclude_none=True)

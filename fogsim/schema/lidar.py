@@ -269,4 +269,5 @@ class LidarOutcomes(Open):
 __all__ = ["BACKSCATTER_PER_VISIBILITY", "BACKSCATTER_RULES", "CALIBRATIONS", "CALIBRATION_KEYS",
            "DEPRECATED_CALIBRATIONS", "FLUCTUATION_SIGMA", "HAHNER_CONSTANTS", "HAHNER_VARIANTS",
            "KEPT_TOLERANCE", "LIDAR_FOG_MODELS", "LidarCalibration", "LidarFogSpec", "LidarOutcomes", "LidarSensorSpec",
-           "MAX_SWEEP_RAYS", "Mount", "REFERENCE_CALIBRATION", "RETURN_MODES", "SCALES", "STF_BETA_FIELDS", "check_sources"]
+           "MAX_SWEEP_RAYS", "Mount", "REFERENCE_CALIBRATION", "RETURN_MODES", "SCALES", "STF_BETA_FIELDS",
+           "check_sources"]
