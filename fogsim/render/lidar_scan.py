@@ -22,8 +22,9 @@ Reflectivity (at 905 nm, diffuse, Lambertian-equivalent): from the 905 nm table 
 :mod:`fogsim.scene.reflectivity`, never from the visible colour — each material slot its entry, car paint by
 the colour family of the instance's colour, every spread drawn once per object
 (:func:`~fogsim.scene.reflectivity.instance_reflectivity`: frame seed, object id, slot), a library model's
-materials by their names (``library:<name>`` slots, :func:`~fogsim.scene.reflectivity.named_reflectivity`,
-else the stated fallback). In scene mode a ``fogsim_reflectivity`` custom property on the material or the
+materials by their names and kinds (``library:<name>`` slots, :func:`~fogsim.scene.reflectivity.material_entry`:
+its own ``fogsim_reflectivity``, transmissive as glass, the name's keywords, a paint's colour; else the stated
+fallback). In scene mode a ``fogsim_reflectivity`` custom property on the material or the
 object wins (:mod:`fogsim.render.blender.realise`), then the material's name, then the fallback.
 
 Speed (one core): each sensor builds its own Embree scene of only what its rays can meet — the parts within
@@ -45,19 +46,15 @@ from fogsim.lidar.points import PointCloud
 from fogsim.lidar.rays import EmptyRays
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor
+from fogsim.scene.library import LIBRARY_SLOT
 from fogsim.scene.materials import MATERIALS
-from fogsim.scene.reflectivity import SURFACES, instance_reflectivity, named_reflectivity, slot_entry
-
-#: the prefix of a library model's material slots (``library:<material name>``; ``library`` alone: unnamed)
-LIBRARY_SLOT = "library"
+from fogsim.scene.reflectivity import instance_reflectivity, material_entry, slot_entry
 
 
-def surface_reflectivity(name: str | None, transmission: float = 0.0) -> tuple[float, str]:
-    """(ρ at 905 nm, the rule) of a material known by its name alone (a user's or a library model's):
-    transmissive (≥ 0.5) surfaces are glass; else :func:`~fogsim.scene.reflectivity.named_reflectivity`."""
-    if transmission >= 0.5:
-        return SURFACES["glass"].rho, "glass (transmission)"
-    entry, rule = named_reflectivity(name)
+def surface_reflectivity(name: str | None, transmission: float = 0.0, colour=None) -> tuple[float, str]:
+    """(ρ at 905 nm, the rule) of a user's material (scene mode) known by its name, transmission and base
+    colour (linear RGB; a paint's family): :func:`~fogsim.scene.reflectivity.material_entry`'s median."""
+    entry, rule = material_entry(name, transmission, colour)
     return entry.rho, rule
 
 
@@ -67,10 +64,13 @@ def _salt(slot: str) -> int:
 
 def slot_reflectivity(obj: dict, slot: str, seed: int = 0) -> float:
     """ρ (905 nm) of one material slot of a procedural object: the table's entry (``body_paint``: the family
-    of the instance's colour; a ``library:<name>`` slot: by its material name), its spread drawn for this
-    object (``seed``: the frame's)."""
-    if slot == LIBRARY_SLOT or slot.startswith(LIBRARY_SLOT + ":"):
-        entry, _ = named_reflectivity(slot[len(LIBRARY_SLOT) + 1:] or None)
+    of the instance's colour; a ``library:<name>`` slot: by its material's name, transmission, colour or own
+    value, :func:`~fogsim.scene.reflectivity.material_entry`, as the asset's ``materials[slot]`` records them),
+    its spread drawn for this object (``seed``: the frame's)."""
+    if slot == LIBRARY_SLOT or slot.startswith(LIBRARY_SLOT + ":"):  # what the model's file said of it
+        info = obj.get("asset", {}).get("materials", {}).get(slot, {})
+        entry, _ = material_entry(slot[len(LIBRARY_SLOT) + 1:] or None, float(info.get("transmission", 0.0)),
+                                  info.get("color"), info.get("reflectivity"))
     else:
         override = obj.get("asset", {}).get("materials", {}).get(slot, {})
         colour = override.get("color", MATERIALS[slot]["color"]) if slot in MATERIALS else None
