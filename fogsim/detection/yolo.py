@@ -112,8 +112,9 @@ def check_model(model: str, config_dir: str | Path, task: str | None = None) -> 
     except Exception as exc:  # Ultralytics raises FileNotFoundError, KeyError … for bad YAMLs
         raise InputError(model, f"Ultralytics cannot build this model: {exc}") from None
     if task is not None and built.task != task:
-        raise InputError(model, f"a {built.task} model; this study needs a {task} model "
-                                f"(e.g. yolov8n-{task}.yaml, yolo11n-{task}.yaml)")
+        kind = {"obb": "an oriented-box"}.get(task, f"a {task}")
+        raise InputError(model, f"a {built.task} model; this study needs {kind} model "
+                                f"(task {task}: e.g. yolov8n-{task}.yaml, yolo11n-{task}.yaml)")
 
 
 # --- training view -------------------------------------------------------------------------------
