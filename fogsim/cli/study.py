@@ -209,6 +209,22 @@ def render(dataset: Path, args) -> None:
         raise SystemExit(code)
 
 
+def cmd_sensor_study(args, dataset: Path) -> int:
+    """``--sensor lidar|lidar+radar``: checks, the render (printed with --dry-run), then the BEV study."""
+    from fogsim.cli.study_bev import bev_setup, cmd_bev
+
+    setup = bev_setup(args)
+    check_args(args)
+    if args.render and args.dry_run:
+        print("render: fogsim " + " ".join(render_command(dataset, args)[3:]))
+        if not (dataset / "dataset.json").is_file():
+            print("then the study below on its levels (the dataset does not exist yet: nothing more to check)")
+            return EXIT_OK
+    elif args.render:
+        render(dataset, args)
+    return cmd_bev(args, dataset, setup)
+
+
 def cmd_study(args) -> int:
     from fogsim.augment.spec import parse_augment
     from fogsim.detection.class_map import load_class_map
@@ -220,12 +236,10 @@ def cmd_study(args) -> int:
               "--scatter-dataset": args.scatter_dataset}
     check_output(args.out, inputs, allow_inside_out=tuple(inputs))  # read through a view
     check_sensor_flags(args)
-    if args.sensor != "camera":
-        from fogsim.cli.study_bev import cmd_bev
-
-        return cmd_bev(args)
     out = Path(args.out)
     dataset = Path(args.dataset) if args.dataset else out / "dataset"
+    if args.sensor != "camera":
+        return cmd_sensor_study(args, dataset)
     cfg = TrainConfig(model=args.model or TrainConfig().model, epochs=args.epochs, mixed_epochs=args.mixed_epochs,
                       imgsz=args.imgsz,
                       batch=args.batch, nbs=args.nbs, device=args.device, workers=args.workers, seed=args.seed,

@@ -40,33 +40,27 @@ def parse_fog_models(text: str | None) -> tuple[str, ...]:
     return names
 
 
-def cmd_bev(args) -> int:
-    from fogsim.cli.study import check_args, render, render_command
-    from fogsim.detection.bev.report import write_bev_report
-    from fogsim.detection.bev.study import DEFAULT_BEV_MODEL, BevStudy
+def bev_setup(args):
+    """(training configuration, grid, fog models, shard) from the flags: usage errors before anything runs."""
+    from fogsim.detection.bev.study import DEFAULT_BEV_MODEL
     from fogsim.detection.yolo import TrainConfig
     from fogsim.runs import parse_shard
 
-    out = Path(args.out)
-    dataset = Path(args.dataset) if args.dataset else out / "dataset"
     cfg = TrainConfig(model=args.model or DEFAULT_BEV_MODEL, epochs=args.epochs, mixed_epochs=args.mixed_epochs,
                       imgsz=args.imgsz, batch=args.batch, nbs=args.nbs, device=args.device, workers=args.workers,
                       seed=args.seed, patience=args.patience, cache=args.cache, plots=not args.no_plots)
-    check_args(args)
-    grid = parse_grid(args.bev_grid, args.imgsz)
-    fog_models = parse_fog_models(args.fog_models)
-    shard = parse_shard(args.shard)
+    return cfg, parse_grid(args.bev_grid, args.imgsz), parse_fog_models(args.fog_models), parse_shard(args.shard)
+
+
+def cmd_bev(args, dataset: Path, setup) -> int:
+    """The BEV study of ``dataset`` (rendered already, when --render) with ``setup`` from :func:`bev_setup`."""
+    from fogsim.detection.bev.report import write_bev_report
+    from fogsim.detection.bev.study import BevStudy
+
+    cfg, grid, fog_models, shard = setup
     if args.quiet:
         os.environ["YOLO_VERBOSE"] = "False"
-    if args.render:
-        if args.dry_run:
-            print("render: " + " ".join(render_command(dataset, args)[1:]).replace("-m fogsim", "fogsim", 1))
-            if not (dataset / "dataset.json").is_file():
-                print("then the study below on its levels (the dataset does not exist yet: nothing more to check)")
-                return EXIT_OK
-        else:
-            render(dataset, args)
-    study = BevStudy(dataset, out, args.sensor, cfg, grid, fog_models)
+    study = BevStudy(dataset, Path(args.out), args.sensor, cfg, grid, fog_models)
     if args.dry_run:
         print(study.plan(shard))
         return EXIT_OK
