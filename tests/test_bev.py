@@ -11,7 +11,7 @@ import pytest
 
 import kitti_tree as kt
 from fogsim.cli import main
-from fogsim.detection.bev.boxes import footprint, obb_line, rotated_iou, yaw_box
+from fogsim.detection.bev.boxes import obb_line, rotated_iou, yaw_box
 from fogsim.detection.bev.build import BevLayout, Variant, build_variant, decode_raster
 from fogsim.detection.bev.evaluate import ap_r40, distance_bins, evaluate_level
 from fogsim.detection.bev.grid import BevGrid, lidar_raster, radar_raster
@@ -206,7 +206,8 @@ def obj(x, y, cls="car", scored=True, difficulty=1, points=20, length=4.0, width
 
 
 def det(x, y, score, cls=0, fid="f0", yaw=0.0, length=4.0, width=1.8):
-    return {"image_id": fid, "category_id": cls, "score": score, "corners_m": yaw_box(x, y, length, width, yaw).tolist()}
+    return {"image_id": fid, "category_id": cls, "score": score,
+            "corners_m": yaw_box(x, y, length, width, yaw).tolist()}
 
 
 def test_ap_r40_of_a_hand_computed_curve():
@@ -284,3 +285,24 @@ def test_a_dataset_without_lidar_levels_is_refused(tmp_path):
     with pytest.raises(InputError, match="no LiDAR levels"):
         LidarLevels(ds)
 
+
+
+def test_the_camera_study_of_the_same_folder_is_set_beside(tmp_path):
+    from fogsim.detection.bev.report import camera_table, sensors_rows
+
+    levels = ["clear", "beta0.06"]
+    bev = {row: {lv: {"ap": a, "recall": a / 2} for lv, a in zip(levels, vals)}
+           for row, vals in (("oracle", (0.8, 0.4)), ("mixed", (0.7, 0.6)))}
+    cam = {row: {lv: {"ap50": a, "recall_all": a, "recall_by_distance": {"0-25 m": a}} for lv, a in zip(levels, vals)}
+           for row, vals in (("oracle", (0.3, 0.1)), ("mixed", (0.35, 0.2)), ("clear", (0.3, 0.0)))}
+    assert camera_table(tmp_path) is None
+    (tmp_path / "report").mkdir()
+    (tmp_path / "report" / "cross_density.json").write_text(json.dumps(cam))
+    rows = sensors_rows({"lidar": bev}, camera_table(tmp_path), levels)
+    assert rows["camera, own level's model: mAP@50 (2D)"] == {"clear": 0.3, "beta0.06": 0.1}
+    assert rows["camera, mixed: recall"] == {"clear": 0.35, "beta0.06": 0.2}
+    assert rows["lidar, mixed: BEV AP"] == {"clear": 0.7, "beta0.06": 0.6}
+    assert rows["lidar, own level's model: recall"] == {"clear": 0.4, "beta0.06": 0.2}
+    (tmp_path / "report" / "cross_density.json").write_text(json.dumps({"oracle": {"clear": {"ap50": "high"}}}))
+    with pytest.raises(InputError, match="cross_density.json"):
+        camera_table(tmp_path)
