@@ -143,7 +143,8 @@ CAMERA_ONLY = (("sim_dataset", "--sim-dataset", None), ("eval_dataset", "--eval-
                ("unknown_distance", "--unknown-distance", "ignore"), ("max_distance", "--max-distance", 100.0))
 BEV_ONLY = (("fog_models", "--fog-models", None), ("bev_grid", "--bev-grid", "0:50,-25:25"),
             ("difficulty", "--difficulty", "auto"), ("prepare_only", "--prepare-only", False),
-            ("dry_run", "--dry-run", False))
+            ("dry_run", "--dry-run", False), ("lidar_sensor", "--lidar-sensor", "hdl64e"),
+            ("radar_sensor", "--radar-sensor", "ars408-lr"))
 
 
 def check_sensor_flags(args) -> None:
@@ -218,7 +219,8 @@ def cmd_sensor_study(args, dataset: Path) -> int:
     if args.render and args.dry_run:
         print("render: fogsim " + " ".join(render_command(dataset, args)[3:]))
         if not (dataset / "dataset.json").is_file():
-            print("then the study below on its levels (the dataset does not exist yet: nothing more to check)")
+            print("then the BEV study on its levels; the dataset does not exist yet, so its plan cannot be checked: "
+                  "dry-run again with --dataset after the render")
             return EXIT_OK
     elif args.render:
         render(dataset, args)
