@@ -232,6 +232,7 @@ def test_kitti_s_iou_thresholds_and_ignore_rules():
     cell = evaluate_level(truth, [turned, ped, van, hard], "L", difficulty="moderate")
     assert cell["objects"] == 2 and cell["ignored_detections"] == 2
     assert cell["ap_car"] == 0.0 and cell["ap_pedestrian"] == pytest.approx(1.0) and cell["ap"] == pytest.approx(0.5)
+    assert cell["ap_loose"] == pytest.approx(1.0)  # at KITTI's looser 0.5 the turned car is found
     every = evaluate_level(truth, [turned, ped, van, hard], "L", difficulty="all")
     # the hard car found after a false alarm, the near one missed: precision ½ up to recall ½
     assert every["objects"] == 3 and every["ap_car"] == pytest.approx(20 * 0.5 / 40)
@@ -291,7 +292,7 @@ def test_the_camera_study_of_the_same_folder_is_set_beside(tmp_path):
     from fogsim.detection.bev.report import camera_table, sensors_rows
 
     levels = ["clear", "beta0.06"]
-    bev = {row: {lv: {"ap": a, "recall": a / 2} for lv, a in zip(levels, vals)}
+    bev = {row: {lv: {"ap": a, "ap_loose": a + 0.1, "recall": a / 2} for lv, a in zip(levels, vals)}
            for row, vals in (("oracle", (0.8, 0.4)), ("mixed", (0.7, 0.6)))}
     cam = {row: {lv: {"ap50": a, "recall_all": a, "recall_by_distance": {"0-25 m": a}} for lv, a in zip(levels, vals)}
            for row, vals in (("oracle", (0.3, 0.1)), ("mixed", (0.35, 0.2)), ("clear", (0.3, 0.0)))}
@@ -302,6 +303,7 @@ def test_the_camera_study_of_the_same_folder_is_set_beside(tmp_path):
     assert rows["camera, own level's model: mAP@50 (2D)"] == {"clear": 0.3, "beta0.06": 0.1}
     assert rows["camera, mixed: recall"] == {"clear": 0.35, "beta0.06": 0.2}
     assert rows["lidar, mixed: BEV AP"] == {"clear": 0.7, "beta0.06": 0.6}
+    assert rows["lidar, mixed: BEV AP (loose)"] == {"clear": pytest.approx(0.8), "beta0.06": pytest.approx(0.7)}
     assert rows["lidar, own level's model: recall"] == {"clear": 0.4, "beta0.06": 0.2}
     (tmp_path / "report" / "cross_density.json").write_text(json.dumps({"oracle": {"clear": {"ap50": "high"}}}))
     with pytest.raises(InputError, match="cross_density.json"):

@@ -41,7 +41,8 @@ def test_the_fogged_kitti_route_end_to_end(street_fog, tmp_path, capsys):
     assert main([*common, "--prepare-only"]) == 0
     for shard in ("0/2", "1/2"):
         assert main([*common, "--shard", shard, "--no-report"]) == 0
-    assert main([*common, "--report-only"]) == 0
+    assert main(["study", "--sensor", "lidar", "--dataset", str(street_fog), "--out", str(out), "--quiet",
+                 "--fog-models", "soft-target,attenuation", "--report-only"]) == 0  # the rest from study.json
     report = out / "bev" / "report"
     table = json.loads((report / "cross_density_lidar.json").read_text())
     levels = ["clear", "beta0.03", "beta0.06", "beta0.09", "beta0.12"]

@@ -60,7 +60,10 @@ def cmd_bev(args, dataset: Path, setup) -> int:
     cfg, grid, fog_models, shard = setup
     if args.quiet:
         os.environ["YOLO_VERBOSE"] = "False"
-    study = BevStudy(dataset, Path(args.out), args.sensor, cfg, grid, fog_models)
+    if args.report_only:  # the training flags and the grid as study.json records them
+        study = BevStudy.stored(dataset, Path(args.out), args.sensor, fog_models)
+    else:
+        study = BevStudy(dataset, Path(args.out), args.sensor, cfg, grid, fog_models)
     if args.dry_run:
         print(study.plan(shard))
         return EXIT_OK

@@ -92,6 +92,11 @@ class BevGrid:
         row = np.clip(np.floor(uv[:, 1]).astype(np.int64), 0, self.height - 1)
         return row, col
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "BevGrid":
+        """The grid of :meth:`to_dict`'s record."""
+        return cls(tuple(d["x_range_m"]), tuple(d["y_range_m"]), tuple(d["z_range_m"]), float(d["cell_m"]))
+
     def to_dict(self) -> dict:
         return {"x_range_m": list(self.x_range), "y_range_m": list(self.y_range), "z_range_m": list(self.z_range),
                 "cell_m": self.cell, "width_px": self.width, "height_px": self.height}

@@ -138,6 +138,20 @@ class BevStudy:
                 "variants": [v.name for v in self.all_variants()], "grid": self.grid.to_dict(),
                 "split_sha256": hashlib.sha256(ids).hexdigest(), "train": asdict(self.cfg)}
 
+    @classmethod
+    def stored(cls, dataset: str | Path, out: str | Path, sensor: str, fog_models: tuple[str, ...] = ()) -> "BevStudy":
+        """The study of ``out`` with the training configuration and grid its ``study.json`` records (what
+        ``--report-only`` needs: no training flags to repeat)."""
+        path = BevStudyLayout(out).study_file()
+        if not path.is_file():
+            raise InputError(path, "no BEV study here: train the models first")
+        stored = load_json(path, BevStudyFile).parameters
+        try:
+            grid = BevGrid.from_dict(stored.grid)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(path, f"parameters.grid: not a BEV grid ({exc})") from None
+        return cls(dataset, out, sensor, TrainConfig(**stored.train.model_dump()), grid, fog_models)
+
     def stored_config(self) -> TrainConfig:
         """The training parameters of ``study.json`` (after checking it is this dataset's study)."""
         path = self.files.study_file()
