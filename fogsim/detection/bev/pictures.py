@@ -100,15 +100,15 @@ def _panel(title: str, by_level: dict, levels: list[str], xmax: float, size=(320
 
 
 def recall_by_distance_plot(own: dict, mixed: dict, levels: list[str]) -> np.ndarray:
-    """Recall against ground distance, a panel per sensor (``own``/``mixed``: ``{sensor: {level: {bin label:
+    """Recall against distance, a panel per sensor (``own``/``mixed``: ``{sensor: {level: {bin label:
     recall}}}``): the top row each level's own model, the bottom row the mixed model; a colour per level."""
     xmax = max((c for by in (*own.values(), *mixed.values()) for bins in by.values()
                 for c in _bin_centres(bins or {}) if np.isfinite(c)), default=50.0) * 1.15
     top = np.hstack([_panel(f"{s}: own level's model", own[s], levels, xmax) for s in own])
     bottom = np.hstack([_panel(f"{s}: mixed", mixed[s], levels, xmax) for s in mixed])
     key = np.full((40, top.shape[1], 3), 255, np.uint8)
-    cv2.putText(key, "recall (every detection) by ground distance; a colour per fog level", (8, 34),
-                cv2.FONT_HERSHEY_SIMPLEX, 0.38, (0, 0, 0), 1, cv2.LINE_AA)
+    text = "recall (every detection) by distance: BEV the ground distance, camera the ray; a colour per level"
+    cv2.putText(key, text, (8, 34), cv2.FONT_HERSHEY_SIMPLEX, 0.38, (0, 0, 0), 1, cv2.LINE_AA)
     x = 8
     for k, lv in enumerate(levels):
         colour = LEVEL_COLOURS[k % len(LEVEL_COLOURS)]
