@@ -308,3 +308,43 @@ def test_the_camera_study_of_the_same_folder_is_set_beside(tmp_path):
     (tmp_path / "report" / "cross_density.json").write_text(json.dumps({"oracle": {"clear": {"ap50": "high"}}}))
     with pytest.raises(InputError, match="cross_density.json"):
         camera_table(tmp_path)
+
+
+def test_the_report_of_perfect_predictions_and_of_a_damaged_file(kitti_fog, tmp_path, capsys):
+    """The report path without a detector: every model's predictions are the ground truth itself."""
+    from fogsim.detection.bev.study import BevStudy
+    from fogsim.detection.yolo import TrainConfig
+    from fogsim.runs import claim_output
+
+    out = tmp_path / "s"
+    study = BevStudy(kitti_fog, out, "lidar", TrainConfig(model="yolov8n-obb.yaml", imgsz=200))
+    assert study.grid == GRID
+    study.prepare(progress=False)
+    claim_output(study.files.study_file(), study.parameters(), what="BEV study")
+    (v,) = study.variants
+    truths = study.truths(v)
+    perfect = [{"image_id": t["id"], "category_id": 0, "score": 0.9, "corners_m": o["corners_m"]}
+               for t in truths for o in t["objects"]]
+    for path in study.prediction_files():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(perfect))
+    argv = ["study", "--sensor", "lidar", "--dataset", str(kitti_fog), "--out", str(out), "--report-only", "--quiet"]
+    assert main(argv) == 0  # auto on real data: KITTI's moderate, which the fixture's 19-px-high car is not
+    table = json.loads((out / "bev" / "report" / "cross_density_lidar.json").read_text())
+    assert all(c["difficulty"] == "moderate" and c["objects"] == 0 for c in table["oracle"].values())
+    argv += ["--difficulty", "all"]
+    assert main(argv) == 0
+    table = json.loads((out / "bev" / "report" / "cross_density_lidar.json").read_text())
+    assert all(c["ap"] == 1.0 and c["ap_loose"] == 1.0 and c["recall"] == 1.0 for row in table.values()
+               for c in row.values())
+    md = (out / "bev" / "report" / "report.md").read_text()
+    assert "| clear | **1.000** |" in md and "No camera study in this folder" in md
+    bad = study.files.prediction(v, "mixed", "beta0.06")
+    bad.write_text(json.dumps([{"image_id": "000000", "category_id": 7, "score": 0.5, "corners_m": []}]))
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and "Traceback" not in err
+    capsys.readouterr()
+    assert main([*argv[:6], str(tmp_path / "none"), "--report-only"]) == 2
+    assert "no BEV study here" in capsys.readouterr().err
