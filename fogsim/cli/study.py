@@ -243,9 +243,8 @@ def cmd_study(args) -> int:
     if args.sensor != "camera":
         return cmd_sensor_study(args, dataset)
     cfg = TrainConfig(model=args.model or TrainConfig().model, epochs=args.epochs, mixed_epochs=args.mixed_epochs,
-                      imgsz=args.imgsz,
-                      batch=args.batch, nbs=args.nbs, device=args.device, workers=args.workers, seed=args.seed,
-                      patience=args.patience, cache=args.cache, plots=not args.no_plots)
+                      imgsz=args.imgsz, batch=args.batch, nbs=args.nbs, device=args.device, workers=args.workers,
+                      seed=args.seed, patience=args.patience, cache=args.cache, plots=not args.no_plots)
     check_args(args)
     augment = parse_augment(args.augment) if args.augment else None
     shard = parse_shard(args.shard)
