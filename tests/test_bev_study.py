@@ -100,6 +100,39 @@ def test_labels_through_ultralytics_come_back_as_the_boxes(tmp_path):
         assert max(rotated_iou(b, gt * [1, -1]) for b in flipped) > 0.999
 
 
+def test_the_study_s_augmentation_keeps_a_cell_a_cell(tmp_path):
+    """Through Ultralytics' training augmentation with the BEV study's overrides (translation and flips on),
+    every box that stays clear of the image's edges keeps its size in pixels — so in metres: the cell is a
+    fixed length and a car is as long in every raster. Ultralytics' default zoom (scale 0.5) would not."""
+    import random
+
+    from fogsim.detection.bev.boxes import yaw_box
+    from fogsim.detection.bev.grid import BevGrid
+    from fogsim.detection.bev.study import AUGMENT
+    from test_bev import ROUND_TRIP
+
+    pytest.importorskip("ultralytics")
+    grid = BevGrid.for_image(320)
+    boxes = [(c, yaw_box(x, y, ln, w, yaw)) for c, x, y, ln, w, yaw in ROUND_TRIP]
+
+    def sides(corners):
+        return sorted(np.linalg.norm(np.roll(corners, -1, 0)[:2] - corners[:2], axis=1))
+
+    want = sorted(sides(b) for _, b in boxes)
+    for seed, hyp in enumerate(({**AUGMENT, "translate": 0.1, "fliplr": 0.5}, {"scale": 0.5})):
+        kept = []
+        for k in range(4):
+            random.seed(10 * seed + k)
+            np.random.seed(10 * seed + k)
+            _, back = ultralytics_round_trip(grid, boxes, tmp_path / f"aug{seed}_{k}", hyp)
+            uv = [grid.to_pixels(b) for b in back]
+            kept += [sides(b) for b, p in zip(back, uv) if p.min() > 1 and p[:, 0].max() < grid.width - 1
+                     and p[:, 1].max() < grid.height - 1]
+        assert len(kept) >= 20
+        same = all(min(np.abs(np.subtract(s, w)).max() for w in want) < 0.02 for s in kept)  # 2 cm
+        assert same == (seed == 0)
+
+
 @pytest.mark.slow
 def test_the_fogged_kitti_route_end_to_end(street_fog, tmp_path, capsys):
     out = tmp_path / "study"
