@@ -364,7 +364,7 @@ def test_the_camera_study_of_the_same_folder_is_set_beside(tmp_path):
     from fogsim.detection.bev.report import camera_table, sensors_rows
 
     levels = ["clear", "beta0.06"]
-    bev = {row: {lv: {"ap": a, "ap_loose": a + 0.1, "recall": a / 2} for lv, a in zip(levels, vals)}
+    bev = {row: {lv: {"ap": a, "ap_car": a + 0.05, "ap_loose": a + 0.1, "recall": a / 2} for lv, a in zip(levels, vals)}
            for row, vals in (("oracle", (0.8, 0.4)), ("mixed", (0.7, 0.6)))}
     cam = {row: {lv: {"ap50": a, "recall_all": a, "recall_by_distance": {"0-25 m": a}} for lv, a in zip(levels, vals)}
            for row, vals in (("oracle", (0.3, 0.1)), ("mixed", (0.35, 0.2)), ("clear", (0.3, 0.0)))}
@@ -375,6 +375,7 @@ def test_the_camera_study_of_the_same_folder_is_set_beside(tmp_path):
     assert rows["camera, own level's model: mAP@50 (2D)"] == {"clear": 0.3, "beta0.06": 0.1}
     assert rows["camera, mixed: recall"] == {"clear": 0.35, "beta0.06": 0.2}
     assert rows["lidar, mixed: BEV AP"] == {"clear": 0.7, "beta0.06": 0.6}
+    assert rows["lidar, own level's model: BEV AP car"] == pytest.approx({"clear": 0.85, "beta0.06": 0.45})
     assert rows["lidar, mixed: BEV AP (loose)"] == {"clear": pytest.approx(0.8), "beta0.06": pytest.approx(0.7)}
     assert rows["lidar, own level's model: recall"] == {"clear": 0.4, "beta0.06": 0.2}
     (tmp_path / "report" / "cross_density.json").write_text(json.dumps({"oracle": {"clear": {"ap50": "high"}}}))
@@ -410,7 +411,8 @@ def test_the_report_of_perfect_predictions_and_of_a_damaged_file(kitti_fog, tmp_
     assert all(c["ap"] == 1.0 and c["ap_loose"] == 1.0 and c["recall"] == 1.0 for row in table.values()
                for c in row.values())
     md = (out / "bev" / "report" / "report.md").read_text()
-    assert "| clear | **1.000** |" in md and "No camera study in this folder" in md
+    assert "| clear | **1.000** |" in md and "No camera study in this folder" in md and "**BEV AP car**" in md
+    assert (out / "bev" / "report" / "lidar_ap_car_heatmap.png").is_file()
     bad = study.files.prediction(v, "mixed", "beta0.06")
     bad.write_text(json.dumps([{"image_id": "000000", "category_id": 7, "score": 0.5, "corners_m": []}]))
     capsys.readouterr()
