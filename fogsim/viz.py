@@ -6,14 +6,21 @@ import numpy as np
 
 from fogsim.colour import to_uint8
 
-__all__ = ["colorize_depth", "label", "strip", "to_uint8"]
+__all__ = ["colorize_depth", "fitted_scale", "label", "strip", "to_uint8"]
+
+
+def fitted_scale(text: str, width: int, scale: float, font: int = cv2.FONT_HERSHEY_SIMPLEX,
+                 thickness: int = 1) -> float:
+    """``scale``, or the smaller font scale at which ``text`` fits ``width`` pixels (never clipped)."""
+    drawn = cv2.getTextSize(text, font, scale, thickness)[0][0]
+    return scale if drawn <= width else scale * width / drawn
 
 
 def label(image: np.ndarray, text: str, height: int = 28) -> np.ndarray:
-    """The image with a white caption bar above it."""
+    """The image with a white caption bar above it (the text made smaller where it would not fit)."""
     img = to_uint8(image)
     bar = np.full((height, img.shape[1], 3), 255, np.uint8)
-    scale = height / 40.0
+    scale = fitted_scale(text, img.shape[1] - 12, height / 40.0)
     cv2.putText(bar, text, (6, int(height * 0.72)), cv2.FONT_HERSHEY_SIMPLEX, scale, (20, 20, 20), 1,
                 cv2.LINE_AA)
     return np.vstack([bar, img])

@@ -300,8 +300,8 @@ def test_finalize_writes_coco_yaml_splits_manifest(tiny_dataset):
     assert manifest["levels"] == [lv.to_dict() for lv in LEVELS] and manifest["classes"] == list(LABELLED)
     assert manifest["counts"]["car"] == 1 and manifest["counts"]["bus"] == 1 and manifest["counts"]["van"] == 0
     assert manifest["filtered"] == {"too few pixels": 2}
-    # 640×426 tiles at 384 px
-    assert read_image(root / "contact_sheet.png").shape == (2 * (28 + 256) + 4, 2 * 384 + 4, 3)
+    # 640×426 tiles at 384 px, and the legend line (22 px) below a 4 px gap
+    assert read_image(root / "contact_sheet.png").shape == (2 * (28 + 256) + 4 + 4 + 22, 2 * 384 + 4, 3)
 
 
 def test_split_deterministic_and_stable():
@@ -320,10 +320,11 @@ def test_split_deterministic_and_stable():
 
 def test_contact_sheet_shape(tiny_dataset):
     sheet = contact_sheet(tiny_dataset, LEVELS, tiny_dataset.done_frames(), tile_width=160)
-    assert sheet.dtype == np.uint8 and sheet.shape == (2 * (28 + 107) + 4, 2 * 160 + 4, 3)
+    legend = 4 + 22  # a gap, then the line that says how to read the boxes
+    assert sheet.dtype == np.uint8 and sheet.shape == (2 * (28 + 107) + 4 + legend, 2 * 160 + 4, 3)
     one = contact_sheet(tiny_dataset, LEVELS[:1], ["000000"], tile_width=96)
-    assert one.shape == (28 + 64, 96, 3)
-    assert (one[28:] != read_image(tiny_dataset.image("clear", "000000"))).any()   # boxes drawn
+    assert one.shape == (28 + 64 + legend, 96, 3)
+    assert (one[28:28 + 64] != read_image(tiny_dataset.image("clear", "000000"))).any()   # boxes drawn
 
 
 def test_finalize_refuses_empty_and_reserved(tmp_path):

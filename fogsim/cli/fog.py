@@ -387,6 +387,7 @@ def _finalize(out: str, train_fraction: float | None = None, split_by: str | Non
     """Write the dataset files (None: the run's own train fraction / split rule); returns the
     summary line and the meta files skipped (each named on stderr: a per-frame problem). A frame in
     both splits (a one-frame dataset) is one warning line on stderr (``quiet``: said in the summary line)."""
+    from fogsim.dataset.visible import visible_line
     from fogsim.dataset.writer import split_note
     from fogsim.fog.batch import finalize_dataset
 
@@ -397,6 +398,8 @@ def _finalize(out: str, train_fraction: float | None = None, split_by: str | Non
     skipped = summary.get("skipped_frames", [])
     for line in skipped:
         print(f"  skipped: {line}", file=sys.stderr)
+    if not quiet and (visible := visible_line(summary)):  # what labels/ holds that the fog hides
+        print(visible)
     counts = ", ".join(f"{c} {n}" for c, n in summary["counts"].items())
     extra = f", {len(skipped)} meta files skipped" if skipped else ""
     if summary.get("absent_frames"):

@@ -202,6 +202,7 @@ def _render(job, args, shard) -> int:
     note = _summary_warning(loop.summary, args.quiet)
     print(f"rendered {loop.done} frames ({job.skipped} already done, {len(loop.failed)} failed) "
           f"in {time.perf_counter() - t0:.1f} s → {args.out}" + (f"; warning: {note}" if note and args.quiet else ""))
+    _visible(loop.summary, args.quiet)
     for index, error in loop.failed:
         print(f"  failed: frame {index}: {error}", file=sys.stderr)
     skipped = _skipped(loop.summary)
@@ -232,6 +233,15 @@ def _summary_warning(summary: dict | None, quiet: bool) -> str | None:
     if note and not quiet:
         print(f"fogsim: warning: {note}", file=sys.stderr)
     return note
+
+
+def _visible(summary: dict | None, quiet: bool) -> None:
+    """Each level's visible boxes (the visible-only label sets, :mod:`fogsim.dataset.visible`), unless quiet."""
+    from fogsim.dataset.visible import visible_line
+
+    line = visible_line(summary) if summary is not None and not quiet else None
+    if line:
+        print(line)
 
 
 def _skipped(summary: dict | None) -> list[str]:
@@ -276,6 +286,7 @@ def _finalize_only(args) -> int:
     frames = args.frames if args.frames is not None else summary["preset"]["frames"]
     print(finalize_line(summary, frames, shard) + f" → {args.out}" + (f"; warning: {note}" if note and args.quiet
                                                                       else ""))
+    _visible(summary, args.quiet)
     return EXIT_FAILED if skipped else EXIT_OK
 
 
