@@ -30,10 +30,12 @@ POINT_FORMATS = FORMATS + RADAR_POINT_FORMATS
 
 def add_inputs(src) -> None:
     """The LiDAR-bearing inputs in the mutually exclusive input group."""
-    src.add_argument("--kitti", help="KITTI object-detection root (training/{image_2,velodyne,calib,label_2}, "
-                                     "ImageSets/): camera fog with depth from the projected scan")
-    src.add_argument("--stf", help="Seeing Through Fog root (cam_stereo_left_lut/, lidar_hdl64_strongest|last/, "
-                                   "gt_labels/cam_left_labels_TMP/); needs --stf-calib")
+    src.add_argument("--kitti", metavar="ROOT",
+                     help="KITTI object-detection root (training/{image_2,velodyne,calib,label_2}, "
+                          "ImageSets/): camera fog with depth from the projected scan")
+    src.add_argument("--stf", metavar="ROOT",
+                     help="Seeing Through Fog root (cam_stereo_left_lut/, lidar_hdl64_strongest|last/, "
+                          "gt_labels/cam_left_labels_TMP/); needs --stf-calib")
     src.add_argument("--points", nargs="+", metavar="FILE_OR_DIR",
                      help="LiDAR scans or radar sweeps without a dataset: files, or folders searched for "
                           "--point-format's files; writes OUT/<level>/<name>.<ext> + outcomes + a sidecar JSON per "

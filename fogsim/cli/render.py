@@ -96,7 +96,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def add_parsers(sub) -> None:
     p = sub.add_parser("render", help="render a labeled foggy dataset of street scenes (needs Blender / bpy)",
-                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+                       description=__doc__)
     add_arguments(p)
     p.set_defaults(run=cmd_render)
 
@@ -306,9 +306,10 @@ def finalize_line(summary: dict, frames: int, shard: tuple[int, int]) -> str:
 
 def main(argv: list[str] | None = None, prog: str = "fogsim render") -> int:
     """Entry of ``scripts/render_batch.py`` (``blender -b -P``): the same command, its own prog name."""
-    p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    from fogsim.cli.help import HelpFormatter
     from fogsim.fileio import with_checked_paths
 
+    p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=HelpFormatter)
     add_arguments(p)
     p.set_defaults(entry=prog)
     interrupt_as_python()
