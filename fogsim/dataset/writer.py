@@ -25,15 +25,17 @@ from fogsim.colour import to_uint8
 from fogsim.dataset.coco import coco_dataset, coco_records, frame_segmentations
 from fogsim.dataset.layout import MIXED_SPLIT, PARTS, DatasetLayout, visible_set
 from fogsim.dataset.lidar import lidar_summary
+from fogsim.dataset.lidar_sheet import LEGEND as LIDAR_LEGEND
 from fogsim.dataset.lidar_sheet import lidar_rows
-from fogsim.dataset.radar import radar_rows, radar_summary
+from fogsim.dataset.radar import SHEET_LEGEND as RADAR_LEGEND
+from fogsim.dataset.radar import fog_note, radar_rows, radar_summary
 from fogsim.dataset.reader import FrameRecords, frame_records, read_checked_meta
 from fogsim.dataset.visible import visible_at, visible_counts, write_visible_labels
 from fogsim.fileio import atomic_write_bytes, read_image, write_image, write_json
 from fogsim.lidar.objects import MIN_POINTS
 from fogsim.runs import split_key
 from fogsim.scene.classes import LABELLED
-from fogsim.viz import label, strip
+from fogsim.viz import label, legend_row, strip, text_row
 
 __all__ = ["PALETTE", "TRAIN_FRACTION", "check_train_fraction", "contact_sheet", "draw_boxes", "data_yaml", "finalize",
            "frame_split", "split_frames", "split_note", "write_frame_labels"]
@@ -207,7 +209,7 @@ def contact_sheet(layout: DatasetLayout, levels, frames: list[str], max_frames: 
                   tile_width: int = 384, metas: list[dict] | None = None) -> np.ndarray:
     """RGB uint8 overview: one row per frame, one column per level, kept boxes drawn, and for a frame
     with a LiDAR its scans (:mod:`fogsim.dataset.lidar_sheet`) (``metas``: the frames' records, if read already)."""
-    rows = []
+    rows, sensors = [], {}  # the sensors seen: their legends below (and the first frame's record of each)
     for n, frame in enumerate(frames[:max_frames]):
         meta = metas[n] if metas is not None else read_checked_meta(layout, frame)
         records = [r for r in meta["objects"] if r["kept"]]
@@ -218,10 +220,19 @@ def contact_sheet(layout: DatasetLayout, levels, frames: list[str], max_frames: 
             captions.append((f"frame {frame}: " if i == 0 else "") + _caption(lv)
                             + (f", {sum(hidden)} of {len(records)} hidden" if any(hidden) else ""))
         rows.append(strip(tiles, captions))
-        rows += lidar_rows(layout, meta, levels, tile_width)  # a frame with a LiDAR: its scans too
-        rows += radar_rows(layout, meta, levels, tile_width)  # and with a radar: its detections
-    rows.append(label(np.zeros((0, max(r.shape[1] for r in rows), 3), np.uint8), SHEET_LEGEND, 22))
+        for name, more in (("lidar", lidar_rows(layout, meta, levels, tile_width)),  # a LiDAR: its scans too
+                           ("radar", radar_rows(layout, meta, levels, tile_width))):  # a radar: its detections
+            rows += more
+            if more and name not in sensors:
+                sensors[name] = meta
     width = max(r.shape[1] for r in rows)
+    rows.append(label(np.zeros((0, width, 3), np.uint8), SHEET_LEGEND, 22))  # how to read it, below it
+    if "lidar" in sensors:
+        rows.append(legend_row(LIDAR_LEGEND, width))
+    if "radar" in sensors:
+        rows.append(legend_row(RADAR_LEGEND, width))
+        if note := fog_note(sensors["radar"]["radar"].get("levels") or {}):
+            rows.append(text_row(note, width))
     gap = np.full((4, width, 3), 255, np.uint8)
     padded = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=255) for r in rows]
     return np.vstack([x for r in padded for x in (r, gap)][:-1])
