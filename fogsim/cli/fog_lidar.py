@@ -277,12 +277,22 @@ def cmd_points(args) -> int:
     recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
     job = PointsJob(levels, args.out, FogSettings(lidar=spec), sensor, fmt, args.point_scale, args.seed, recorded)
     shard = parse_shard(args.shard)
-    summary = run(select_shard(items, shard), job, args.workers, not args.no_resume, not args.quiet,
+    mine = select_shard(items, shard)
+    summary = run(mine, job, args.workers, not args.no_resume, not args.quiet,
                   package_versions() | {"samples": len(items)})
     for source, error in summary.failed:
         print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
+    _print_totals(job, mine, "points", args.quiet)
     print(summary.line(job))
     return EXIT_FAILED if summary.failed else EXIT_OK
+
+
+def _print_totals(job, items, what: str, quiet: bool) -> None:
+    """Each level's outcome totals (:mod:`fogsim.fog.outcome_totals`), unless quiet."""
+    from fogsim.fog.outcome_totals import outcome_totals, totals_lines
+
+    if not quiet:
+        print("\n".join(totals_lines(outcome_totals(job, items), what)))
 
 
 def cmd_radar_points(args) -> int:
@@ -313,10 +323,12 @@ def cmd_radar_points(args) -> int:
     items = point_files(args.points, fmt)
     recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
     job = RadarPointsJob(levels, args.out, FogSettings(radar=spec), sensor, fmt, recorded)
-    summary = run(select_shard(items, parse_shard(args.shard)), job, args.workers, not args.no_resume,
-                  not args.quiet, package_versions() | {"samples": len(items)})
+    mine = select_shard(items, parse_shard(args.shard))
+    summary = run(mine, job, args.workers, not args.no_resume, not args.quiet,
+                  package_versions() | {"samples": len(items)})
     for source, error in summary.failed:
         print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
+    _print_totals(job, mine, "detections", args.quiet)
     print(summary.line(job))
     return EXIT_FAILED if summary.failed else EXIT_OK
 

@@ -8,6 +8,7 @@ document                       model                           read by
 ``meta/<frame>.json``          :class:`FrameMeta`              finalize (render, fog), depth score
 ``meta/<frame>.json`` camera   :class:`FrameCamera`            ``fogsim depth score --pred-kind ray``
 ``fogsim_run.json``            :class:`FogRunFile`             ``fogsim fog --finalize-only`` / end
+``<level>/<name>.json``        :class:`PointsSidecar`          ``fogsim fog --points``' outcome totals
 ``render_run.json``            :class:`RenderRunFile`          ``fogsim render --finalize-only``, benches
 ``dataset.json``               :class:`DatasetManifest`        the study, dataset readers
 ``coco/<level>.json``          :class:`CocoFile`               the study (ground truth)
@@ -34,7 +35,7 @@ from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field, RootMod
 from fogsim.schema.base import Bool, Closed, Int, NonNegInt, Number, Open, Text, int_in, items, number_in
 
 __all__ = ["ClassMapFile", "CocoFile", "DatasetManifest", "DoneFile", "FogFrameMeta", "FogRunFile", "FrameCamera",
-           "FrameMeta", "Holdout", "Predictions", "RenderRunFile", "StudyFile", "relative_path"]
+           "FrameMeta", "Holdout", "PointsSidecar", "Predictions", "RenderRunFile", "StudyFile", "relative_path"]
 
 Name = Annotated[str, Field(strict=True, min_length=1)]
 Box = items(Number, 4, "[x0, y0, x1, y1] box")
@@ -132,6 +133,16 @@ class RenderRunParameters(Open):
     name: Text | None = None         # the preset's name
     seed: Int | None = None          # the dataset seed
     style: Text | dict | None = None  # the style's name, or the whole style (as render writes it)
+
+
+class PointsSidecar(Open):
+    """``OUT/<level>/<name>.json`` of ``fogsim fog --points`` (a scan's or a radar sweep's level): what the
+    end-of-run outcome totals read (:mod:`fogsim.fog.outcome_totals`)."""
+
+    document: ClassVar[str] = "points sidecar"
+
+    outcomes: dict[str, NonNegInt]
+    empty_ray_clutter: NonNegInt = 0  # LiDAR: fog clutter on rays that returned nothing in clear air
 
 
 class RenderRunLevel(RunLevel):
