@@ -292,7 +292,7 @@ def _print_totals(job, items, what: str, quiet: bool) -> None:
     from fogsim.fog.outcome_totals import outcome_totals, totals_lines
 
     if not quiet:
-        print("\n".join(totals_lines(outcome_totals(job, items), what)))
+        print("\n".join(totals_lines(outcome_totals(job, items), what, job.unit)))
 
 
 def cmd_radar_points(args) -> int:

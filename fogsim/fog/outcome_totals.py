@@ -31,11 +31,12 @@ def outcome_totals(job, items) -> dict[str, Counter]:
     return totals
 
 
-def totals_lines(totals: dict[str, Counter], what: str) -> list[str]:
+def totals_lines(totals: dict[str, Counter], what: str, unit: str = "scans") -> list[str]:
     """``"  beta0.06: kept 80 (66.7 %), attenuated 30 (25.0 %), lost 0 (0.0 %), clutter 10 (8.3 %) + 12 on empty
-    rays"``, one per level under a heading naming ``what`` ("points", "detections"): shares of the input."""
+    rays"``, one per level under a heading naming ``what`` ("points", "detections") and the ``unit`` summed
+    ("scans", "sweeps"): shares of the input."""
     width = max((len(k) for k in totals), default=0)
-    lines = [f"outcomes per level ({what} of the scans done):"]
+    lines = [f"outcomes per level ({what} of the {unit} done):"]
     for key, counts in totals.items():
         extra = counts.get(EMPTY_RAYS, 0)
         n = sum(v for k, v in counts.items() if k != EMPTY_RAYS)
