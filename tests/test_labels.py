@@ -15,6 +15,7 @@ from fogsim.fileio import read_image, write_image, write_json
 from fogsim.fog.levels import FogLevel
 from fogsim.render.labels import object_records
 from fogsim.render.silhouette import NEAR, clip_near, covered_pixels, project_points, silhouette_areas
+from fogsim.rle import box_rle
 from fogsim.scene.classes import CLASS_ID, LABELLED
 
 
@@ -283,7 +284,11 @@ def test_finalize_writes_coco_yaml_splits_manifest(tiny_dataset):
             assert ann["category_id"] == rec["class_id"] + 1 == [c["id"] for c in coco["categories"]
                                                                  if c["name"] == rec["class"]][0]
             assert ann == coco_annotation(rec, ann["id"], ann["image_id"], ann.get("segmentation"))
-            assert ("segmentation" in ann) == (not rec["kept"])  # no mask here: ignore regions get their box
+            # no mask here: ignore regions get their box's RLE, kept objects their box as a polygon
+            size = [metas[frame]["height"], metas[frame]["width"]]
+            assert ann["segmentation"] == ([[x0, y0, x1, y0, x1, y1, x0, y1]] if rec["kept"] else
+                                           box_rle(rec["bbox"], *size))
+            assert ann.get("segmentation_is_box", False) == rec["kept"]
     for name in ["clear", "beta0.06", "all"]:
         data = read_yaml(root / "data" / f"{name}.yaml")
         assert data["path"] == str(root.resolve())
