@@ -15,16 +15,18 @@ from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.visible import visible_at
 from fogsim.dataset.writer import PALETTE, draw_boxes
 from fogsim.fileio import write_image, write_json
-from fogsim.fog.levels import parse_levels
+from fogsim.fog.levels import FogLevel, parse_levels
 
 LEVELS = [lv.key for lv in parse_levels("paper")]
 DISTANCES = (8.0, 30.0, 70.0, 140.0)  # m: one box each; V = ln 20 / β = 100, 50, 33, 25 m at the foggy levels
+WHITE_M = 20.0  # and a white box at 20 m: no contrast against the sky, in clear air or fog
 
 
-def make_sky_dataset(root, frames: int = 6, width: int = 128, height: int = 48):
+def make_sky_dataset(root, frames: int = 6, width: int = 160, height: int = 48):
     """Black boxes at known distances against the horizon sky (+inf, white), fogged in linear light, so a
     box's contrast is its transmission exp(−β d) (:mod:`fogsim.fog.visibility`) and it is visible (≥ 5 %)
-    exactly when d < V; each record's visibility measured on the fogged images, as the renderer's."""
+    exactly when d < V; and a white box, never visible by contrast. Each record's visibility measured on the
+    fogged images, as the renderer's."""
     from fogsim.dataset.writer import finalize, write_frame_labels
     from fogsim.fog.model import Fogger
     from fogsim.fog.visibility import attach_visibility
@@ -36,9 +38,9 @@ def make_sky_dataset(root, frames: int = 6, width: int = 128, height: int = 48):
         rgb = np.full((height, width, 3), 255, np.uint8)
         distance = np.full((height, width), np.inf, np.float32)
         records = []
-        for k, d in enumerate(DISTANCES):
+        for k, d in enumerate((*DISTANCES, WHITE_M)):
             x0, y0 = 6 + 30 * k + i % 4, 12 + i % 5
-            rgb[y0:y0 + 20, x0:x0 + 18] = 0
+            rgb[y0:y0 + 20, x0:x0 + 18] = 0 if d != WHITE_M else 255
             distance[y0:y0 + 20, x0:x0 + 18] = d
             records.append({"class": "car", "class_id": 0, "bbox": [x0, y0, x0 + 18, y0 + 20], "kept": True,
                             "pixels": 360, "distance_m": d})
@@ -69,9 +71,10 @@ def test_each_level_keeps_exactly_the_objects_the_meta_calls_visible(dataset):
         meta = json.loads(meta_file.read_text())
         frame, w, h = meta["frame"], meta["width"], meta["height"]
         for level in LEVELS:
-            # the rule from the record alone, without fogsim's code: kept, and not visible == False
+            # the rule from the record alone, without fogsim's code: kept, and at a foggy level not visible ==
+            # False (the clear level keeps every object: the white box, invisible by contrast, stays there)
             want = [yolo_line(r, w, h) for r in meta["objects"]
-                    if r["kept"] and r["visibility"][level]["visible"] is not False]
+                    if r["kept"] and (level == "clear" or r["visibility"][level]["visible"] is not False)]
             assert _lines(layout.visible_label(level, frame)) == want
             assert len(_lines(layout.label(level, frame))) == sum(r["kept"] for r in meta["objects"])
             hidden_somewhere += len(want) < len(_lines(layout.label(level, frame)))
@@ -80,7 +83,8 @@ def test_each_level_keeps_exactly_the_objects_the_meta_calls_visible(dataset):
             assert os.path.samefile(image, link)  # a hard link, no bytes copied
             # and the record's visibility is Koschmieder's: a box is visible exactly when it is nearer than V
             beta = {lv.key: lv.beta for lv in parse_levels("paper")}[level]
-            assert len(want) == sum(beta * d < np.log(20) for d in DISTANCES)
+            assert len(want) == (5 if beta == 0 else sum(beta * d < np.log(20) for d in DISTANCES))
+            assert meta["objects"][4]["visibility"][level]["visible"] is False  # the white box, everywhere
     assert hidden_somewhere == 6 * 4 and kept_everywhere == 6  # every foggy level hides some; clear none
 
 
@@ -99,8 +103,8 @@ def test_the_visible_data_files_train_on_the_visible_sets_with_the_same_split(da
                 assert os.path.isfile(f"{os.sep}labels{os.sep}".join(label).rsplit(".", 1)[0] + ".txt")
     manifest = json.loads((dataset / "dataset.json").read_text())["visible_labels"]
     counts = manifest["levels"]
-    assert counts["clear"]["labels"] == counts["beta0.12"]["labels"] == 24
-    assert [counts[k]["visible"] for k in LEVELS] == [24, 18, 12, 12, 6]
+    assert counts["clear"]["labels"] == counts["beta0.12"]["labels"] == 30
+    assert [counts[k]["visible"] for k in LEVELS] == [30, 18, 12, 12, 6]
     assert counts["beta0.12"]["data"] == "data/beta0.12.visible.yaml" and "5 %" in manifest["rule"]
     assert not list(layout.root.rglob("*.part"))
 
@@ -127,6 +131,9 @@ def test_hidden_boxes_are_dashed_and_unnamed():
     top_solid, top_dashed = (np.all(img[4, 4:40] == colour, axis=1) for img in (solid, dashed))
     assert top_solid.all() and 0.3 < top_dashed.mean() < 0.7  # on and off along the edge
     assert np.all(dashed[:4] == 0)  # no name above a hidden box
-    assert visible_at({"kept": True, "visibility": {"a": {"visible": False}}}, "a") is False
-    assert visible_at({"kept": True, "visibility": {"a": {"visible": None}}}, "a") is True
-    assert visible_at({"kept": False, "visibility": {}}, "a") is False
+    foggy, clear = FogLevel("a", "a", 0.06), FogLevel("c", "clear", 0.0)
+    assert visible_at({"kept": True, "visibility": {"a": {"visible": False}}}, foggy) is False
+    assert visible_at({"kept": True, "visibility": {"a": {"visible": None}}}, foggy) is True
+    assert visible_at({"kept": False, "visibility": {}}, foggy) is False
+    # clear air hides nothing: a low-contrast object (a white van before a white wall) stays labelled there
+    assert visible_at({"kept": True, "visibility": {"c": {"visible": False}}}, clear) is True

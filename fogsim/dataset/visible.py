@@ -10,10 +10,11 @@ eye can see. Beside it, finalize writes the visible-only set of each level::
     splits/<level>.visible_{train,val}.txt, data/<level>.visible.yaml   the same frames and split, and the
                                          mixed set ``all.visible``
 
-The rule (:func:`visible_at`): a kept record whose ``visibility[<level>]["visible"]`` is not False — its
-Weber contrast in that level's image is ≥ 5 % (:mod:`fogsim.fog.visibility`), at every level, clear
-included; an unknown visibility counts as visible (the rule of
-:func:`fogsim.detection.coco_eval.mark_invisible_ignored`, the study's ``recall_visible``).
+The rule (:func:`visible_at`): at a foggy level (β > 0), a kept record whose ``visibility[<level>]["visible"]``
+is not False — its Weber contrast in that level's image is ≥ 5 % (:mod:`fogsim.fog.visibility`; an unknown
+visibility counts as visible, as in :func:`fogsim.detection.coco_eval.mark_invisible_ignored`); at a clear
+level (β = 0) every kept record: fog hides nothing there, and the contrast of means can call an object whose
+mean luminance matches its surroundings' (a white van before a white wall) invisible in clear air.
 """
 from __future__ import annotations
 
@@ -24,14 +25,16 @@ from fogsim.fileio import atomic_write_bytes, link_or_copy
 __all__ = ["VISIBLE_RULE", "visible_at", "visible_counts", "write_visible_labels"]
 
 #: the rule in words (``dataset.json``'s ``visible_labels.rule``)
-VISIBLE_RULE = ("a kept object whose contrast in that level's image is >= 5 % (meta visibility[<level>].visible; "
-                "unknown counts as visible)")
+VISIBLE_RULE = ("at a foggy level, a kept object whose contrast in that level's image is >= 5 % (meta "
+                "visibility[<level>].visible; unknown counts as visible); at a clear level every kept object")
 
 
-def visible_at(record: dict, level_key: str) -> bool:
-    """True when ``record`` is a kept object visible at level ``level_key`` (the module's rule)."""
-    vis = (record.get("visibility") or {}).get(level_key) or {}
-    return bool(record["kept"]) and vis.get("visible") is not False
+def visible_at(record: dict, level) -> bool:
+    """True when ``record`` is a kept object visible at ``level`` (its ``key`` and ``beta``; the module's rule)."""
+    if not record["kept"]:
+        return False
+    vis = (record.get("visibility") or {}).get(level.key) or {}
+    return level.beta == 0 or vis.get("visible") is not False
 
 
 def write_visible_labels(layout: DatasetLayout, levels, frames: list[str], metas: list[dict]) -> None:
@@ -39,7 +42,7 @@ def write_visible_labels(layout: DatasetLayout, levels, frames: list[str], metas
     for frame, meta in zip(frames, metas):
         w, h = meta["width"], meta["height"]
         for lv in levels:
-            lines = "".join(yolo_line(r, w, h) + "\n" for r in meta["objects"] if visible_at(r, lv.key))
+            lines = "".join(yolo_line(r, w, h) + "\n" for r in meta["objects"] if visible_at(r, lv))
             atomic_write_bytes(layout.visible_label(lv.key, frame), lines.encode())
             link_or_copy(layout.image(lv.key, frame), layout.visible_image(lv.key, frame))
 
@@ -50,7 +53,7 @@ def visible_counts(levels, metas: list[dict]) -> dict:
     out = {}
     for lv in levels:
         kept = [r for m in metas for r in m["objects"] if r["kept"]]
-        out[lv.key] = {"labels": len(kept), "visible": sum(visible_at(r, lv.key) for r in kept),
+        out[lv.key] = {"labels": len(kept), "visible": sum(visible_at(r, lv) for r in kept),
                        "data": f"data/{visible_set(lv.key)}.yaml"}
     return {"rule": VISIBLE_RULE, "mixed": f"data/{visible_set(MIXED_SPLIT)}.yaml", "levels": out}
 

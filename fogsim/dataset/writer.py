@@ -215,7 +215,7 @@ def contact_sheet(layout: DatasetLayout, levels, frames: list[str], max_frames: 
         records = [r for r in meta["objects"] if r["kept"]]
         tiles, captions = [], []
         for i, lv in enumerate(levels):
-            hidden = [not visible_at(r, lv.key) for r in records]
+            hidden = [not visible_at(r, lv) for r in records]
             tiles.append(_tile(read_image(layout.image(lv.key, frame)), records, tile_width, hidden))
             captions.append((f"frame {frame}: " if i == 0 else "") + _caption(lv)
                             + (f", {sum(hidden)} of {len(records)} hidden" if any(hidden) else ""))
@@ -239,8 +239,8 @@ def contact_sheet(layout: DatasetLayout, levels, frames: list[str], max_frames: 
 
 
 #: the contact sheet's last line: how to read its boxes
-SHEET_LEGEND = ("boxes: solid = visible at that level (contrast >= 5 %, in labels/ and visible/labels/); "
-                "dashed, no name = hidden by the fog (in labels/ only)")
+SHEET_LEGEND = ("boxes: solid = visible at that level (contrast >= 5 %; in labels/ and visible/labels/); "
+                "dashed, no name = hidden by the fog (contrast < 5 %; in labels/ only)")
 
 
 def _tile(image: np.ndarray, records: list[dict], width: int, hidden: list[bool] | None = None) -> np.ndarray:
