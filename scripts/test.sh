@@ -9,6 +9,7 @@
 #            torch's CUDA build with its NVIDIA libraries (the only torch + torchvision pair pip gets from
 #            PyPI on x86-64; PyTorch's CPU wheels, installed into .venv first, are kept: README)
 #   Debian   blender (3.4), slurm-wlm + munge, xvfb, with their dependencies: about 1.1 GB (as root)
+# A fresh install took 15 min on a shared 2-core machine (torch's wheels from a local disk); the suite ~30 min.
 # Expected repairs are printed as "note:" lines; "error:" means the tests cannot run as intended.
 set -euo pipefail
 cd "$(dirname "$0")/.."
