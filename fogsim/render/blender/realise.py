@@ -18,6 +18,7 @@ import mathutils
 import numpy as np
 
 from fogsim.errors import InputError
+from fogsim.render.blender.compat import node_tree_in_use
 from fogsim.render.blender.library import mesh_triangle_materials, mesh_triangles
 from fogsim.render.blender.scratch import Scratch
 from fogsim.render.lidar_scan import DEFAULT_REFLECTIVITY, material_reflectivity
@@ -214,8 +215,8 @@ def _reflectivity(material, obj) -> float:
             return float(v)
     if material is None:
         return DEFAULT_REFLECTIVITY
-    bsdf = next((n for n in (material.node_tree.nodes if material.use_nodes and material.node_tree else ())
-                 if n.type == "BSDF_PRINCIPLED"), None)
+    tree = node_tree_in_use(material)
+    bsdf = next((n for n in (tree.nodes if tree is not None else ()) if n.type == "BSDF_PRINCIPLED"), None)
     if bsdf is None:
         return material_reflectivity(material.diffuse_color)
     base = bsdf.inputs["Base Color"]
