@@ -200,15 +200,18 @@ def _render(job, args, shard) -> int:
         print(f"fogsim: error: writing the dataset files of {args.out} failed: {exc}", file=sys.stderr)
         return EXIT_FAILED
     note = _summary_warning(loop.summary, args.quiet)
-    print(f"rendered {loop.done} frames ({job.skipped} already done, {len(loop.failed)} failed) "
-          f"in {time.perf_counter() - t0:.1f} s → {args.out}" + (f"; warning: {note}" if note and args.quiet else ""))
+    lines = [f"rendered {loop.done} frames ({job.skipped} already done, {len(loop.failed)} failed) "
+             f"in {time.perf_counter() - t0:.1f} s → {args.out}"]
+    if note and args.quiet:
+        lines.append(f"warning: {note}")
+    if is_sharded(shard):  # the dataset-wide files wait for one finalize after every shard
+        lines.append(f"fogsim: shard {shard[0]}/{shard[1]} done; when every shard has finished, write the dataset "
+                     f"files with: {finalize_command(args)}")
+    print("; ".join(lines) if args.quiet else "\n".join(lines))  # --quiet: one summary line
     _visible(loop.summary, args.quiet)
     for index, error in loop.failed:
         print(f"  failed: frame {index}: {error}", file=sys.stderr)
     skipped = _skipped(loop.summary)
-    if is_sharded(shard):  # the dataset-wide files wait for one finalize after every shard
-        print(f"note: shard {shard[0]}/{shard[1]} is done; once every shard has finished, write the dataset "
-              f"files with: {finalize_command(args)}")
     return EXIT_FAILED if loop.failed or skipped else EXIT_OK
 
 

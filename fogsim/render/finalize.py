@@ -11,6 +11,7 @@ dataset is never finalized with another's configuration. No bpy here.
 """
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 from pathlib import Path
 
@@ -180,7 +181,8 @@ def finalize_render(layout: DatasetLayout, config: RenderConfig, blender: str | 
     keep = [n for n, f in enumerate(records.frames) if is_frame_name(f)]
     records.frames = [records.frames[n] for n in keep]
     records.metas = [records.metas[n] for n in keep]
-    preset = config.to_dict()
+    # keys sorted: a configuration read back from render_run.json (written sorted) gives the same bytes
+    preset = json.loads(json.dumps(config.to_dict(), sort_keys=True))
     if records.frames:
         preset["frames"] = max(preset["frames"], max(int(f) for f in records.frames) + 1)
     manifest = {"preset": preset, "seed": config.seed,
