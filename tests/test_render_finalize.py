@@ -76,6 +76,27 @@ def test_the_command_refuses_a_disagreeing_flag_before_writing_anything(tmp_path
     assert "not a dataset to finalize" in capsys.readouterr().err
 
 
+def test_finalize_needs_no_blender(tmp_path, capsys, monkeypatch):
+    """Frames committed (the synthetic dataset's, written by the renderer's writer) and the render's claim:
+    ``--finalize-only --out`` writes the dataset files with bpy made unimportable."""
+    import sys
+
+    from synthetic_dataset import make_dataset
+
+    out = tmp_path / "ds"
+    make_dataset(out, frames=3)
+    config = load_render_preset("default", levels="paper", frames=3, seed=0)
+    claim_output(out / RUN_FILE, dataset_parameters(config), {"blender": "5.0.1", "config": config.to_dict()},
+                 what="dataset")
+    (out / "dataset.json").unlink()
+    monkeypatch.setitem(sys.modules, "bpy", None)  # import bpy now fails
+    assert main(["render", "--out", str(out), "--finalize-only", "--train-fraction", "0.5"]) == 0
+    assert "finalize: 3 frames found of the run's 3" in capsys.readouterr().out
+    manifest = json.loads((out / "dataset.json").read_text())
+    assert manifest["blender"] == "5.0.1" and manifest["preset"]["name"] == "default"
+    assert manifest["split"]["train_fraction"] == 0.5 and manifest["frames"] == 3
+
+
 def test_a_resumed_render_with_other_flags_names_the_difference(tmp_path):
     _claimed(tmp_path / "ds", **FLAGS)
     other = load_render_preset("suburban", **{**FLAGS, "resolution": "640x426"})
