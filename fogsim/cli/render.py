@@ -9,9 +9,10 @@ the preset — by Koschmieder's law on the clear render (default), or with ``--f
 by one more Cycles render per level with a participating medium around camera and scene
 (labels, depth and masks still come from the clear render). A frame is committed atomically
 (``meta/<frame>.json`` last); a restarted run skips committed frames, and ``--shard i/N``
-renders frames i, i+N, … for a Slurm array or a Kubernetes indexed job (run
-``--finalize-only`` once after all shards to rebuild COCO, YAMLs and the contact sheet over
-every frame). Needs bpy (the ``blender`` extra) or Blender itself.
+renders frames i, i+N, … for a Slurm array or a Kubernetes indexed job (then
+``fogsim render --out OUT --finalize-only`` once, after all shards: COCO, YAMLs and the contact
+sheet over every frame, with the parameters render_run.json records). Needs bpy (the ``blender``
+extra) or Blender itself; --finalize-only needs neither.
 """
 from __future__ import annotations
 
