@@ -33,10 +33,12 @@ OTHER_INPUTS_FLAGS = ("depth", "depth_dir", "depth_scale", "intrinsics", "hfov",
 
 def add_inputs(src) -> None:
     """The LiDAR-bearing inputs in the mutually exclusive input group."""
-    src.add_argument("--kitti", help="KITTI object-detection root (training/{image_2,velodyne,calib,label_2}, "
-                                     "ImageSets/): camera fog with depth from the projected scan")
-    src.add_argument("--stf", help="Seeing Through Fog root (cam_stereo_left_lut/, lidar_hdl64_strongest|last/, "
-                                   "gt_labels/cam_left_labels_TMP/); needs --stf-calib")
+    src.add_argument("--kitti", metavar="ROOT",
+                     help="KITTI object-detection root (training/{image_2,velodyne,calib,label_2}, "
+                          "ImageSets/): camera fog with depth from the projected scan")
+    src.add_argument("--stf", metavar="ROOT",
+                     help="Seeing Through Fog root (cam_stereo_left_lut/, lidar_hdl64_strongest|last/, "
+                          "gt_labels/cam_left_labels_TMP/); needs --stf-calib")
     src.add_argument("--points", nargs="+", metavar="FILE_OR_DIR",
                      help="LiDAR scans or radar sweeps without a dataset: files, or folders searched for "
                           "--point-format's files; writes OUT/<level>/<name>.<ext> + outcomes + a sidecar JSON per "
@@ -367,12 +369,22 @@ def cmd_points(args) -> int:
     recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
     job = PointsJob(levels, args.out, FogSettings(lidar=spec), sensor, fmt, args.point_scale, args.seed, recorded)
     shard = parse_shard(args.shard)
-    summary = run(select_shard(items, shard), job, args.workers, not args.no_resume, not args.quiet,
+    mine = select_shard(items, shard)
+    summary = run(mine, job, args.workers, not args.no_resume, not args.quiet,
                   package_versions() | {"samples": len(items)})
     for source, error in summary.failed:
         print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
+    _print_totals(job, mine, "points", args.quiet)
     print(summary.line(job))
     return EXIT_FAILED if summary.failed else EXIT_OK
+
+
+def _print_totals(job, items, what: str, quiet: bool) -> None:
+    """Each level's outcome totals (:mod:`fogsim.fog.outcome_totals`), unless quiet."""
+    from fogsim.fog.outcome_totals import outcome_totals, totals_lines
+
+    if not quiet:
+        print("\n".join(totals_lines(outcome_totals(job, items), what, job.unit)))
 
 
 def cmd_radar_points(args) -> int:
@@ -400,10 +412,12 @@ def cmd_radar_points(args) -> int:
     items = point_files(args.points, fmt)
     recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
     job = RadarPointsJob(levels, args.out, FogSettings(radar=spec), sensor, fmt, recorded)
-    summary = run(select_shard(items, parse_shard(args.shard)), job, args.workers, not args.no_resume,
-                  not args.quiet, package_versions() | {"samples": len(items)})
+    mine = select_shard(items, parse_shard(args.shard))
+    summary = run(mine, job, args.workers, not args.no_resume, not args.quiet,
+                  package_versions() | {"samples": len(items)})
     for source, error in summary.failed:
         print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
+    _print_totals(job, mine, "detections", args.quiet)
     print(summary.line(job))
     return EXIT_FAILED if summary.failed else EXIT_OK
 
