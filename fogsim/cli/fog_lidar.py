@@ -159,7 +159,7 @@ def sensor_choice(given: str | None):
 
     path = Path(given)
     if path.suffix == ".json" or path.is_file():
-        from fogsim.fileio import MAX_DOCUMENT_BYTES, read_json
+        from fogsim.io.documents import MAX_DOCUMENT_BYTES, read_json
 
         load_sensor(path)  # the file's problems, one line naming it
         return read_json(path, MAX_DOCUMENT_BYTES)
@@ -432,7 +432,7 @@ def radar_sensor_choice(given: str | None):
 
     path = Path(given)
     if path.suffix == ".json" or path.is_file():
-        from fogsim.fileio import MAX_DOCUMENT_BYTES, read_json
+        from fogsim.io.documents import MAX_DOCUMENT_BYTES, read_json
 
         load_radar_sensor(path)
         return read_json(path, MAX_DOCUMENT_BYTES)

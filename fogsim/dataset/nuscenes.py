@@ -49,15 +49,11 @@ import numpy as np
 
 from fogsim.dataset.reader import read_metas
 from fogsim.errors import InputError
-from fogsim.fileio import (
-    PART_SUFFIX,
-    atomic_folder,
-    atomic_write_bytes,
-    link_or_copy,
-    remove_stale_folders,
-    resolve_path,
-    write_json,
-)
+from fogsim.io.atomic import atomic_folder, atomic_write_bytes
+from fogsim.io.documents import write_json
+from fogsim.io.links import link_or_copy
+from fogsim.io.parts import PART_SUFFIX, remove_stale_folders
+from fogsim.io.paths import resolve_path
 from fogsim.lidar.formats import FORMATS, encode_points, read_points
 from fogsim.radar.formats import read_radar
 from fogsim.radar.sensors import load_radar_sensor

@@ -31,10 +31,10 @@ import numpy as np
 
 from fogsim._version import __version__
 from fogsim.errors import InputError
-from fogsim.fileio import write_json
 from fogsim.fog.depth_input import SetupError
 from fogsim.fog.engine import FogSettings
 from fogsim.fog.levels import FogLevel
+from fogsim.io.documents import write_json
 from fogsim.lidar.bounds import max_scan_points
 from fogsim.lidar.formats import FORMAT_SUFFIX, read_points, write_points
 from fogsim.lidar.outcome_file import OUTCOME_SUFFIX, write_outcomes

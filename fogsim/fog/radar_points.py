@@ -21,10 +21,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from fogsim._version import __version__
-from fogsim.fileio import atomic_write_bytes, write_json
 from fogsim.fog.engine import FogSettings
 from fogsim.fog.levels import FogLevel
 from fogsim.fog.points import PointFile
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.documents import write_json
 from fogsim.lidar.bounds import max_scan_points
 from fogsim.radar.fog import KEPT
 from fogsim.radar.formats import (
