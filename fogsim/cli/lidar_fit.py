@@ -76,7 +76,7 @@ def add_parsers(sub) -> None:
 
 # ----------------------------------------------------------------------------- shared
 def _scans(paths: list[str], fmt: str, scale: str | None):
-    from fogsim.fog.points import point_files
+    from fogsim.fog.point_files import point_files
     from fogsim.lidar.formats import read_points
 
     files = point_files(paths, fmt)
