@@ -22,7 +22,9 @@ import numpy as np
 
 from fogsim._version import __version__
 from fogsim.errors import InputError
-from fogsim.fileio import create_exclusive, read_json, resolve_path
+from fogsim.io.atomic import create_exclusive
+from fogsim.io.documents import read_json
+from fogsim.io.paths import resolve_path
 
 T = TypeVar("T")
 
@@ -70,7 +72,7 @@ def check_output(out: str | os.PathLike, inputs: dict[str, str | os.PathLike | N
 def _check_linked_folders(target: Path, inputs: list[tuple]) -> None:
     """Refuse a link below the output folder ``target`` that leads to a folder in, or around, an input
     (``inputs``: (flag, given, resolved) triples). A link to a file is harmless (every write replaces the
-    link itself: :func:`fogsim.fileio.atomic_path`), and so is one that leads nowhere (a write through it
+    link itself: :func:`fogsim.io.atomic.atomic_path`), and so is one that leads nowhere (a write through it
     fails: nothing is created at its end)."""
     folders = [target]
     while folders:

@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     sys.path[:0] = [str(ROOT), str(ROOT / "tests")]  # this repository's fogsim and its fixtures
     from fogsim.bench import lidar_side_by_side as sbs
     from fogsim.cli.fog_lidar import calibration_choice
-    from fogsim.fileio import atomic_write_bytes
+    from fogsim.io.atomic import atomic_write_bytes
     from fogsim.lidar.formats import read_points
 
     try:

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from fogsim.camera import Intrinsics, depth_to_disparity, encode_disparity_png
-from fogsim.fileio import write_depth, write_image
+from fogsim.io.depth_files import write_depth
+from fogsim.io.images import write_image
 from fogsim.readers.waymo import tfrecord
 
 # A run started in the background of a non-interactive shell (`bash .ci/run &`, nohup) inherits SIGINT
@@ -56,7 +57,7 @@ def run_hostile_case(case, tmp_path: Path, capsys, in_process: bool = True) -> s
     import sys
 
     from fogsim.cli import main
-    from fogsim.fileio import PART_SUFFIX
+    from fogsim.io.parts import PART_SUFFIX
 
     argv = [a.replace("{tmp}", str(tmp_path)) for a in case.build(tmp_path)]
     capsys.readouterr()

@@ -16,7 +16,9 @@ import pytest
 from fogsim.dataset.coco import EVERY_CLASS, expand_every_class
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import finalize, write_frame_labels
-from fogsim.fileio import read_uint16_map, write_image, write_json
+from fogsim.io.depth_files import read_uint16_map
+from fogsim.io.documents import write_json
+from fogsim.io.images import write_image
 from fogsim.render.labels import object_records
 from fogsim.rle import box_mask, box_rle, rle_counts, rle_encode, rle_encode_box
 from fogsim.scene.classes import LABELLED

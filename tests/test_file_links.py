@@ -1,4 +1,4 @@
-"""One file under two names (issue 40 item 6): :func:`fogsim.fileio.link_or_copy` makes a hard link where the
+"""One file under two names (issue 40 item 6): :func:`fogsim.io.links.link_or_copy` makes a hard link where the
 file system allows and a copy where it does not (simulated: ``os.link`` raising EXDEV), never a symbolic
 link; a later write through one name never changes the other; the KITTI trees of ``fogsim fog --kitti
 --lidar`` link their images and scans to the level folders', resumed runs included."""
@@ -12,7 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsim.fileio import PART_SUFFIX, atomic_write_bytes, link_or_copy, read_image, write_image
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.images import read_image, write_image
+from fogsim.io.links import link_or_copy
+from fogsim.io.parts import PART_SUFFIX
 
 
 def links_work(folder: Path) -> bool:

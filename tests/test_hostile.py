@@ -19,7 +19,8 @@ import pytest
 from conftest import run_hostile_case, tree_digest
 from fogsim.camera import Intrinsics, depth_to_disparity, encode_disparity_png
 from fogsim.cli import main
-from fogsim.fileio import write_depth, write_image
+from fogsim.io.depth_files import write_depth
+from fogsim.io.images import write_image
 
 
 # ----------------------------------------------------------------------------- inputs
@@ -101,7 +102,7 @@ def _npy(name: str, array: np.ndarray):
 
 
 def _jpeg_truncated(base: Path):
-    from fogsim.fileio import encode_image, read_image
+    from fogsim.io.images import encode_image, read_image
 
     for name in ("a", "b"):
         img = read_image(base / "images" / f"{name}.png")

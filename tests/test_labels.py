@@ -11,8 +11,9 @@ from fogsim.camera import Intrinsics
 from fogsim.dataset.coco import coco_annotation, coco_categories
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import contact_sheet, finalize, split_frames, write_frame_labels
-from fogsim.fileio import read_image, write_image, write_json
 from fogsim.fog.levels import FogLevel
+from fogsim.io.documents import write_json
+from fogsim.io.images import read_image, write_image
 from fogsim.render.labels import object_records
 from fogsim.render.silhouette import NEAR, clip_near, covered_pixels, project_points, silhouette_areas
 from fogsim.rle import box_rle

@@ -203,7 +203,7 @@ def check_points_on_depth(out: Path, frame: str, caster=None, min_points: int = 
     with ``caster`` (the frame's geometry, rebuilt here) — the ray from the camera to the point meets nothing
     before it (an object can hide its own far side); ``convex`` (every object is a box, as the user scene of
     these tests): the surface the point lies on faces the camera. Returns counts."""
-    from fogsim.fileio import read_depth_file, read_uint16_map
+    from fogsim.io.depth_files import read_depth_file, read_uint16_map
     from fogsim.lidar.formats import read_points
 
     meta = json.loads((out / "meta" / f"{frame}.json").read_text())
@@ -509,7 +509,7 @@ def test_the_render_exports_as_nuscenes_samples_with_the_sweeps_beams(lidar_rend
 def test_the_renders_coco_masks_are_its_instance_masks(lidar_render):
     """Every COCO file a render writes, read with pycocotools: annToMask of every annotation is the object's
     pixels in masks/<frame>.png, and COCOeval ``segm`` gives AP 1.0 for the ground truth fed back."""
-    from fogsim.fileio import read_uint16_map
+    from fogsim.io.depth_files import read_uint16_map
     from test_coco_masks import check_coco_masks
 
     masks = {f: read_uint16_map(lidar_render / "masks" / f"{f}.png") for f in ("000000", "000001")}

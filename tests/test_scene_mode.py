@@ -22,7 +22,8 @@ import pytest
 
 from fogsim.cli import main
 from fogsim.errors import InputError
-from fogsim.fileio import read_image, read_uint16_map
+from fogsim.io.depth_files import read_uint16_map
+from fogsim.io.images import read_image
 from fogsim.render.scene_classes import ClassMap, load_class_map
 from fogsim.scene.pose import blender_intrinsics, blender_lens
 

@@ -14,8 +14,9 @@ from fogsim.boxes import yolo_line
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.visible import visible_at
 from fogsim.dataset.writer import PALETTE, draw_boxes
-from fogsim.fileio import write_image, write_json
 from fogsim.fog.levels import FogLevel, parse_levels
+from fogsim.io.documents import write_json
+from fogsim.io.images import write_image
 
 LEVELS = [lv.key for lv in parse_levels("paper")]
 DISTANCES = (8.0, 30.0, 70.0, 140.0)  # m: one box each; V = ln 20 / β = 100, 50, 33, 25 m at the foggy levels

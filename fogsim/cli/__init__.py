@@ -52,7 +52,7 @@ def positional_names(parser: argparse.ArgumentParser, args: argparse.Namespace) 
 
 
 def main(argv: list[str] | None = None) -> int:
-    from fogsim.fileio import with_checked_paths
+    from fogsim.io.paths import with_checked_paths
 
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -6,7 +6,7 @@ these machines are noisy); none of them is a test, and CI times nothing.
 """
 from __future__ import annotations
 
-from fogsim.fileio import MAX_PIXELS, pixel_limit_problem
+from fogsim.io.pixel_bound import MAX_PIXELS, pixel_limit_problem
 from fogsim.schema.vocabulary import FOG_MEDIA
 
 

@@ -34,7 +34,7 @@ def cmd_score(args) -> int:
     from fogsim.camera import Intrinsics
     from fogsim.depth.score import score_dataset, score_holdout, table, write_report
     from fogsim.errors import InputError
-    from fogsim.fileio import read_json
+    from fogsim.io.documents import read_json
     from fogsim.runs import check_output
 
     # the report may go inside the fog output or dataset it scores (e.g. OUT/score), not over it

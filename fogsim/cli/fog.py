@@ -9,9 +9,9 @@ from pathlib import Path
 from fogsim.cli import fog_lidar
 from fogsim.dataset.writer import check_train_fraction
 from fogsim.errors import EXIT_FAILED, EXIT_OK, InputError
-from fogsim.fileio import MAX_PIXELS, pixel_bound
 from fogsim.fog.labelled import SPLIT_BY
 from fogsim.fog.model import airlight_rgb, check_heterogeneity
+from fogsim.io.pixel_bound import MAX_PIXELS, pixel_bound
 from fogsim.readers.base import DEPTH_ENCODINGS
 from fogsim.schema.presets import TRAIN_FRACTION
 from fogsim.schema.vocabulary import KERNELS, POST_PROCESS_KINDS, SPACES
@@ -130,7 +130,7 @@ def _samples(args):
     from dataclasses import replace
 
     from fogsim.camera import Intrinsics
-    from fogsim.fileio import read_json
+    from fogsim.io.documents import read_json
     from fogsim.readers.base import DepthSpec
 
     if args.depth_encoding == "disparity" and not args.cityscapes:
@@ -303,7 +303,7 @@ def _inputs(args) -> dict:
         if k in out:
             out[k] = str(Path(out[k]).resolve())
     if getattr(args, "intrinsics", None):
-        from fogsim.fileio import read_json
+        from fogsim.io.documents import read_json
 
         out["intrinsics_values"] = read_json(args.intrinsics)
     if getattr(args, "kitti", None) or getattr(args, "stf", None):

@@ -76,7 +76,7 @@ def add_parsers(sub) -> None:
 
 # ----------------------------------------------------------------------------- shared
 def _scans(paths: list[str], fmt: str, scale: str | None):
-    from fogsim.fog.points import point_files
+    from fogsim.fog.point_files import point_files
     from fogsim.lidar.formats import read_points
 
     files = point_files(paths, fmt)
@@ -121,7 +121,8 @@ def _problem(args, parameters):
 
 
 def _write(out: Path, record: dict, sets: dict, clear, trace) -> None:
-    from fogsim.fileio import atomic_write_bytes, write_json
+    from fogsim.io.atomic import atomic_write_bytes
+    from fogsim.io.documents import write_json
     from fogsim.lidar.fit_report import SIMULATED, distance_figure, histogram_figure, markdown
     from fogsim.lidar.pictures import write_png
 
@@ -145,7 +146,7 @@ def _parameters(text: str | None):
 # ----------------------------------------------------------------------------- the commands
 def cmd_fit(args) -> int:
     from fogsim.console import progress_bar
-    from fogsim.fileio import write_json
+    from fogsim.io.documents import write_json
     from fogsim.lidar.fit import fit, fitted_calibration
     from fogsim.lidar.fit_report import report_record
 

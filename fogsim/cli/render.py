@@ -23,7 +23,7 @@ from pathlib import Path
 
 from fogsim.camera import CITYSCAPES_BASELINE_M
 from fogsim.errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE, MissingDependency, run_command
-from fogsim.fileio import MAX_PIXELS
+from fogsim.io.pixel_bound import MAX_PIXELS
 from fogsim.schema.presets import TRAIN_FRACTION
 from fogsim.schema.vocabulary import FOG_KINDS, FOG_MEDIA
 
@@ -311,7 +311,7 @@ def finalize_line(summary: dict, frames: int, shard: tuple[int, int]) -> str:
 def main(argv: list[str] | None = None, prog: str = "fogsim render") -> int:
     """Entry of ``scripts/render_batch.py`` (``blender -b -P``): the same command, its own prog name."""
     from fogsim.cli.help import HelpFormatter
-    from fogsim.fileio import with_checked_paths
+    from fogsim.io.paths import with_checked_paths
 
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=HelpFormatter)
     add_arguments(p)

@@ -37,7 +37,7 @@ import copy
 
 from fogsim.boxes import coco_category, xyxy_to_xywh
 from fogsim.dataset.layout import DatasetLayout
-from fogsim.fileio import read_uint16_map
+from fogsim.io.depth_files import read_uint16_map
 from fogsim.rle import box_rle, rle_encode, rle_encode_box
 from fogsim.scene.classes import LABELLED
 

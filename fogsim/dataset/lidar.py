@@ -34,7 +34,8 @@ import numpy as np
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.semantic_kitti import write_sequences
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_write_bytes, write_json
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.documents import write_json
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.formats import read_points

@@ -10,7 +10,7 @@ import numpy as np
 from fogsim.camera import Intrinsics
 from fogsim.colour import to_uint8
 from fogsim.dataset.layout import DatasetLayout
-from fogsim.fileio import read_image
+from fogsim.io.images import read_image
 from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.outcome_file import read_outcomes

@@ -32,7 +32,7 @@ from fogsim.camera import Intrinsics
 from fogsim.colour import to_uint8
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.errors import InputError
-from fogsim.fileio import read_image
+from fogsim.io.images import read_image
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.pictures import write_png
 from fogsim.radar.detections import KINDS

@@ -20,7 +20,8 @@ from __future__ import annotations
 
 from fogsim.boxes import yolo_line
 from fogsim.dataset.layout import MIXED_SPLIT, DatasetLayout, visible_set
-from fogsim.fileio import atomic_write_bytes, link_or_copy
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.links import link_or_copy
 
 __all__ = ["VISIBLE_RULE", "visible_at", "visible_counts", "write_visible_labels"]
 

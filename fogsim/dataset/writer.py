@@ -31,7 +31,9 @@ from fogsim.dataset.radar import SHEET_LEGEND as RADAR_LEGEND
 from fogsim.dataset.radar import fog_note, radar_rows, radar_summary
 from fogsim.dataset.reader import FrameRecords, frame_records, read_checked_meta
 from fogsim.dataset.visible import visible_at, visible_counts, write_visible_labels
-from fogsim.fileio import atomic_write_bytes, read_image, write_image, write_json
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.documents import write_json
+from fogsim.io.images import read_image, write_image
 from fogsim.lidar.objects import MIN_POINTS
 from fogsim.runs import split_key
 from fogsim.scene.classes import LABELLED

@@ -12,7 +12,7 @@ import os
 import numpy as np
 
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_write_bytes
+from fogsim.io.atomic import atomic_write_bytes
 from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.outcomes import LOST, OUTCOMES
 from fogsim.schema.base import load_npz

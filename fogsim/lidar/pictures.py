@@ -19,7 +19,7 @@ import os
 import cv2
 import numpy as np
 
-from fogsim.fileio import write_image
+from fogsim.io.images import write_image
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.objects import MIN_POINTS, distances_and_points

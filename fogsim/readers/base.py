@@ -12,7 +12,7 @@ import numpy as np
 
 from fogsim.camera import Intrinsics
 from fogsim.errors import InputError
-from fogsim.fileio import read_depth_file
+from fogsim.io.depth_files import read_depth_file
 from fogsim.readers.cityscapes_files import read_cityscapes_depth
 from fogsim.readers.paper import read_paper_8bit
 

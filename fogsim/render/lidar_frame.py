@@ -47,7 +47,7 @@ from fogsim.dataset.kitti import KittiTree
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.lidar import box_record as lidar_box_record
 from fogsim.dataset.semantic_kitti import FOG_ID, FOGSIM_TO_SEMANTIC_KITTI, SEQUENCE, SemanticKittiTree, semantic_id
-from fogsim.fileio import atomic_write_bytes
+from fogsim.io.atomic import atomic_write_bytes
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.formats import FORMAT_SUFFIX, write_points

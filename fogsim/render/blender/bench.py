@@ -318,7 +318,7 @@ def fast_errors(root: Path, config, frames: int) -> dict:
     import numpy as np
 
     from fogsim.dataset.layout import DatasetLayout
-    from fogsim.fileio import read_image
+    from fogsim.io.images import read_image
     from fogsim.render.frame import frame_name
 
     lay = {v: DatasetLayout(root / v) for v in ("hybrid", "hybrid-fast", "hybrid-seed2")}

@@ -21,7 +21,7 @@ import numpy as np
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.depth.stereo import right_world_to_camera
 from fogsim.errors import InputError
-from fogsim.fileio import remove_stale_parts
+from fogsim.io.parts import remove_stale_parts
 from fogsim.render.blender import build as scene_build
 from fogsim.render.blender import fog_volume
 from fogsim.render.blender.compat import has_mie_phase
@@ -161,8 +161,8 @@ class RenderJob:
         """8-bit images per level (clear level = the clear render), linear EXRs if asked, meta["fog"]."""
         from fogsim.camera import Intrinsics, planar_to_ray
         from fogsim.colour import linear_to_srgb8
-        from fogsim.fileio import write_rgb_exr
         from fogsim.fog.physics import far_luminance
+        from fogsim.io.exr import write_rgb_exr
         from fogsim.render.fog_rebuild import RULE, rebuild
         from fogsim.render.volumetric import auto_exposure
 
