@@ -23,7 +23,7 @@ scipy_optimize = pytest.importorskip("scipy.optimize")
 C = 299_792_458.0
 PAPER = (0.03, 0.06, 0.09, 0.12)
 # the hdl64e preset, written out: R_max 120 m for ρ_ref 0.8, τ_H 10 ns, ξ = min(1, (R/5)²), ρ = 2.55·I,
-# fluctuation σ_g 0.5 (ln g ~ N(0, σ_g²) per ray: the clear signal max(q·g, e^σ_g), the fog echo q_f·g)
+# fluctuation σ_g 0.5 (ln g ~ N(0, σ_g²) per ray: the clear signal max(q·g, e^(σ_g + |ln g|)), the fog echo q_f·g)
 R_MAX, RHO_REF, TAU, R_O, S, R_MIN, SIGMA0, SIGMA1, SIGMA_G = 120.0, 0.8, 10e-9, 5.0, 2.55, 1.0, 0.02, 0.10, 0.5
 #: the fluctuation off (σ_g = 0): the deterministic thresholds, for the closed forms of a shape in ρ, R, β
 STEADY = {"calibration": {"fluctuation_sigma": 0.0}}
@@ -39,8 +39,9 @@ def xi(r):
 
 def clear_signal(rho, r, su=0.0, sigma=0.0):
     """The clear-air signal over the threshold of a hard return whose fluctuation is ln g_h = ``su``
-    (σ_g = ``sigma``): max(q·g_h, e^σ_g) — the point was detected in clear air, with a margin of one σ_g."""
-    return max(max(rho, 0.02) / RHO_REF * (R_MAX / r) ** 2 * xi(r) * math.exp(su), math.exp(sigma))
+    (σ_g = ``sigma``): max(q·g_h, e^(σ_g + |ln g_h|)) — the point was detected in clear air, with a margin of
+    at least one σ_g (spread like the fluctuation)."""
+    return max(max(rho, 0.02) / RHO_REF * (R_MAX / r) ** 2 * xi(r) * math.exp(su), math.exp(sigma + abs(su)))
 
 
 def draws(n, seed):

@@ -20,7 +20,7 @@ from fogsim.lidar.rays import EmptyRays, empty_rays
 from fogsim.lidar.reference import reference_fog
 from fogsim.lidar.sensors import LidarSensor
 from fogsim.lidar.soft_target import fog_echo
-from fogsim.schema.lidar import LidarFogSpec
+from fogsim.schema.lidar import CALIBRATIONS, LIDAR_FOG_MODELS, LidarFogSpec
 
 STEADY = {"calibration": {"fluctuation_sigma": 0.0}}  # the fluctuation off: the old deterministic thresholds
 SIGMA_G = 0.5  # the presets' fluctuation σ (ln units)
@@ -42,16 +42,31 @@ def shares(fogger, beta, seed=3):
 
 
 # ----------------------------------------------------------------------------- continuity in β
-def test_outcome_shares_are_continuous_in_beta(kitti):
+GRID = np.round(np.arange(0.005, 0.15 + 1e-9, 0.0005), 6)  # β (1/m): visibility 600 m … 20 m
+
+
+@pytest.fixture(scope="module")
+def street(tmp_path_factory):
+    return lf.kitti_street_cloud(tmp_path_factory.mktemp("street"))
+
+
+@pytest.mark.parametrize("calibration", CALIBRATIONS)
+@pytest.mark.parametrize("model", LIDAR_FOG_MODELS)
+def test_outcome_shares_are_continuous_in_beta(kitti, street, model, calibration):
+    """≤ 1 pp of the scan changes outcome per 0.0005 step of β, for every model and calibration, on a random
+    KITTI-like sweep and on a street sweep whose dark cars and windows lie at a few ranges."""
     assert 17_000 <= len(kitti) <= 30_000 and 0.15 < (kitti.intensity == 0).mean() < 0.25
-    grid = np.round(np.arange(0.005, 0.15 + 1e-9, 0.0005), 6)
-    for calibration in ("datasheet", "reference"):
-        fogger = LidarFogger(kitti, "hdl64e", {"calibration": calibration})
-        table = np.array([shares(fogger, b) for b in grid])
+    for scan in (kitti, street):
+        fogger = LidarFogger(scan, "hdl64e", {"model": model, "calibration": calibration})
+        table = np.array([shares(fogger, b) for b in GRID])
         step = np.abs(np.diff(table, axis=0))
-        assert step.max() < 1.0, (calibration, grid[np.argmax(step.max(axis=1))], step.max(axis=0))
+        assert step.max() < 1.0, (scan.source, GRID[np.argmax(step.max(axis=1))], step.max(axis=0))
         assert np.abs(shares(fogger, 0.0205) - shares(fogger, 0.020)).max() < 1.0
-        assert table[-1, OUTCOMES.index("clutter")] > table[0, OUTCOMES.index("clutter")] + 20  # it does move
+        gone = [OUTCOMES.index("lost"), OUTCOMES.index("clutter")]
+        assert table[-1, gone].sum() > table[0, gone].sum() + 10  # it does move
+
+
+def test_the_fog_echo_without_fluctuation_is_a_cliff(kitti):
     # without the fluctuation the fog echo crosses the threshold for every ray at once: a cliff
     steady = LidarFogger(kitti, "hdl64e", STEADY)
     s = LidarSensor.preset("hdl64e")
@@ -59,6 +74,30 @@ def test_outcome_shares_are_continuous_in_beta(kitti):
     assert fog_echo(s, lo).signal < 1 <= fog_echo(s, hi).signal
     jump = np.abs(shares(steady, hi) - shares(steady, lo))
     assert jump[OUTCOMES.index("lost")] > 3.0 and jump[OUTCOMES.index("clutter")] > 3.0
+
+
+def test_faint_returns_at_one_range_are_lost_over_a_span_of_beta():
+    """Returns the model cannot explain (zero intensity at 20 m: q < e^σ) sit on the clear-air floor. Their
+    margin is σ + |ln g_h| (their pulse fluctuates like every other), so they are lost when
+    σ + |ln g_h| < 2βR: over a span of β, not all at 2βR = σ as a floor of exactly e^σ had it."""
+    n, r = 2000, 20.0
+    xyz = lf.ray_directions(n, 0.0, elevation_deg=-2.0, spread_deg=10.0) * r
+    scan = PointCloud.from_raw(xyz.astype(np.float32), np.zeros(n, np.float32), "0-1", "dark wall")
+    fogger = LidarFogger(scan, "hdl64e", {"model": "attenuation"})
+    assert (fogger.log_signal < 0).all()  # below the threshold on their intensity alone: floored
+    lost = []
+    for beta in GRID[GRID < 0.05]:
+        out = fogger(beta, np.random.default_rng(11))
+        rng = np.random.default_rng(11)
+        rng.standard_normal(n, np.float32)
+        sh = np.float32(SIGMA_G) * rng.standard_normal(n, np.float32)
+        margin = np.maximum(fogger.log_signal + sh, SIGMA_G + np.abs(sh.astype(np.float64)))
+        want = margin < 2 * beta * scan.range_m
+        assert np.array_equal(out.outcome == LOST, want), beta
+        lost.append(want.mean())
+    step = np.diff(lost)
+    # 2βR crosses σ at β = 0.0125; the share lost then grows as a half-normal's CDF: ≤ 2φ(0)·(2RΔβ/σ) a step
+    assert lost[0] == 0 and lost[-1] > 0.95 and step.max() < 2 * 0.4 * (2 * r * 0.0005 / SIGMA_G) + 0.01
 
 
 def test_a_vanishing_fog_gives_the_clear_scan_back(kitti):
@@ -78,7 +117,8 @@ def test_a_vanishing_fog_gives_the_clear_scan_back(kitti):
 
 def test_the_fluctuation_is_the_documented_draws(kitti):
     """Per point: ln g_h, ln g_f ~ N(0, σ²) drawn after the range noise; a hard return is detected when
-    max(q·g_h, e^σ)·e^(−2βR) ≥ 1 (the LiDAR equation over the threshold), its fog echo when q_f·g_f ≥ 1."""
+    max(q·g_h, e^(σ + |ln g_h|))·e^(−2βR) ≥ 1 (the LiDAR equation over the threshold), its fog echo when
+    q_f·g_f ≥ 1."""
     beta, seed = 0.04, 9
     out = LidarFogger(kitti, "hdl64e", {"return_mode": "last"})(beta, np.random.default_rng(seed))
     n = len(kitti)
@@ -89,7 +129,7 @@ def test_the_fluctuation_is_the_documented_draws(kitti):
     r = kitti.range_m
     rho = np.maximum(2.55 * kitti.intensity.astype(np.float64), 0.02)
     q = rho / 0.8 * (120.0 / r) ** 2 * np.minimum(1.0, (r / 5.0) ** 2)
-    qh = np.maximum(q * np.exp(sh), math.exp(SIGMA_G)) * np.exp(-2 * beta * r)
+    qh = np.maximum(q * np.exp(sh), np.exp(SIGMA_G + np.abs(sh.astype(np.float64)))) * np.exp(-2 * beta * r)
     e = fog_echo(LidarSensor.preset("hdl64e"), beta)
     w = np.clip((r - e.range_m) / (0.5 * 299_792_458.0 * 10e-9), 0.0, 1.0)  # resolved from the target
     echo = e.signal * np.exp(sf) * w >= 1

@@ -13,11 +13,14 @@ block), σ = its ``fluctuation_sigma``:
    This is what makes outcome shares continuous in β (no single β at which every ray's echo crosses).
 1. Reflectivity from the intensity and the range: ρ_i = max(s·I_lin,i·(R_i/R_ref)^k, ρ_floor)
    (:meth:`LidarSensor.reflectivity_of`; ``reflectivity_floor`` ρ_floor, default 0.02).
-2. Clear-air signal over the detection threshold: q0_i = max(q(ρ_i, R_i)·g_h,i, e^σ) with
-   q(ρ, R) = (ρ/ρ_ref)·(R_max/R)²·ξ(R) (:meth:`LidarSensor.clear_signal`). The floor e^σ: the point
+2. Clear-air signal over the detection threshold: ln q0_i = max(ln q(ρ_i, R_i) + ln g_h,i, σ + |ln g_h,i|)
+   with q(ρ, R) = (ρ/ρ_ref)·(R_max/R)²·ξ(R) (:meth:`LidarSensor.clear_signal`). The floor: the point
    *was* detected in clear air, so its signal is taken at least one σ above the threshold (a return at
    the threshold itself is detected on half its pulses) — whatever its intensity suggests. So a point's
    margin ln q0 ≥ σ: β → 0 gives the clear scan back continuously (nothing is lost while 2β₉₀₅R < σ).
+   A floored point's margin is σ + |ln g_h,i|, not σ itself: its pulse fluctuates like every other, so
+   faint returns at one range (a dark car, a row of windows) are lost over a span of β, not all at one β
+   (a floor of exactly e^σ left them no fluctuation: 2β₉₀₅R = σ lost every one of them at once).
 3. Two-way attenuation of the hard return: q_h,i = q0_i · e^(−2 β₉₀₅ R_i), β₉₀₅ = ``extinction_ratio``·β.
    The hard return is detected when q_h,i ≥ 1.
 4. The fog's own echo (:mod:`fogsim.lidar.soft_target`): peak q_f at r_f, width w_f, when
@@ -217,7 +220,7 @@ class LidarFogger:
         sh = sg * rng.standard_normal(n, np.float32)  # ln g_h, the hard return's fluctuation,
         su = sg * rng.standard_normal(n, np.float32)  # ln g_f, the fog echo's; then the empty rays'
         r, s, scalar = self.range_m, self.sensor, np.ndim(beta) == 0
-        log_clear = np.maximum(self.log_signal + sh, sg)  # ln q0 = max(ln(q·g_h), σ) (step 2)
+        log_clear = np.maximum(self.log_signal + sh, np.abs(sh, dtype=np.float64) + sg)  # (step 2)
         nb = r * (-2.0 * self.spec.extinction_ratio * beta)  # ln of the two-way transmission
         t2 = np.exp(nb)
         log_qh = log_clear + nb

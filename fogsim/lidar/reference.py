@@ -121,8 +121,9 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
         rho = max(rho, spec.reflectivity_floor)
         xi = 1.0 if s.overlap_full_m <= 0 else min(1.0, (r / s.overlap_full_m) ** 2)
         g = math.exp(float(np.float32(sigma_g) * u[i]))  # the fog echo's fluctuation (ln g in float32)
-        gh = math.exp(float(np.float32(sigma_g) * uh[i]))  # the hard return's
-        q0 = max(rho / s.reference_reflectivity * (s.max_range_m / r) ** 2 * xi * gh, math.exp(sigma_g))
+        log_gh = float(np.float32(sigma_g) * uh[i])  # the hard return's (ln g_h)
+        q0 = max(rho / s.reference_reflectivity * (s.max_range_m / r) ** 2 * xi * math.exp(log_gh),
+                 math.exp(sigma_g + abs(log_gh)))  # the clear-air floor: a margin of σ + |ln g_h|
         t2 = math.exp(-2.0 * spec.extinction_ratio * b * r)
         qh = q0 * t2
         hard = qh >= 1.0
