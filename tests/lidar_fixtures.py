@@ -168,3 +168,65 @@ def nuscenes_sweep(folder: Path, seed: int = 0) -> Path:
     path = folder / "sweep.pcd.bin"
     path.write_bytes(stf_bin(scan.xyz, nuscenes_intensities(len(scan), np.random.default_rng(seed + 1)), ring))
     return path
+
+
+# ----------------------------------------------------------------------------- every firing stored (nuScenes)
+#: a nuScenes LIDAR_TOP sweep: 1 084 firings × 32 rings, stored firing by firing (row = 32·firing + ring)
+NUSCENES_FIRINGS, NUSCENES_RINGS = 1084, 32
+#: the open street of :func:`nuscenes_firings`: road 1.84 m below the sensor, house fronts 11 m to each side
+#: (9 m high, a 6 m gap every 20 m), no street ends (sky along the street), returns up to 90 m
+OPEN_STREET_ROAD_M, OPEN_STREET_HOUSE_M, OPEN_STREET_HOUSE_TOP_M, OPEN_STREET_REACH_M = 1.84, 11.0, 9.0, 90.0
+#: the vehicle's own roof: the two lowest rings, ±25° about straight back, echo from 0.6 m (the blind zone)
+EGO_RINGS, EGO_HALF_ANGLE_DEG, EGO_RANGE_M = (30, 31), 25.0, 0.6
+
+
+def open_street_hits(d: np.ndarray) -> np.ndarray:
+    """The range (+inf: nothing within :data:`OPEN_STREET_REACH_M`) at which rays ``d`` (N×3 unit, from the
+    sensor) meet the open street: the road, the house fronts with their gaps, four parked cars."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(d[:, 2] < 0, -OPEN_STREET_ROAD_M / d[:, 2], np.inf)
+        for side in (1.0, -1.0):
+            th = np.where(d[:, 1] * side > 0, OPEN_STREET_HOUSE_M / np.abs(d[:, 1]), np.inf)
+            x, z = th * d[:, 0], th * d[:, 2]
+            wall = (z < OPEN_STREET_HOUSE_TOP_M - OPEN_STREET_ROAD_M) & (np.mod(x, 20.0) < 14.0)
+            t = np.minimum(t, np.where(wall, th, np.inf))
+        for cx, cy in ((8.0, -4.0), (-12.0, 4.5), (25.0, 4.0), (-30.0, -4.0)):  # cars 4.4 × 1.8 × 1.5 m
+            lo = np.array([cx - 2.2, cy - 0.9, -OPEN_STREET_ROAD_M])
+            hi = np.array([cx + 2.2, cy + 0.9, -OPEN_STREET_ROAD_M + 1.5])
+            t0, t1 = lo / d, hi / d
+            near = np.nanmax(np.minimum(t0, t1), axis=1)
+            far = np.nanmin(np.maximum(t0, t1), axis=1)
+            t = np.minimum(t, np.where((near <= far) & (near > 0), near, np.inf))
+    return np.where(t <= OPEN_STREET_REACH_M, t, np.inf)
+
+
+def nuscenes_firings(folder: Path, seed: int = 0) -> tuple[Path, dict]:
+    """A nuScenes-format sweep that stores every firing (``firings.pcd.bin``: 5 × float32 x y z
+    intensity(0–255) ring, :data:`NUSCENES_FIRINGS` × :data:`NUSCENES_RINGS` rows, firing by firing, the
+    sensor turning clockwise): the ``hdl32e`` preset's beams (ring 0 the highest) over the open street of
+    :func:`open_street_hits`. A firing without a return is a row at exactly 0 m (intensity 0); one that
+    meets the vehicle's roof (:data:`EGO_RINGS`) a row at :data:`EGO_RANGE_M`. Returns (path, truth):
+    ``direction`` (rows × 3, each firing's ray), ``void`` (rows at 0 m), ``ego`` (rows on the roof)."""
+    from fogsim.lidar.sensors import LidarSensor
+
+    incl = np.sort(LidarSensor.preset("hdl32e").inclinations_rad)[::-1]  # ring 0 = the highest beam
+    rng = np.random.default_rng(seed)
+    start = rng.uniform(-np.pi, np.pi)
+    az = start - np.arange(NUSCENES_FIRINGS) * (2 * np.pi / NUSCENES_FIRINGS)  # clockwise seen from above
+    az = az + rng.normal(0.0, np.radians(0.01), NUSCENES_FIRINGS)
+    el, a = np.meshgrid(incl, az, indexing="xy")  # rows: firing-major, 32 rings per firing
+    el, a = el.reshape(-1), a.reshape(-1)
+    ring = np.tile(np.arange(NUSCENES_RINGS), NUSCENES_FIRINGS)
+    d = np.stack([np.cos(el) * np.cos(a), np.cos(el) * np.sin(a), np.sin(el)], 1)
+    t = open_street_hits(d)
+    back = np.abs(np.angle(np.exp(1j * (a - np.pi)))) < np.radians(EGO_HALF_ANGLE_DEG)
+    ego = np.isin(ring, EGO_RINGS) & back
+    t = np.where(ego, EGO_RANGE_M, t)
+    void = ~np.isfinite(t)
+    xyz = np.where(void[:, None], 0.0, d * np.where(void, 0.0, t)[:, None])
+    inten = nuscenes_intensities(len(d), rng)
+    inten[void] = 0.0
+    inten[ego] = np.minimum(inten[ego], 3.0)
+    path = folder / "firings.pcd.bin"
+    path.write_bytes(stf_bin(xyz.astype(np.float32), inten, ring.astype(np.float32)))
+    return path, {"direction": d, "void": void, "ego": ego}

@@ -107,7 +107,7 @@ def side_by_side(scan: PointCloud, sensor: str = "hdl64e", betas=BETAS, seed: in
 
 
 def _four(d: dict[str, float]) -> str:
-    return " / ".join(f"{d[name]:.1f}" for name in OUTCOMES)
+    return " / ".join(f"{d[name]:.1f}" for name in ("kept", "attenuated", "lost", "clutter"))  # (no no-return rows)
 
 
 def _metres(v: float | None) -> str:

@@ -40,6 +40,14 @@ block), σ = its ``fluctuation_sigma``:
    sees the same fog echo, q_c,k = q_f·g_f,k·w_k (w_k from its surface's range, 1 for none), and gains
    a clutter point on its ray at r_f + noise when q_c,k ≥ 1; nothing otherwise.
 
+8. **No-return rows** (:func:`fogsim.lidar.rays.no_returns`: rows nearer than the sensor's minimum range —
+   nuScenes stores every firing, a firing without an echo as a row at ≈ 0 m): no hard return. An *open*
+   one (its ray known: its ring's elevation at its firing's azimuth; nothing in front of the echo) sees
+   the fog echo as an empty ray does, q_c = q_f·g_f with its own row's draws, and becomes that row's
+   clutter point (on its ray at r_f + noise, in place: no row is added); otherwise — a blocked one (an
+   echo from inside the blind zone, the vehicle's own body, hides the fog behind it) or one whose ray
+   is unknown — it stays the row it was, bit for bit: outcome ``no-return``.
+
 Random draws from the caller's ``numpy.random.Generator`` (float32 standard normals), in this order:
 z (N, range noise), ln g_h/σ (N), ln g_f/σ (N) for the input points in input order; then, with empty
 rays, ln g_f/σ (K) and z (K) for the empty rays in their order. Same Generator state → the same level, bit for bit.
@@ -52,10 +60,18 @@ Outcomes (per input point, :data:`OUTCOMES`):
   ``kept_tolerance`` (half an 8-bit step): the point is written exactly as it was (bit for bit).
 * ``attenuated`` — the hard return is reported with intensity I·e^(−2β₉₀₅R) (in the linear scale) and
   the range noise of step 6 along the same ray.
-* ``lost`` — nothing reported: absent from the fogged scan; ``output_index`` −1.
+* ``lost`` — nothing reported: absent from the fogged scan; ``output_index`` −1. A scan that stores every
+  firing (it has rings and placeholder rows at ≈ 0 m: nuScenes) keeps one row per firing: there a lost
+  return becomes a placeholder row (x y z 0, intensity 0, its ring) and ``output_index`` names it.
 * ``clutter`` — the fog echo is reported instead: a point on the same ray at r_f + noise, with the
   intensity the sensor gives an echo of that strength at that range (its calibrated value, without the
-  fluctuation: ρ_app = q_f·ρ_ref·(r_f/R_max)²/ξ(r_f)).
+  fluctuation: ρ_app = q_f·ρ_ref·(r_f/R_max)²/ξ(r_f)); for a no-return row, on its ray (step 8).
+* ``no-return`` — a no-return row (step 8) that still returns nothing: written exactly as it was.
+
+Every input row has one outcome (the counts sum to the input's rows); ``FoggedScan.no_returns`` counts the
+input's no-return rows and ``no_return_clutter`` those of them that became clutter (so no-return rows =
+``no-return`` + ``no_return_clutter``); rows out = rows in − ``lost`` + ``empty_ray_clutter`` (a scan that
+stores every firing: rows in + ``empty_ray_clutter``).
 
 The fogged scan holds the reported points in input order (``index`` still names the input row; ring and
 return index carried over), then the empty rays' clutter points (``index`` :data:`EMPTY_RAY_INDEX` = −1,
@@ -81,7 +97,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsim.lidar.points import PointCloud
-from fogsim.lidar.rays import EmptyRays
+from fogsim.lidar.rays import PLACEHOLDER_M, EmptyRays, no_returns
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor, load_sensor
 from fogsim.lidar.soft_target import backscatter_coefficient, echo_per_point, fog_echo
@@ -89,10 +105,10 @@ from fogsim.schema.base import check
 from fogsim.schema.lidar import LidarFogSpec
 
 __all__ = ["ATTENUATED", "checked_beta", "CLUTTER", "EMPTY_RAY_INDEX", "fog_scan", "FoggedScan", "KEPT",
-           "lidar_fog_spec", "LidarFogger", "LOST", "OUTCOMES"]
+           "lidar_fog_spec", "LidarFogger", "LOST", "NO_RETURN", "OUTCOMES"]
 
-OUTCOMES = ("kept", "attenuated", "lost", "clutter")
-KEPT, ATTENUATED, LOST, CLUTTER = range(4)
+OUTCOMES = ("kept", "attenuated", "lost", "clutter", "no-return")
+KEPT, ATTENUATED, LOST, CLUTTER, NO_RETURN = range(5)
 #: the smallest range a noisy return is placed at (metres)
 MIN_REPORTED_M = 0.01
 #: the ``index`` of a fogged scan's rows that no input point made (the empty rays' clutter points)
@@ -130,8 +146,9 @@ class FoggedScan:
     """One fog level of a scan: ``cloud`` (what the sensor reports: the reported input points in input
     order, then the empty rays' clutter points, ``index`` :data:`EMPTY_RAY_INDEX`), per input point
     ``outcome`` (int8, :data:`OUTCOMES`) and ``output_index`` (int64, its row in ``cloud``, −1 when lost),
-    the ``parameters`` that made it, ``empty_rays`` (how many were given) and ``empty_ray_clutter`` (how
-    many of them became clutter points) (:meth:`record`)."""
+    the ``parameters`` that made it, ``empty_rays`` (how many were given), ``empty_ray_clutter`` (how
+    many of them became clutter points), ``no_returns`` (the input's no-return rows) and
+    ``no_return_clutter`` (how many of those became the fog echo's clutter, in place) (:meth:`record`)."""
 
     cloud: PointCloud
     outcome: np.ndarray
@@ -139,6 +156,8 @@ class FoggedScan:
     parameters: dict = field(default_factory=dict)
     empty_rays: int = 0
     empty_ray_clutter: int = 0
+    no_returns: int = 0
+    no_return_clutter: int = 0
 
     def counts(self) -> dict[str, int]:
         """Points per outcome."""
@@ -149,7 +168,8 @@ class FoggedScan:
         """The parameters and the counts per outcome (what a sidecar or a report stores)."""
         return {**self.parameters, "points_in": int(len(self.outcome)), "points_out": int(len(self.cloud)),
                 "outcomes": self.counts(), "empty_rays": int(self.empty_rays),
-                "empty_ray_clutter": int(self.empty_ray_clutter)}
+                "empty_ray_clutter": int(self.empty_ray_clutter), "no_returns": int(self.no_returns),
+                "no_return_clutter": int(self.no_return_clutter)}
 
 
 class LidarFogger:
@@ -185,6 +205,15 @@ class LidarFogger:
         if empty_rays is not None and not isinstance(empty_rays, EmptyRays):
             empty_rays = EmptyRays(empty_rays)
         self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
+        #: the scan's no-return rows (nearer than the sensor's minimum range: fogsim.lidar.rays.no_returns)
+        self.blank = no_returns(scan, self.sensor)
+        self.blank_mask = None
+        if self.blank is not None:
+            self.blank_mask = np.zeros(len(scan), bool)
+            self.blank_mask[self.blank.rows] = True
+        #: the scan stores every firing (it has rings and placeholder rows, nuScenes): a lost return keeps its row
+        self.keeps_firings = bool(self.blank is not None and scan.ring is not None
+                                  and (r[self.blank.rows] < PLACEHOLDER_M).any())
 
     # ------------------------------------------------------------------ the parameters
     def parameters(self, beta, echo=None) -> dict:
@@ -225,6 +254,9 @@ class LidarFogger:
         t2 = np.exp(nb)
         log_qh = log_clear + nb
         hard = log_qh >= 0.0
+        blank = self.blank
+        if blank is not None:
+            hard[blank.rows] = False  # a no-return row has no hard return (step 8)
         half_pulse = 0.5 * s.pulse_length_m
         e = qf = rf = wf = None
         clutter = None
@@ -238,11 +270,16 @@ class LidarFogger:
                     if near.any():
                         with np.errstate(divide="ignore"):
                             log_qc[near] += np.log(np.clip((r[near] - rf) / half_pulse, 0.0, 1.0))
+                    if blank is not None:  # an open no-return ray sees the whole echo, a blocked one none
+                        log_qc[blank.rows] = np.where(blank.open, np.add(su[blank.rows], math.log(qf),
+                                                                         dtype=np.float64), -np.inf)
                     reported_hard = hard & (log_qh >= log_qc) if self.mode == "strongest" else hard
                     clutter = (log_qc >= 0.0) & ~reported_hard
             else:
                 qf, rf, wf = echo_per_point(s, beta, self.spec)
                 w = np.clip((r - rf) / half_pulse, 0.0, 1.0) * (rf >= s.min_range_m)
+                if blank is not None:
+                    w[blank.rows] = blank.open
                 qc = qf * np.exp(su) * w
                 reported_hard = hard & (np.exp(log_qh) >= qc) if self.mode == "strongest" else hard
                 clutter = (qc >= 1.0) & ~reported_hard
@@ -250,6 +287,12 @@ class LidarFogger:
             reported_hard, clutter = hard, None
         # the reported points, in input order, and what fog did to each
         reported = reported_hard if clutter is None else reported_hard | clutter
+        gone = None
+        if self.keeps_firings:  # one row per firing: a lost return becomes a no-return placeholder row
+            gone = ~(reported | self.blank_mask)
+            reported = np.ones(n, bool)
+        elif blank is not None:
+            reported = reported | self.blank_mask  # a no-return row stays a row: clutter or as it was
         idx = np.flatnonzero(reported)
         pick = slice(None) if len(idx) == n else idx  # every point reported: views, no gathers
         rh = reported_hard[pick]
@@ -257,22 +300,40 @@ class LidarFogger:
         norm_out, raw_out = self.scale.from_linear(self.linear[pick] * t2i)
         kept = rh & (self.normalised[pick] - norm_out < self.spec.kept_tolerance)
         oc = np.where(rh, np.where(kept, KEPT, ATTENUATED), CLUTTER).astype(np.int8)
+        stay = None
+        if blank is not None:  # no-return rows that did not become the fog echo's clutter stay as they were
+            stay = self.blank_mask[pick] if clutter is None else self.blank_mask[pick] & ~clutter[pick]
+            oc[stay] = NO_RETURN
+        placed = []
+        if gone is not None and gone.any():
+            oc[gone] = LOST  # (every row is picked)
+            placed.append((np.flatnonzero(gone), np.zeros((int(gone.sum()), 3))))
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # σ₁·√(1/q_h² − 1/q0²)
             inv_t2 = 1.0 / t2i
             gain = np.sqrt(np.maximum(inv_t2 * inv_t2 - 1.0, 0.0))
             sigma = (s.range_noise_at_threshold_m * np.exp(-log_clear[pick])) * gain
         new_r = np.where(kept, ri, np.maximum(ri + sigma * zi, MIN_REPORTED_M))
+        if stay is not None:
+            new_r[stay] = ri[stay]
         if clutter is not None and not rh.all():
-            c = np.flatnonzero(~rh)
+            c = np.flatnonzero(oc == CLUTTER)
             ic = idx[c]
             qcc = np.exp(log_qc[ic]) if scalar else qc[ic]
             rfc, wfc, qfc = (rf, wf, qf) if scalar else (rf[ic], wf[ic], qf[ic])
-            new_r[c] = self._echo_range(rfc, wfc, qcc, zi[c], ri[c])
+            limit = ri[c] if blank is None else np.where(self.blank_mask[ic], np.inf, ri[c])
+            new_r[c] = self._echo_range(rfc, wfc, qcc, zi[c], limit)
             norm_out[c], raw_out[c] = self._echo_intensity(qfc, rfc, c.shape)
+            if blank is not None:  # a no-return row's clutter point: on its ray, not along its (void) position
+                on_ray = self.blank_mask[ic]
+                where = np.searchsorted(blank.rows, ic[on_ray])
+                placed.append((c[on_ray], blank.directions[where] * new_r[c[on_ray], None]))
+        if gone is not None:
+            norm_out[gone], raw_out[gone] = 0.0, 0.0
         outcome = np.full(n, LOST, np.int8)
         outcome[pick] = oc
         extra = self._empty_ray_clutter(beta, rng, e)
-        return self._assemble(idx, pick, oc, new_r, norm_out, raw_out, outcome, self.parameters(beta, e), extra)
+        return self._assemble(idx, pick, oc, new_r, norm_out, raw_out, outcome, self.parameters(beta, e), extra,
+                              placed)
 
     def _echo_range(self, rf, wf, qc, z, limit):
         """Where a detected fog echo is reported: r_f + σ_c·z, σ_c² = σ₀² + (σ₁·(w_f/(L/2))/q_c)², kept
@@ -314,16 +375,21 @@ class LidarFogger:
         xyz = self.empty.directions[rows] * rr[:, None]
         return rows, (xyz, norm, raw)
 
-    def _assemble(self, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameters: dict, extra=None) -> FoggedScan:
-        """The fogged cloud of the reported rows ``idx`` (outcomes ``oc``): kept rows bit for bit (their
-        factor R'/R is exactly 1), the others moved along their ray and given their new intensity; then
-        the empty rays' clutter points (``extra``: their rows and (xyz, normalised, raw)), index −1."""
+    def _assemble(self, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameters: dict, extra=None,
+                  placed=None) -> FoggedScan:
+        """The fogged cloud of the reported rows ``idx`` (outcomes ``oc``): kept and no-return rows bit for
+        bit (their factor R'/R is exactly 1), the others moved along their ray and given their new intensity
+        (``placed``: [(positions among them, xyz)] of rows placed otherwise: a no-return row's clutter on its
+        ray, a lost firing's placeholder at 0); then the empty rays' clutter points (``extra``: their rows and
+        (xyz, normalised, raw)), index −1."""
         scan = self.scan
         xyz = self._xyz.copy() if isinstance(pick, slice) else np.take(self._xyz, idx, axis=0)
         factor = new_r / self.range_m[pick]
         for k in range(3):  # column by column: numpy broadcasts over a last axis of 3 slowly
             xyz[:, k] *= factor
-        moved = oc != KEPT
+        for where, at in placed or ():
+            xyz[where] = at
+        moved = (oc != KEPT) & (oc != NO_RETURN)
         inten = np.where(moved, norm_out, scan.intensity[pick])
         raw = np.where(moved, raw_out, scan.raw_intensity[pick])
 
@@ -343,10 +409,11 @@ class LidarFogger:
                 ret = np.concatenate([ret, np.ones(len(rows), ret.dtype)])
         cloud = PointCloud(xyz.astype(np.float32), inten.astype(np.float32), raw.astype(np.float32), scan.scale,
                            index, scan.source, ring, ret)
-        out_index = np.full(len(outcome), -1, np.int64)
+        out_index = np.full(len(outcome), -1, np.int64)  # (a lost firing's placeholder row: its row)
         out_index[idx] = np.arange(len(idx))
+        blank = 0 if self.blank is None else len(self.blank)
         return FoggedScan(cloud, outcome, out_index, parameters, 0 if self.empty is None else len(self.empty),
-                          int(len(rows)))
+                          int(len(rows)), blank, blank - int((outcome == NO_RETURN).sum()))
 
     def _clear(self) -> FoggedScan:
         s = self.scan
@@ -354,8 +421,11 @@ class LidarFogger:
                           None if s.ring is None else s.ring.copy(),
                           None if s.return_index is None else s.return_index.copy())
         n = len(s)
-        return FoggedScan(copy, np.full(n, KEPT, np.int8), np.arange(n, dtype=np.int64), self.parameters(0.0),
-                          0 if self.empty is None else len(self.empty), 0)
+        outcome = np.full(n, KEPT, np.int8)
+        if self.blank is not None:
+            outcome[self.blank.rows] = NO_RETURN
+        return FoggedScan(copy, outcome, np.arange(n, dtype=np.int64), self.parameters(0.0),
+                          0 if self.empty is None else len(self.empty), 0, 0 if self.blank is None else len(self.blank))
 
 
 def fog_scan(scan: PointCloud, sensor, beta, rng: np.random.Generator | None = None,

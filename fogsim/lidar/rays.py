@@ -1,17 +1,34 @@
-"""Rays that hit nothing: the cells of a spinning sensor's beam × azimuth grid that a scan leaves empty.
+"""Rays that hit nothing: the cells of a spinning sensor's beam × azimuth grid that a scan leaves empty, and
+the rows of a scan that stand for a firing without a return.
 
 A spinning LiDAR fires every beam at every azimuth step (:attr:`LidarSensor.steps_per_sweep` over 360°);
-a ray whose pulse returned nothing above the threshold (sky, a far dark surface) is absent from the scan.
-In fog every ray meets the fog's own echo (:mod:`fogsim.lidar.fog`), so the fog model needs those rays
-too: :class:`EmptyRays` (unit directions in the sensor frame, beam, azimuth, and the range of what the
-ray hit beyond the threshold, +inf for nothing).
+a ray whose pulse returned nothing above the threshold (sky, a far dark surface) is absent from the scan —
+or, in formats that store every firing (nuScenes: 32 rings × ≈ 1 084 firings, every one a row), present
+as a row without a position. In fog every ray meets the fog's own echo (:mod:`fogsim.lidar.fog`), so the
+fog model needs those rays too.
 
-:func:`empty_rays` finds them in a scan whose sensor grid is known (the sensor's inclinations and a 360°
-field of view):
+**No-return rows** (:func:`no_returns`): a row nearer than the sensor's ``min_range_m`` is no return the
+sensor can measure. Such a row stays a row (one row per firing: the fog model fogs it in place, outcome
+``no-return`` or the fog echo's ``clutter``); its ray:
 
-* each point's beam: the file's ring (nuScenes, STF, Waymo rows) or, without one (KITTI), the nearest of
-  the sensor's inclinations (:meth:`PointCloud.estimated_rings`); its azimuth step:
-  ⌊(atan2(y, x) mod 2π) / Δφ⌋, Δφ = 360° / steps;
+* a row nearer than :data:`PLACEHOLDER_M` holds no position (nuScenes writes a firing without an echo at
+  ≈ 0 m): its ray is its ring's elevation (the median elevation of the ring's returns; for a ring without
+  returns, the sensor's inclination of the same rank) at the azimuth interpolated, in file order, between
+  the returns around it (nuScenes stores a sweep firing by firing, 32 rows per firing). Nothing lies in
+  front of it: it may see the fog echo (``open``). Without a ring, or when the file's rows are not in
+  firing order (consecutive returns more than :data:`ORDERED_STEP_DEG` apart in azimuth, too often), its
+  ray is unknown: it stays a no-return;
+* a row between :data:`PLACEHOLDER_M` and the minimum range is an echo from inside the sensor's blind zone
+  (the vehicle's own body): its ray is its own direction, and that surface hides the fog echo behind it —
+  it stays a no-return.
+
+**Empty rays** (:func:`empty_rays`) are the grid cells no row covers, found in a scan whose sensor grid is
+known (the sensor's inclinations and a 360° field of view):
+
+* each return's beam: the file's ring (nuScenes, STF, Waymo rows) or, without one (KITTI), the nearest of
+  the sensor's lasers (:meth:`PointCloud.estimated_rings`, with the lasers' vertical offsets where the
+  sensor gives them); its azimuth step: ⌊(atan2(y, x) mod 2π) / Δφ⌋, Δφ = 360° / steps. No-return rows
+  whose ray is known cover their own cells (they are fogged in place, never twice);
 * a cell is occupied when a point falls in it **or in either azimuth neighbour** of the same beam: a
   real sensor's azimuths do not sit on the nominal grid (jitter, a slightly different firing rate), so a
   cell is called empty only inside a run of empty cells (a run of k empty cells counts k − 2; whole
@@ -27,17 +44,24 @@ Renders know their empty rays exactly (:func:`fogsim.render.lidar_scan.sweep`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from fogsim.lidar.points import PointCloud
 from fogsim.lidar.sensors import LidarSensor
 
-__all__ = ["EmptyRays", "MAX_EMPTY_SHARE", "empty_rays", "unit_directions"]
+__all__ = ["EmptyRays", "MAX_EMPTY_SHARE", "NoReturns", "ORDERED_STEP_DEG", "PLACEHOLDER_M", "empty_rays", "no_returns",
+           "unit_directions"]
 
 #: a scan with a larger share of empty cells is not taken as a full sweep (None: no empty rays)
 MAX_EMPTY_SHARE = 0.5
+#: a row nearer than this (metres) holds no position: a placeholder for a firing without an echo
+PLACEHOLDER_M = 0.01
+#: rows are in firing order when consecutive returns lie within this azimuth of each other (degrees) …
+ORDERED_STEP_DEG = 5.0
+#: … for at least this share of them
+ORDERED_SHARE = 0.9
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,22 +103,83 @@ def unit_directions(d: np.ndarray) -> np.ndarray:
     return d / norm[:, None]
 
 
-def _beam_elevations(scan: PointCloud, beam: np.ndarray, beams: int, incl: np.ndarray, from_file: bool) -> np.ndarray:
-    """Each beam's elevation (radians): measured (median of its points) where it has points; else the
-    sensor's inclination of the same rank (file rings: in the order the measured beams show)."""
-    if not from_file:
-        return incl.copy()
-    el = scan.elevation
-    out = np.full(beams, np.nan)
-    for b in np.unique(beam):
-        out[b] = float(np.median(el[beam == b]))
+@dataclass(frozen=True, eq=False)
+class NoReturns:
+    """A scan's no-return rows (:func:`no_returns`): ``rows`` M int64 (input rows, ascending),
+    ``directions`` M×3 float64 (unit, sensor frame; zero where the ray is unknown) and ``open`` M bool (the
+    ray is known and nothing lies in front of the fog echo: it may see fog)."""
+
+    rows: np.ndarray
+    directions: np.ndarray
+    open: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    @property
+    def known(self) -> np.ndarray:
+        """M bool: the ray's direction is known."""
+        return np.abs(self.directions).sum(axis=1) > 0
+
+
+def _ring_elevations(elevation: np.ndarray, ring: np.ndarray, beams: int, incl: np.ndarray | None) -> np.ndarray:
+    """Elevation (radians) per ring number 0 … max(ring, beams − 1): the median of the ring's ``elevation``
+    values where it has some; else the sensor's inclination of the same rank (``incl``; in the order the
+    measured rings show, rising or falling), else NaN."""
+    size = max(int(ring.max()) + 1 if len(ring) else 0, beams)
+    out = np.full(size, np.nan)
+    order = np.argsort(ring, kind="stable")
+    r, e = ring[order], elevation[order]
+    cuts = np.flatnonzero(np.diff(r)) + 1
+    for group_ring, group in zip(r[np.r_[0, cuts]] if len(r) else [], np.split(e, cuts)):
+        out[group_ring] = float(np.median(group))
     have = np.flatnonzero(np.isfinite(out))
-    if len(have) < beams:
+    if incl is not None and len(have) < size:
         rising = len(have) < 2 or np.corrcoef(have, out[have])[0, 1] >= 0
         ranked = np.sort(incl) if rising else np.sort(incl)[::-1]
-        missing = ~np.isfinite(out)
+        missing = np.flatnonzero(~np.isfinite(out[:len(ranked)]))
         out[missing] = ranked[missing]
     return out
+
+
+def _interpolated_azimuth(azimuth: np.ndarray, rows: np.ndarray, at: np.ndarray) -> np.ndarray | None:
+    """The azimuth (radians) at rows ``at``, interpolated in file order between the returns at ``rows``
+    (their ``azimuth``, unwrapped); None when the returns are not in firing order (module docstring)."""
+    if len(rows) < 2:
+        return None
+    unwrapped = np.unwrap(azimuth)
+    if (np.abs(np.diff(unwrapped)) <= np.radians(ORDERED_STEP_DEG)).mean() < ORDERED_SHARE:
+        return None
+    return np.interp(at, rows, unwrapped)
+
+
+def no_returns(scan: PointCloud, sensor: LidarSensor) -> NoReturns | None:
+    """The rows of ``scan`` nearer than ``sensor.min_range_m`` and their rays (the module docstring), or None
+    when it has none."""
+    r = scan.range_m
+    blank = r < sensor.min_range_m
+    if not blank.any():
+        return None
+    rows = np.flatnonzero(blank)
+    rr = r[rows]
+    placeholder = rr < PLACEHOLDER_M
+    directions = np.zeros((len(rows), 3))
+    own = ~placeholder
+    directions[own] = scan.xyz[rows[own]].astype(np.float64) / rr[own, None]
+    is_open = np.zeros(len(rows), bool)
+    if placeholder.any() and scan.ring is not None:
+        valid = np.flatnonzero(~blank)
+        az = _interpolated_azimuth(scan.azimuth[valid], valid, rows[placeholder])
+        if az is not None:
+            incl = sensor.inclinations_rad if sensor.inclinations_deg is not None else None
+            ring = scan.ring.astype(np.int64)
+            el = _ring_elevations(scan.elevation[valid], ring[valid], sensor.beams, incl)[ring[rows[placeholder]]]
+            known = np.isfinite(el)
+            el, az = el[known], az[known]
+            which = np.flatnonzero(placeholder)[known]
+            directions[which] = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], 1)
+            is_open[which] = True
+    return NoReturns(rows, directions, is_open)
 
 
 def empty_rays(scan: PointCloud, sensor: LidarSensor) -> EmptyRays | None:
@@ -104,17 +189,33 @@ def empty_rays(scan: PointCloud, sensor: LidarSensor) -> EmptyRays | None:
         return None
     incl = sensor.inclinations_rad
     beams, steps = sensor.beams, sensor.steps_per_sweep
+    blank = no_returns(scan, sensor)
+    is_return = np.ones(len(scan), bool)
+    cover = is_return.copy()  # the rows whose ray covers its cell: returns, and no-return rows of known ray
+    xyz = scan.xyz
+    if blank is not None:
+        is_return[blank.rows] = False
+        cover[blank.rows] = blank.known
+        xyz = xyz.copy()
+        xyz[blank.rows[blank.known]] = blank.directions[blank.known]
+    fired = replace(scan, xyz=xyz).select(cover)
+    if not len(fired):
+        return None
+    returns = is_return[cover]
     from_file = scan.ring is not None and int(scan.ring.max()) < beams
-    beam = scan.ring.astype(np.int64) if from_file else scan.estimated_rings(incl).astype(np.int64)
+    beam = fired.ring.astype(np.int64) if from_file else fired.estimated_rings(incl).astype(np.int64)
     step = 2 * math.pi / steps
-    col = np.floor(np.mod(scan.azimuth, 2 * math.pi) / step).astype(np.int64) % steps
+    col = np.floor(np.mod(fired.azimuth, 2 * math.pi) / step).astype(np.int64) % steps
     occupied = np.zeros((beams, steps), bool)
     occupied[beam, col] = True
     near = occupied | np.roll(occupied, 1, axis=1) | np.roll(occupied, -1, axis=1)
     b, c = np.nonzero(~near)
     if len(b) > MAX_EMPTY_SHARE * beams * steps:
         return None
-    el = _beam_elevations(scan, beam, beams, incl, from_file)[b]
+    if from_file:
+        el = _ring_elevations(fired.elevation[returns], beam[returns], beams, incl)[b]
+    else:
+        el = incl[b]
     az = (c + 0.5) * step
     d = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], 1)
     return EmptyRays(d, b.astype(np.int16) if scan.ring is not None else None)

@@ -191,7 +191,7 @@ class LidarFogSpec(Closed):
 
 class LidarOutcomes(Open):
     """``<frame>.outcomes.npz`` beside a fogged scan (:mod:`fogsim.lidar.outcome_file`): per input point
-    its ``outcome`` (0 kept, 1 attenuated, 2 lost, 3 clutter) and ``output_index`` (its row in the
+    its ``outcome`` (0 kept, 1 attenuated, 2 lost, 3 clutter, 4 no-return) and ``output_index`` (its row in the
     fogged scan, −1 when lost), of equal length."""
 
     document: ClassVar[str] = "LiDAR outcome file"
