@@ -180,24 +180,31 @@ OPEN_STREET_ROAD_M, OPEN_STREET_HOUSE_M, OPEN_STREET_HOUSE_TOP_M, OPEN_STREET_RE
 EGO_RINGS, EGO_HALF_ANGLE_DEG, EGO_RANGE_M = (30, 31), 25.0, 0.6
 
 
-def open_street_hits(d: np.ndarray) -> np.ndarray:
-    """The range (+inf: nothing within :data:`OPEN_STREET_REACH_M`) at which rays ``d`` (N×3 unit, from the
-    sensor) meet the open street: the road, the house fronts with their gaps, four parked cars."""
+def open_street_hits(d: np.ndarray, origins: np.ndarray | None = None, road_m: float = OPEN_STREET_ROAD_M,
+                     windows: bool = False) -> np.ndarray:
+    """The range (+inf: nothing within :data:`OPEN_STREET_REACH_M`) at which rays ``d`` (N×3 unit, from
+    ``origins``, N×3, default the sensor origin) meet the open street ``road_m`` below the sensor: the road,
+    the house fronts with their gaps, four parked cars. ``windows``: the house fronts' windows (1–2.6 m
+    above the road, 3 m of every 4 m) return nothing, as glass does in KITTI's scans."""
+    o = np.zeros_like(d) if origins is None else origins
+    glass = np.full(len(d), np.inf)
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(d[:, 2] < 0, -OPEN_STREET_ROAD_M / d[:, 2], np.inf)
+        t = np.where(d[:, 2] < 0, (-road_m - o[:, 2]) / d[:, 2], np.inf)
         for side in (1.0, -1.0):
-            th = np.where(d[:, 1] * side > 0, OPEN_STREET_HOUSE_M / np.abs(d[:, 1]), np.inf)
-            x, z = th * d[:, 0], th * d[:, 2]
-            wall = (z < OPEN_STREET_HOUSE_TOP_M - OPEN_STREET_ROAD_M) & (np.mod(x, 20.0) < 14.0)
+            th = np.where(d[:, 1] * side > 0, (side * OPEN_STREET_HOUSE_M - o[:, 1]) / d[:, 1], np.inf)
+            x, z = o[:, 0] + th * d[:, 0], o[:, 2] + th * d[:, 2] + road_m  # z: above the road
+            wall = (z < OPEN_STREET_HOUSE_TOP_M) & (np.mod(x, 20.0) < 14.0)
             t = np.minimum(t, np.where(wall, th, np.inf))
+            if windows:
+                glass = np.minimum(glass, np.where(wall & (z > 1.0) & (z < 2.6) & (np.mod(x, 4.0) < 3.0), th, np.inf))
         for cx, cy in ((8.0, -4.0), (-12.0, 4.5), (25.0, 4.0), (-30.0, -4.0)):  # cars 4.4 × 1.8 × 1.5 m
-            lo = np.array([cx - 2.2, cy - 0.9, -OPEN_STREET_ROAD_M])
-            hi = np.array([cx + 2.2, cy + 0.9, -OPEN_STREET_ROAD_M + 1.5])
-            t0, t1 = lo / d, hi / d
+            lo = np.array([cx - 2.2, cy - 0.9, -road_m])
+            hi = np.array([cx + 2.2, cy + 0.9, -road_m + 1.5])
+            t0, t1 = (lo - o) / d, (hi - o) / d
             near = np.nanmax(np.minimum(t0, t1), axis=1)
             far = np.nanmin(np.maximum(t0, t1), axis=1)
             t = np.minimum(t, np.where((near <= far) & (near > 0), near, np.inf))
-    return np.where(t <= OPEN_STREET_REACH_M, t, np.inf)
+    return np.where((t <= OPEN_STREET_REACH_M) & (glass > t), t, np.inf)
 
 
 def nuscenes_firings(folder: Path, seed: int = 0) -> tuple[Path, dict]:
@@ -230,3 +237,86 @@ def nuscenes_firings(folder: Path, seed: int = 0) -> tuple[Path, dict]:
     path = folder / "firings.pcd.bin"
     path.write_bytes(stf_bin(xyz.astype(np.float32), inten, ring.astype(np.float32)))
     return path, {"direction": d, "void": void, "ego": ego}
+
+
+# ----------------------------------------------------------------------------- a cropped KITTI frame (real lasers)
+#: a KITTI object frame's calibration (the 2011_09_26 drives', rounded) and image size: LiDAR → image 2
+KITTI_P2 = np.array([[721.5377, 0.0, 609.5593, 44.85728], [0.0, 721.5377, 172.854, 0.2163791],
+                     [0.0, 0.0, 1.0, 0.002745884]])
+KITTI_R0 = np.array([[0.9999239, 0.00983776, -0.007445048], [-0.009869795, 0.9999421, -0.004278459],
+                     [0.007402527, 0.004351614, 0.9999631]])
+KITTI_TR = np.array([[0.007533745, -0.9999714, -0.000616602, -0.004069766],
+                     [0.01480249, 0.0007280733, -0.9998902, -0.07631618],
+                     [0.9998621, 0.00752379, 0.01480755, -0.2717806]])
+KITTI_IMAGE = (1242, 375)
+KITTI_HEIGHT_M = 1.73
+
+
+def kitti_p2(scale: float = 1.0) -> np.ndarray:
+    """P2 for image 2 resampled by ``scale`` (1/3: 414 × 125 pixels, the same view)."""
+    p = KITTI_P2.copy()
+    p[:2] *= scale
+    return p
+
+
+def kitti_image(scale: float = 1.0) -> tuple[int, int]:
+    return round(KITTI_IMAGE[0] * scale), round(KITTI_IMAGE[1] * scale)
+
+
+def kitti_projection(scale: float = 1.0) -> np.ndarray:
+    """3×4: LiDAR point → image 2 (P2 · R0_rect · Tr_velo_to_cam; pixel-centre coordinates)."""
+    r0, tr = np.eye(4), np.vstack([KITTI_TR, [0, 0, 0, 1]])
+    r0[:3, :3] = KITTI_R0
+    return kitti_p2(scale) @ r0 @ tr
+
+
+def kitti_calib_text(scale: float = 1.0) -> str:
+    """The calibration as a KITTI ``calib/*.txt`` (P2 for every camera; an identity IMU line)."""
+    p = kitti_p2(scale)
+    rows = {"P0": p, "P1": p, "P2": p, "P3": p, "R0_rect": KITTI_R0,
+            "Tr_velo_to_cam": KITTI_TR, "Tr_imu_to_velo": np.hstack([np.eye(3), np.zeros((3, 1))])}
+    return "".join(f"{k}: {' '.join(f'{v:.9e}' for v in m.ravel())}\n" for k, m in rows.items())
+
+
+def kitti_laser_frame(folder: Path, seed: int = 0, steps: int = 2000) -> tuple[Path, dict]:
+    """A KITTI velodyne scan cropped to camera 2 (``frame.bin``, KITTI's 4 × float32, the points of rays that
+    project into the image, as ``velodyne_reduced`` keeps them) of the open street (:func:`open_street_hits`,
+    1.73 m below), made as KITTI's HDL-64E makes it: the ``hdl64e`` preset's 64 lasers (KITTI's factory
+    calibration: two blocks, each laser's line :attr:`~LidarSensor.vertical_offsets_m` off the origin),
+    each firing ``steps`` times a turn at its own phase. A ray without a hit (sky, the road beyond 90 m, a
+    window) leaves no point. Returns (path, truth): ``laser`` (per point), ``missing`` (unit directions of the rays
+    without a return whose ray projects into the image at 20 m), ``elevation`` (theirs, radians)."""
+    from fogsim.lidar.sensors import LidarSensor
+
+    s = LidarSensor.preset("hdl64e")
+    theta = s.inclinations_rad
+    h = np.asarray(s.vertical_offsets_m)
+    rng = np.random.default_rng(seed)
+    step = 2 * np.pi / steps
+    phase = rng.uniform(0, step, len(theta))
+    az = np.arange(steps)[None, :] * step + phase[:, None] + rng.normal(0, step * 0.05, (len(theta), steps))
+    th = np.broadcast_to(theta[:, None], az.shape)
+    laser = np.broadcast_to(np.arange(len(theta))[:, None], az.shape).reshape(-1)
+    az, th = az.reshape(-1), th.reshape(-1)
+    d = np.stack([np.cos(th) * np.cos(az), np.cos(th) * np.sin(az), np.sin(th)], 1)
+    hk = h[laser]
+    origins = hk[:, None] * np.stack([-np.sin(th) * np.cos(az), -np.sin(th) * np.sin(az), np.cos(th)], 1)
+    t = open_street_hits(d, origins, KITTI_HEIGHT_M, windows=True)
+    m = kitti_projection()
+
+    def inside(p):
+        q = p @ m[:, :3].T + m[:, 3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u, v = q[:, 0] / q[:, 2], q[:, 1] / q[:, 2]
+        return (q[:, 2] > 0) & (u >= 0) & (u < KITTI_IMAGE[0]) & (v >= 0) & (v < KITTI_IMAGE[1])
+
+    hit = np.isfinite(t)
+    xyz = origins[hit] + d[hit] * t[hit, None]
+    keep = inside(xyz)
+    xyz, point_laser = xyz[keep], laser[hit][keep]
+    i01 = np.clip(np.round(np.exp(np.log(0.25) + 0.6 * rng.standard_normal(len(xyz))), 2), 0.01, 0.99)
+    i01[rng.random(len(i01)) < ZERO_INTENSITY_SHARE] = 0.0
+    path = folder / "frame.bin"
+    path.write_bytes(kitti_bin(xyz.astype(np.float32), i01.astype(np.float32)))
+    gone = ~hit & inside(origins + 20.0 * d)
+    return path, {"laser": point_laser, "missing": d[gone], "elevation": th[gone]}

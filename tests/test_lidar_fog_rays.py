@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ from fogsim.lidar.fog import CLUTTER, EMPTY_RAY_INDEX, LOST, NO_RETURN, OUTCOMES
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.outcome_file import read_outcomes
 from fogsim.lidar.points import PointCloud
-from fogsim.lidar.rays import EmptyRays, empty_rays, no_returns
+from fogsim.lidar.rays import CameraView, EmptyRays, empty_rays, no_returns
 from fogsim.lidar.reference import reference_fog
 from fogsim.lidar.sensors import LidarSensor
 from fogsim.lidar.soft_target import fog_echo
@@ -339,6 +340,82 @@ def test_rows_nearer_than_the_minimum_range_without_a_ring_stay_as_they_were():
         assert np.array_equal(out.cloud.xyz[:2], xyz[:2]) and out.cloud.index[0] == 0
         assert out.outcome[3] == (CLUTTER if spec is STEADY else LOST)  # (the echo at β 0.2 beats a dark return)
         assert len(out.cloud) == 4 - (out.outcome == LOST).sum()
+
+
+# ----------------------------------------------------------------------------- a cropped KITTI frame, real lasers
+@pytest.fixture(scope="module")
+def kitti_frame(tmp_path_factory):
+    path, truth = lf.kitti_laser_frame(tmp_path_factory.mktemp("kitti_frame"))
+    return path, read_points(path, "kitti"), truth
+
+
+def uniform_hdl64(**extra):
+    """The old hdl64e grid: 64 beams spaced uniformly over the datasheet's −24.9° … +2°."""
+    return LidarSensor.from_dict({"name": "uniform", "beams": 64, "vertical_fov_deg": [-24.9, 2.0],
+                                  "horizontal_resolution_deg": 0.18, "max_range_m": 120.0, "intensity_scale": "0-1",
+                                  **extra})
+
+
+def matched(rays, missing, within_deg=0.2):
+    """Per found ray: it points at a ray the sensor fired without a return (within ``within_deg``)."""
+    return (rays.directions @ missing.T).max(axis=1) > math.cos(math.radians(within_deg))
+
+
+def test_estimated_beams_are_the_real_lasers(kitti_frame):
+    """KITTI's HDL-64E: two blocks of lasers, each laser's line 0.1–0.2 m off the origin. The nearest beam by
+    distance from its line is the laser that fired, for every point; by elevation alone (no offsets) a near
+    point reads asin(h/R) high — up to several beams at 5–20 m."""
+    path, scan, truth = kitti_frame
+    s = LidarSensor.preset("hdl64e")
+    assert np.array_equal(scan.estimated_rings(s.inclinations_rad, s.vertical_offsets_m), truth["laser"])
+    assert (scan.estimated_rings(s.inclinations_rad) == truth["laser"]).mean() < 0.1
+
+
+def test_a_cropped_scan_gets_the_empty_rays_in_the_cameras_view(kitti_frame):
+    """A scan cropped to camera 2 (89 % of the sweep's cells empty) is no full sweep; with the camera's view
+    (P2·R0·Tr, the image size) its empty rays are the in-view cells no point covers: every one a ray the sensor
+    fired without a return (sky, windows, the far road) — none spurious with the real lasers, where uniform
+    beams leave beams without a laser (and lasers without offsets leave near points in the wrong beam)."""
+    path, scan, truth = kitti_frame
+    s = LidarSensor.preset("hdl64e")
+    view = CameraView(lf.kitti_projection(), *lf.KITTI_IMAGE)
+    assert empty_rays(scan, s) is None  # cropped: the whole grid is mostly empty
+    rays = empty_rays(scan, s, view)
+    missing = truth["missing"]
+    assert len(missing) > 2000 and rays.ring is None
+    assert matched(rays, missing).all() and len(rays) > 0.7 * len(missing)  # a run of k empty cells counts k − 2
+    assert view.sees(rays.directions).all()
+    for sensor in (uniform_hdl64(), replace(s, vertical_offsets_m=None)):
+        old = empty_rays(scan, sensor, view)
+        assert (~matched(old, missing)).sum() > 500  # spurious empty rays: cells of beams no laser fills
+    # the camera's own view: a ray projects into the image from 2 m to infinity
+    down = np.array([[math.cos(math.radians(-20)), 0, math.sin(math.radians(-20))]])
+    ahead, behind = np.array([[1.0, 0, 0]]), np.array([[-1.0, 0, 0]])
+    assert view.sees(ahead)[0] and not view.sees(behind)[0] and not view.sees(down)[0]
+    # in fog, each in-view empty ray may return the fog echo
+    out = LidarFogger(scan, s, empty_rays=rays)(0.06, np.random.default_rng(0))
+    assert 0 < out.empty_ray_clutter <= len(rays) and len(out.cloud) == len(scan) - out.counts()["lost"] + \
+        out.empty_ray_clutter
+
+
+def test_kitti_lidar_fogs_the_empty_rays_in_the_cameras_view(kitti_frame, tmp_path):
+    """``fogsim fog --kitti ROOT --lidar``: the frame's calibration and image size give the view."""
+    import cv2
+
+    path, scan, truth = kitti_frame
+    base = tmp_path / "kitti" / "training"
+    for d in ("image_2", "velodyne", "calib"):
+        (base / d).mkdir(parents=True)
+    w, h = lf.kitti_image(1 / 3)
+    cv2.imwrite(str(base / "image_2" / "000000.png"), np.full((h, w, 3), 120, np.uint8))
+    (base / "velodyne" / "000000.bin").write_bytes(path.read_bytes())
+    (base / "calib" / "000000.txt").write_text(lf.kitti_calib_text(1 / 3))
+    out = tmp_path / "out"
+    assert main(["fog", "--quiet", "--kitti", str(tmp_path / "kitti"), "--lidar", "--levels", "0,0.06",
+                 "--no-kitti-trees", "--out", str(out)]) == 0
+    level = json.loads((out / "beta0.06" / "training" / "image_2" / "000000.json").read_text())["lidar"]
+    want = empty_rays(scan, LidarSensor.preset("hdl64e"), CameraView(lf.kitti_projection(1 / 3), w, h))
+    assert level["empty_rays"] == len(want) > 2000 and level["empty_ray_clutter"] > 0
 
 
 # ----------------------------------------------------------------------------- calibrations

@@ -206,7 +206,7 @@ class LidarFogger:
             empty_rays = EmptyRays(empty_rays)
         self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
         #: the scan's no-return rows (nearer than the sensor's minimum range: fogsim.lidar.rays.no_returns)
-        self.blank = no_returns(scan, self.sensor)
+        self.blank = no_returns(scan, self.sensor) if (r < self.sensor.min_range_m).any() else None
         self.blank_mask = None
         if self.blank is not None:
             self.blank_mask = np.zeros(len(scan), bool)
@@ -249,7 +249,9 @@ class LidarFogger:
         sh = sg * rng.standard_normal(n, np.float32)  # ln g_h, the hard return's fluctuation,
         su = sg * rng.standard_normal(n, np.float32)  # ln g_f, the fog echo's; then the empty rays'
         r, s, scalar = self.range_m, self.sensor, np.ndim(beta) == 0
-        log_clear = np.maximum(self.log_signal + sh, np.abs(sh, dtype=np.float64) + sg)  # (step 2)
+        log_clear = np.abs(sh, dtype=np.float64)  # ln q0 = max(ln q + ln g_h, σ + |ln g_h|) (step 2)
+        log_clear += sg
+        np.maximum(log_clear, self.log_signal + sh, out=log_clear)
         nb = r * (-2.0 * self.spec.extinction_ratio * beta)  # ln of the two-way transmission
         t2 = np.exp(nb)
         log_qh = log_clear + nb

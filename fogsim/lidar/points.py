@@ -22,6 +22,7 @@ declared scale admits, columns of one length, at least one point — else an
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -119,10 +120,16 @@ class PointCloud:
         x, y, z = (self.xyz[:, k].astype(np.float64) for k in range(3))
         return np.arctan2(z, np.hypot(x, y))
 
-    def estimated_rings(self, inclinations_rad: np.ndarray) -> np.ndarray:
+    def estimated_rings(self, inclinations_rad: np.ndarray, vertical_offsets_m=None) -> np.ndarray:
         """The beam of each point from its elevation: the index of the nearest of the sensor's
-        ``inclinations_rad`` (any order; the result indexes them as given), N int16."""
+        ``inclinations_rad`` (any order; the result indexes them as given), N int16. With the beams'
+        ``vertical_offsets_m`` h_k (a Velodyne's lasers sit 0.1–0.2 m off the origin), the beam whose line
+        passes nearest the point: min over k of |z·cos θ_k − ρ·sin θ_k − h_k| (ρ = √(x² + y²)), the
+        point's distance from beam k's line — so a near point is not taken for a beam ``asin(h_k / R)``
+        above its own."""
         incl = np.asarray(inclinations_rad, np.float64).reshape(-1)
+        if vertical_offsets_m is not None:
+            return self._nearest_offset_beams(incl, np.asarray(vertical_offsets_m, np.float64).reshape(-1))
         order = np.argsort(incl)
         s = incl[order]
         el = self.elevation
@@ -130,6 +137,19 @@ class PointCloud:
         if len(s) > 1:
             k = np.where(np.abs(el - s[k - 1]) <= np.abs(el - s[k]), k - 1, k)
         return order[k].astype(np.int16)
+
+    def _nearest_offset_beams(self, incl: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        if offsets.shape != incl.shape:
+            raise ValueError(f"{len(offsets)} vertical offsets for {len(incl)} inclinations")
+        x, y, z = (self.xyz[:, k].astype(np.float64) for k in range(3))
+        rho = np.hypot(x, y)
+        best = np.full(len(z), np.inf)
+        out = np.zeros(len(z), np.int16)
+        for k, (theta, h) in enumerate(zip(incl, offsets)):
+            d = np.abs(z * math.cos(theta) - rho * math.sin(theta) - h)
+            closer = d < best
+            best[closer], out[closer] = d[closer], k
+        return out
 
     def transformed(self, pose: np.ndarray) -> "PointCloud":
         """The scan with ``xyz`` mapped by the 4×4 rigid ``pose`` (p' = R·p + t, in float64); all

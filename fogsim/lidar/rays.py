@@ -37,7 +37,12 @@ known (the sensor's inclinations and a 360° field of view):
   for a beam without points the sensor's inclination of the same rank (the file's ring order, rising or
   falling, read from the beams that have points) — at the cell's centre azimuth (Δφ·(k + ½));
 * a scan more than half of whose cells are empty is taken as *not* a full sweep (a cropped
-  ``velodyne_reduced`` scan, a sector) and gets None: its missing rays cannot be told from a crop.
+  ``velodyne_reduced`` scan, a sector) and gets None: its missing rays cannot be told from a crop —
+  unless the camera it was cropped to is known (:class:`CameraView`: KITTI's and STF's calibration and
+  image size). Then the grid is the cells inside the camera's view: a cell is in view when its ray
+  projects into the image from :data:`VIEW_NEAR_M` out to infinity (the image is convex and the projected
+  ray a segment: both ends inside; OpenPCDet's crop rule, 0 ≤ u < width, 0 ≤ v < height, depth > 0, in
+  the projection's pixel-centre coordinates), and the half-empty rule applies to those cells.
 
 Renders know their empty rays exactly (:func:`fogsim.render.lidar_scan.sweep`).
 """
@@ -51,8 +56,8 @@ import numpy as np
 from fogsim.lidar.points import PointCloud
 from fogsim.lidar.sensors import LidarSensor
 
-__all__ = ["EmptyRays", "MAX_EMPTY_SHARE", "NoReturns", "ORDERED_STEP_DEG", "PLACEHOLDER_M", "empty_rays", "no_returns",
-           "unit_directions"]
+__all__ = ["CameraView", "EmptyRays", "MAX_EMPTY_SHARE", "NoReturns", "ORDERED_STEP_DEG", "PLACEHOLDER_M",
+           "VIEW_NEAR_M", "empty_rays", "no_returns", "unit_directions"]
 
 #: a scan with a larger share of empty cells is not taken as a full sweep (None: no empty rays)
 MAX_EMPTY_SHARE = 0.5
@@ -62,6 +67,8 @@ PLACEHOLDER_M = 0.01
 ORDERED_STEP_DEG = 5.0
 #: … for at least this share of them
 ORDERED_SHARE = 0.9
+#: a cell is in a camera's view when its ray projects into the image from this range (metres) to infinity
+VIEW_NEAR_M = 2.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,6 +99,30 @@ class EmptyRays:
 
     def __len__(self) -> int:
         return len(self.directions)
+
+
+@dataclass(frozen=True, eq=False)
+class CameraView:
+    """The camera a scan was cropped to: ``projection`` 3×4 (LiDAR frame → image, homogeneous; pixel-centre
+    coordinates, as KITTI's P2·R0_rect·Tr_velo_to_cam), the image ``width`` × ``height`` in pixels."""
+
+    projection: np.ndarray
+    width: int
+    height: int
+
+    def sees(self, directions: np.ndarray) -> np.ndarray:
+        """Per ray (unit directions N×3 from the sensor origin): it projects into the image from
+        :data:`VIEW_NEAR_M` to infinity (the module docstring)."""
+        m = np.asarray(self.projection, np.float64).reshape(3, 4)
+        d = np.asarray(directions, np.float64).reshape(-1, 3)
+        far = d @ m[:, :3].T  # the vanishing point: the ray at infinity (homogeneous w = 0)
+        near = far * VIEW_NEAR_M + m[:, 3]
+        ok = np.ones(len(d), bool)
+        for p in (far, near):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                u, v = p[:, 0] / p[:, 2], p[:, 1] / p[:, 2]
+                ok &= (p[:, 2] > 0) & (u >= 0) & (u < self.width) & (v >= 0) & (v < self.height)
+        return ok
 
 
 def unit_directions(d: np.ndarray) -> np.ndarray:
@@ -182,9 +213,10 @@ def no_returns(scan: PointCloud, sensor: LidarSensor) -> NoReturns | None:
     return NoReturns(rows, directions, is_open)
 
 
-def empty_rays(scan: PointCloud, sensor: LidarSensor) -> EmptyRays | None:
+def empty_rays(scan: PointCloud, sensor: LidarSensor, view: CameraView | None = None) -> EmptyRays | None:
     """The empty cells of ``scan``'s sweep (the module docstring), or None when the grid is not known
-    (no inclinations, a field of view below 360°) or the scan is not a full sweep."""
+    (no inclinations, a field of view below 360°) or the scan is not a full sweep — nor, given the camera
+    ``view`` it was cropped to, a full sweep of the cells in that view."""
     if sensor.inclinations_deg is None or sensor.horizontal_fov_deg < 360 or not len(scan):
         return None
     incl = sensor.inclinations_rad
@@ -203,19 +235,27 @@ def empty_rays(scan: PointCloud, sensor: LidarSensor) -> EmptyRays | None:
         return None
     returns = is_return[cover]
     from_file = scan.ring is not None and int(scan.ring.max()) < beams
-    beam = fired.ring.astype(np.int64) if from_file else fired.estimated_rings(incl).astype(np.int64)
+    beam = fired.ring.astype(np.int64) if from_file else \
+        fired.estimated_rings(incl, sensor.vertical_offsets_m).astype(np.int64)
     step = 2 * math.pi / steps
     col = np.floor(np.mod(fired.azimuth, 2 * math.pi) / step).astype(np.int64) % steps
     occupied = np.zeros((beams, steps), bool)
     occupied[beam, col] = True
-    near = occupied | np.roll(occupied, 1, axis=1) | np.roll(occupied, -1, axis=1)
-    b, c = np.nonzero(~near)
-    if len(b) > MAX_EMPTY_SHARE * beams * steps:
-        return None
-    if from_file:
-        el = _ring_elevations(fired.elevation[returns], beam[returns], beams, incl)[b]
-    else:
-        el = incl[b]
-    az = (c + 0.5) * step
-    d = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], 1)
+    empty = ~(occupied | np.roll(occupied, 1, axis=1) | np.roll(occupied, -1, axis=1))
+    elevation = _ring_elevations(fired.elevation[returns], beam[returns], beams, incl)[:beams] if from_file else incl
+    if empty.sum() > MAX_EMPTY_SHARE * beams * steps:
+        if view is None:
+            return None
+        el, az = np.meshgrid(elevation, (np.arange(steps) + 0.5) * step, indexing="ij")
+        seen = view.sees(_directions(el.reshape(-1), az.reshape(-1))).reshape(beams, steps)
+        empty &= seen
+        if not seen.any() or empty.sum() > MAX_EMPTY_SHARE * seen.sum():
+            return None
+    b, c = np.nonzero(empty)
+    d = _directions(elevation[b], (c + 0.5) * step)
     return EmptyRays(d, b.astype(np.int16) if scan.ring is not None else None)
+
+
+def _directions(elevation: np.ndarray, azimuth: np.ndarray) -> np.ndarray:
+    """Unit directions (N×3) of rays at ``elevation`` and ``azimuth`` (radians)."""
+    return np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], 1)

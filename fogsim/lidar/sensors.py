@@ -65,7 +65,8 @@ class LidarSensor:
     """A spinning LiDAR (the fields of :class:`~fogsim.schema.lidar.LidarSensorSpec`; units and defaults
     there, and only there: build it with :meth:`from_dict`, :meth:`preset` or :func:`load_sensor`).
     ``inclinations_deg`` is None for a sensor whose beams come from the data's calibration until
-    :meth:`with_inclinations` gives them."""
+    :meth:`with_inclinations` gives them; ``vertical_offsets_m`` (None: every beam through the origin) the
+    beams' vertical offsets, in the same order."""
 
     name: str
     beams: int
@@ -90,6 +91,7 @@ class LidarSensor:
     retro_reflective_from: float | None
     retro_reflectivity_max: float
     fluctuation_sigma: float
+    vertical_offsets_m: tuple[float, ...] | None = None
     calibration: str = "datasheet"
     sources: dict = field(default_factory=dict, hash=False, compare=False)
 
@@ -122,6 +124,7 @@ class LidarSensor:
                    mount_xyz_m=tuple(spec.mount.xyz_m), mount_rpy_deg=tuple(spec.mount.rpy_deg),
                    description=spec.description or "", retro_reflective_from=spec.retro_reflective_from,
                    retro_reflectivity_max=spec.retro_reflectivity_max, fluctuation_sigma=spec.fluctuation_sigma,
+                   vertical_offsets_m=None if spec.vertical_offsets_m is None else tuple(spec.vertical_offsets_m),
                    sources=dict(spec.sources or {}))
 
     @classmethod
@@ -138,7 +141,7 @@ class LidarSensor:
         incl = np.degrees(np.asarray(inclinations_rad, np.float64).reshape(-1))
         if incl.size != self.beams or not np.isfinite(incl).all():
             raise ValueError(f"{self.name} has {self.beams} beams; got {incl.size} inclinations")
-        return replace(self, inclinations_deg=tuple(incl.tolist()))
+        return replace(self, inclinations_deg=tuple(incl.tolist()), vertical_offsets_m=None)
 
     def calibrated(self, calibration: "str | LidarCalibration | dict" = "datasheet") -> "LidarSensor":
         """The sensor under a calibration: ``datasheet`` (as it is), ``reference`` (Hahner et al.'s
@@ -164,6 +167,7 @@ class LidarSensor:
         """The sensor as a record (what a fog sidecar stores)."""
         d = asdict(self)
         d["inclinations_deg"] = None if self.inclinations_deg is None else list(self.inclinations_deg)
+        d["vertical_offsets_m"] = None if self.vertical_offsets_m is None else list(self.vertical_offsets_m)
         d["sources"] = dict(self.sources)
         return d
 

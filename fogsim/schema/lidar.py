@@ -93,6 +93,9 @@ class LidarSensorSpec(Closed):
     beams: int_in(1, 1024)
     vertical_fov_deg: pair(number_in(-90, 90)) | None = None  # [lowest, highest] beam, uniform between
     inclinations_deg: Inclinations | None = None  # explicit beams (any order) or "calibration"
+    # each beam's vertical offset (m, Velodyne's vertOffsetCorrection), in the order of inclinations_deg: the
+    # beam's line passes this far from the origin, so a point's elevation is the beam's + asin(offset / range)
+    vertical_offsets_m: Annotated[list[number_in(-1, 1)], Field(min_length=1)] | None = None
     horizontal_fov_deg: number_in(0, 360, lo_open=True) = 360.0
     horizontal_resolution_deg: number_in(0, 10, lo_open=True) | None = None
     steps_per_sweep: int_in(1, 1_000_000) | None = None
@@ -123,6 +126,10 @@ class LidarSensorSpec(Closed):
                              "'inclinations_deg' (a list, or \"calibration\")")
         if isinstance(self.inclinations_deg, list) and len(self.inclinations_deg) != self.beams:
             raise ValueError(f"inclinations_deg has {len(self.inclinations_deg)} values for {self.beams} beams")
+        if self.vertical_offsets_m is not None and (not isinstance(self.inclinations_deg, list)
+                                                     or len(self.vertical_offsets_m) != self.beams):
+            raise ValueError(f"vertical_offsets_m needs inclinations_deg as a list and one offset per beam "
+                             f"({self.beams}), got {len(self.vertical_offsets_m)}")
         if (self.horizontal_resolution_deg is None) == (self.steps_per_sweep is None):
             raise ValueError("needs exactly one of 'horizontal_resolution_deg' and 'steps_per_sweep'")
         if not self.min_range_m < self.max_range_m:
