@@ -77,9 +77,9 @@ def write_surfaces(folder: Path, surfaces: list[Surface]) -> tuple[Path, Path, n
 SWEEP_AZIMUTH_DEG, SWEEP_STEP_DEG = 40.0, 0.25
 SWEEP_CARS = ((5.5, -3.0, 0.05), (9.0, 2.8, 0.6), (14.0, -3.2, 0.3), (21.0, 3.0, 0.05), (27.0, -2.5, 0.9),
               (35.0, 2.6, 0.2), (46.0, -3.0, 0.05), (58.0, 3.1, 0.6), (70.0, -2.8, 0.3))
-#: glass: the house fronts' windows (3 m of every 4 m along the street, 0.8–2.6 m above the road) return
+#: glass: the house fronts' windows (3 m of every 4 m along the street, 1.0–2.2 m above the road) return
 #: no reflectance, as windows do in KITTI scans
-WINDOW_PITCH_M, WINDOW_WIDTH_M, WINDOW_BANDS_M = 4.0, 3.0, ((0.8, 2.6),)
+WINDOW_PITCH_M, WINDOW_WIDTH_M, WINDOW_BANDS_M = 4.0, 3.0, ((1.0, 2.2),)
 #: KITTI reflectance of the road and the house fronts, and the weakest non-zero reflectance reported
 SWEEP_ROAD, SWEEP_HOUSE, SWEEP_ZERO_BELOW = 0.3, 0.4, 0.05
 
