@@ -4,6 +4,7 @@ surfaces at known ranges and reflectivities built by tests/lidar_fixtures.py."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ import lidar_fixtures as lfx
 from fogsim.lidar.fog import ATTENUATED, CLUTTER, KEPT, LOST, OUTCOMES, LidarFogger
 from fogsim.lidar.formats import read_points, write_points
 from fogsim.lidar.points import PointCloud
+from fogsim.lidar.rays import laser_origins
 from fogsim.lidar.reference import reference_fog
 from fogsim.lidar.sensors import LidarSensor
 from fogsim.lidar.soft_target import NODE_STEP, echo_per_point, fog_echo, fog_waveform
@@ -225,15 +227,19 @@ def test_fog_clutter_lies_within_a_few_metres_on_the_same_ray(scans):
         qf, rf = echo(beta)
         assert (rr >= R_MIN).all() and (rr < rf + 1.0).all() and (rr < 5.0).all()
         src = scans["kitti"].xyz[c].astype(np.float64)
-        cos = np.einsum("ij,ij->i", pts, src) / (rr * np.linalg.norm(src, axis=1))
-        assert (cos > 1 - 1e-6).all()  # the same ray
+        o = laser_origins(scans["kitti"], LidarSensor.preset("hdl64e"))[c]  # KITTI's lasers sit 0.1–0.2 m off axis
+        assert (np.linalg.norm(o, axis=1) > 0.1).all()
+        a, b = pts - o, src - o
+        cos = np.einsum("ij,ij->i", a, b) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
+        assert (cos > 1 - 1e-6).all()  # the same ray: the laser's line through the point
         assert (out.cloud.intensity[out.output_index[c]] < 0.01).all()  # a faint echo
 
 
 def test_0_1_and_0_255_storage_give_the_same_outcomes(scans):
+    on_axis = replace(LidarSensor.preset("hdl64e"), vertical_offsets_m=None)  # as the S3D: lasers on its axis
     for beta in PAPER + (0.0125,):
         for mode in ("strongest", "last"):
-            a = LidarFogger(scans["kitti"], "hdl64e", {"return_mode": mode})(beta, np.random.default_rng(1))
+            a = LidarFogger(scans["kitti"], on_axis, {"return_mode": mode})(beta, np.random.default_rng(1))
             b = LidarFogger(scans["stf"], "hdl64-s3d", {"return_mode": mode})(beta, np.random.default_rng(1))
             assert np.array_equal(a.outcome, b.outcome) and np.array_equal(a.output_index, b.output_index)
             np.testing.assert_allclose(a.cloud.xyz, b.cloud.xyz, rtol=1e-6, atol=1e-6)

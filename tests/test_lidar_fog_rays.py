@@ -392,10 +392,21 @@ def test_a_cropped_scan_gets_the_empty_rays_in_the_cameras_view(kitti_frame):
     down = np.array([[math.cos(math.radians(-20)), 0, math.sin(math.radians(-20))]])
     ahead, behind = np.array([[1.0, 0, 0]]), np.array([[-1.0, 0, 0]])
     assert view.sees(ahead)[0] and not view.sees(behind)[0] and not view.sees(down)[0]
-    # in fog, each in-view empty ray may return the fog echo
+    # in fog, each in-view empty ray may return the fog echo; every fog echo lies on its laser's line, so the
+    # laser read back from the fogged scan is the one that fired (a clutter point at 2.6 m is far off the
+    # line through the origin: asin(0.2 / 2.6) = 4.4°)
     out = LidarFogger(scan, s, empty_rays=rays)(0.06, np.random.default_rng(0))
     assert 0 < out.empty_ray_clutter <= len(rays) and len(out.cloud) == len(scan) - out.counts()["lost"] + \
         out.empty_ray_clutter
+    back = out.cloud.estimated_rings(s.inclinations_rad, s.vertical_offsets_m)
+    shown = out.output_index >= 0
+    assert (out.outcome == CLUTTER).sum() > 1000
+    assert np.array_equal(back[out.output_index[shown]], truth["laser"][shown])
+    extra = out.cloud.xyz[len(out.cloud) - out.empty_ray_clutter:].astype(np.float64)
+    laser = back[len(out.cloud) - out.empty_ray_clutter:]
+    cells = np.degrees(np.arcsin(rays.directions[:, 2]))
+    assert np.isin(np.round(np.degrees(s.inclinations_rad[laser]), 4), np.round(cells, 4)).all()
+    assert (np.abs(np.linalg.norm(extra, axis=1) - fog_echo(s, 0.06).range_m) < 1.0).all()
 
 
 def test_kitti_lidar_fogs_the_empty_rays_in_the_cameras_view(kitti_frame, tmp_path):

@@ -63,7 +63,8 @@ Outcomes (per input point, :data:`OUTCOMES`):
 * ``lost`` — nothing reported: absent from the fogged scan; ``output_index`` −1. A scan that stores every
   firing (it has rings and placeholder rows at ≈ 0 m: nuScenes) keeps one row per firing: there a lost
   return becomes a placeholder row (x y z 0, intensity 0, its ring) and ``output_index`` names it.
-* ``clutter`` — the fog echo is reported instead: a point on the same ray at r_f + noise, with the
+* ``clutter`` — the fog echo is reported instead: a point on the same ray at r_f + noise (a sensor whose
+  lasers sit off its axis, ``vertical_offsets_m``: on the laser's own line, r_f + noise from the laser), with the
   intensity the sensor gives an echo of that strength at that range (its calibrated value, without the
   fluctuation: ρ_app = q_f·ρ_ref·(r_f/R_max)²/ξ(r_f)); for a no-return row, on its ray (step 8).
 * ``no-return`` — a no-return row (step 8) that still returns nothing: written exactly as it was.
@@ -97,7 +98,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsim.lidar.points import PointCloud
-from fogsim.lidar.rays import PLACEHOLDER_M, EmptyRays, no_returns
+from fogsim.lidar.rays import PLACEHOLDER_M, EmptyRays, laser_origins, no_returns
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor, load_sensor
 from fogsim.lidar.soft_target import backscatter_coefficient, echo_per_point, fog_echo
@@ -325,10 +326,13 @@ class LidarFogger:
             limit = ri[c] if blank is None else np.where(self.blank_mask[ic], np.inf, ri[c])
             new_r[c] = self._echo_range(rfc, wfc, qcc, zi[c], limit)
             norm_out[c], raw_out[c] = self._echo_intensity(qfc, rfc, c.shape)
+            on_ray = np.zeros(len(c), bool) if blank is None else self.blank_mask[ic]
             if blank is not None:  # a no-return row's clutter point: on its ray, not along its (void) position
-                on_ray = self.blank_mask[ic]
                 where = np.searchsorted(blank.rows, ic[on_ray])
                 placed.append((c[on_ray], blank.directions[where] * new_r[c[on_ray], None]))
+            if s.vertical_offsets_m is not None:  # the echo lies on the laser's own line (its vertical offset)
+                hard_c = ~on_ray
+                placed.append((c[hard_c], self._on_laser_line(ic[hard_c], new_r[c[hard_c]])))
         if gone is not None:
             norm_out[gone], raw_out[gone] = 0.0, 0.0
         outcome = np.full(n, LOST, np.int8)
@@ -336,6 +340,13 @@ class LidarFogger:
         extra = self._empty_ray_clutter(beta, rng, e)
         return self._assemble(idx, pick, oc, new_r, norm_out, raw_out, outcome, self.parameters(beta, e), extra,
                               placed)
+
+    def _on_laser_line(self, rows, r):
+        """Points at range ``r`` from their laser along the laser's line through input points ``rows`` (a sensor
+        with vertical offsets: :func:`fogsim.lidar.rays.laser_origins`)."""
+        o = laser_origins(self.scan.select(rows), self.sensor)
+        d = self._xyz[rows] - o
+        return o + d * (r / np.linalg.norm(d, axis=1))[:, None]
 
     def _echo_range(self, rf, wf, qc, z, limit):
         """Where a detected fog echo is reported: r_f + σ_c·z, σ_c² = σ₀² + (σ₁·(w_f/(L/2))/q_c)², kept
@@ -375,6 +386,8 @@ class LidarFogger:
         rr = self._echo_range(e.range_m, e.width_m, qc, z[rows], self.empty.range_m[rows])
         norm, raw = self._echo_intensity(e.signal, e.range_m, rows.shape)
         xyz = self.empty.directions[rows] * rr[:, None]
+        if self.empty.origins is not None:  # each ray from its laser
+            xyz += self.empty.origins[rows]
         return rows, (xyz, norm, raw)
 
     def _assemble(self, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameters: dict, extra=None,

@@ -22,7 +22,6 @@ declared scale admits, columns of one length, at least one point — else an
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -139,17 +138,35 @@ class PointCloud:
         return order[k].astype(np.int16)
 
     def _nearest_offset_beams(self, incl: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """argmin over k of |g_k|, g_k = z·cos θ_k − ρ·sin θ_k − h_k (a point's signed distance from beam k's
+        line). With the beams sorted by θ and h rising together (a Velodyne's), g_k falls with k: a binary
+        search for its sign change, then the nearer of the two beams around it; otherwise every beam."""
         if offsets.shape != incl.shape:
             raise ValueError(f"{len(offsets)} vertical offsets for {len(incl)} inclinations")
         x, y, z = (self.xyz[:, k].astype(np.float64) for k in range(3))
         rho = np.hypot(x, y)
+        order = np.argsort(incl, kind="stable")
+        th, h = incl[order], offsets[order]
+        cos, sin = np.cos(th), np.sin(th)
+        if len(th) > 1 and np.all(np.diff(h) >= 0):
+            lo, hi = np.zeros(len(z), np.int64), np.full(len(z), len(th) - 1)
+            while True:  # invariant: g_lo ≥ 0 unless lo = 0; g_hi < 0 unless hi = K − 1
+                open_ = hi - lo > 1
+                if not open_.any():
+                    break
+                mid = (lo + hi) // 2
+                g = z * cos[mid] - rho * sin[mid] - h[mid]
+                lo, hi = np.where(open_ & (g >= 0), mid, lo), np.where(open_ & (g < 0), mid, hi)
+            g_lo = np.abs(z * cos[lo] - rho * sin[lo] - h[lo])
+            g_hi = np.abs(z * cos[hi] - rho * sin[hi] - h[hi])
+            return order[np.where(g_hi < g_lo, hi, lo)].astype(np.int16)
         best = np.full(len(z), np.inf)
-        out = np.zeros(len(z), np.int16)
-        for k, (theta, h) in enumerate(zip(incl, offsets)):
-            d = np.abs(z * math.cos(theta) - rho * math.sin(theta) - h)
+        out = np.zeros(len(z), np.int64)
+        for k in range(len(th)):
+            d = np.abs(z * cos[k] - rho * sin[k] - h[k])
             closer = d < best
             best[closer], out[closer] = d[closer], k
-        return out
+        return order[out].astype(np.int16)
 
     def transformed(self, pose: np.ndarray) -> "PointCloud":
         """The scan with ``xyz`` mapped by the 4×4 rigid ``pose`` (p' = R·p + t, in float64); all

@@ -57,7 +57,7 @@ from fogsim.lidar.points import PointCloud
 from fogsim.lidar.sensors import LidarSensor
 
 __all__ = ["CameraView", "EmptyRays", "MAX_EMPTY_SHARE", "NoReturns", "ORDERED_STEP_DEG", "PLACEHOLDER_M",
-           "VIEW_NEAR_M", "empty_rays", "no_returns", "unit_directions"]
+           "VIEW_NEAR_M", "empty_rays", "laser_origins", "no_returns", "unit_directions"]
 
 #: a scan with a larger share of empty cells is not taken as a full sweep (None: no empty rays)
 MAX_EMPTY_SHARE = 0.5
@@ -75,11 +75,13 @@ VIEW_NEAR_M = 2.0
 class EmptyRays:
     """Rays without a clear-air return: ``directions`` K×3 float64 unit vectors (sensor frame), ``ring``
     K int16 (the scan's beam numbering) or None, ``range_m`` K float64 — the first surface each ray hit
-    (below the threshold), +inf where it hit nothing: a fog echo beyond it cannot come back."""
+    (below the threshold), +inf where it hit nothing: a fog echo beyond it cannot come back; ``origins``
+    K×3 float64 where each ray starts (its laser, :meth:`LidarSensor.beam_origins`; None: the origin)."""
 
     directions: np.ndarray
     ring: np.ndarray | None = None
     range_m: np.ndarray | None = None
+    origins: np.ndarray | None = None
 
     def __post_init__(self):
         d = np.asarray(self.directions, np.float64).reshape(-1, 3)
@@ -96,6 +98,11 @@ class EmptyRays:
             if ring.shape != (k,):
                 raise ValueError(f"empty rays: one ring per ray ({k}), got {ring.size}")
             object.__setattr__(self, "ring", ring.astype(np.int16))
+        if self.origins is not None:
+            o = np.asarray(self.origins, np.float64).reshape(-1, 3)
+            if len(o) != k or not np.isfinite(o).all():
+                raise ValueError(f"empty rays: one finite origin per ray ({k}), got {len(o)}")
+            object.__setattr__(self, "origins", o)
 
     def __len__(self) -> int:
         return len(self.directions)
@@ -252,8 +259,23 @@ def empty_rays(scan: PointCloud, sensor: LidarSensor, view: CameraView | None = 
         if not seen.any() or empty.sum() > MAX_EMPTY_SHARE * seen.sum():
             return None
     b, c = np.nonzero(empty)
-    d = _directions(elevation[b], (c + 0.5) * step)
-    return EmptyRays(d, b.astype(np.int16) if scan.ring is not None else None)
+    az = (c + 0.5) * step
+    d = _directions(elevation[b], az)
+    origins = sensor.beam_origins(b, az) if sensor.vertical_offsets_m is not None and not from_file else None
+    return EmptyRays(d, b.astype(np.int16) if scan.ring is not None else None, origins=origins)
+
+
+def laser_origins(scan: PointCloud, sensor: LidarSensor) -> np.ndarray | None:
+    """Where the ray of each point of ``scan`` started (N×3, sensor frame): its laser's origin
+    (:meth:`LidarSensor.beam_origins`; the laser: the file's ring, else :meth:`PointCloud.estimated_rings`),
+    or None for a sensor whose beams all pass through the origin (no ``vertical_offsets_m``)."""
+    if sensor.vertical_offsets_m is None or sensor.inclinations_deg is None:
+        return None
+    if scan.ring is not None and len(scan) and int(scan.ring.max()) < sensor.beams:
+        beam = scan.ring.astype(np.int64)
+    else:
+        beam = scan.estimated_rings(sensor.inclinations_rad, sensor.vertical_offsets_m).astype(np.int64)
+    return sensor.beam_origins(beam, scan.azimuth)
 
 
 def _directions(elevation: np.ndarray, azimuth: np.ndarray) -> np.ndarray:

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from fogsim.lidar.points import PointCloud
-from fogsim.lidar.rays import PLACEHOLDER_M, no_returns
+from fogsim.lidar.rays import PLACEHOLDER_M, laser_origins, no_returns
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor, load_sensor
 from fogsim.lidar.soft_target import STEPS_PER_PULSE
@@ -83,8 +83,10 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
                   empty_rays=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(outcome int8, output xyz ×3 float64 (NaN where lost), normalised intensity, raw intensity) of one
     level, point by point: N rows for the input points (no-return rows: :func:`fogsim.lidar.rays.no_returns`;
-    in a scan that stores every firing a lost row's output is its placeholder: 0, 0, 0, intensity 0), then
-    (``empty_rays``: K×3 directions, +inf range) K rows for the empty rays (outcome clutter or lost).
+    a clutter point of a sensor whose lasers sit off its axis on the laser's line,
+    :func:`~fogsim.lidar.rays.laser_origins`; in a scan that stores every firing a lost row's output is its
+    placeholder: 0, 0, 0, intensity 0), then (``empty_rays``: K×3 directions from the origin, +inf range) K
+    rows for the empty rays (outcome clutter or lost).
     ``beta``: a number or one per point (each point's echo exact; the empty rays use the mean)."""
     s = load_sensor(sensor).calibrated(spec.calibration)
     sc = scale_named(scan.scale)
@@ -102,6 +104,7 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
     blank = no_returns(scan, s)
     rays = {} if blank is None else {int(row): (tuple(blank.directions[j]), bool(blank.open[j]))
                                      for j, row in enumerate(blank.rows)}
+    lasers = laser_origins(scan, s)  # a sensor whose lasers sit off its axis: the echo on the laser's line
     echoes: dict[float, tuple[float, float, float]] = {}
     outcome = np.zeros(n + k, np.int8)
     xyz_out = np.full((n + k, 3), np.nan)
@@ -178,7 +181,12 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
         elif fog_seen:
             rn, norm_out[i], raw_out[i] = _echo_point(s, sc, qc, qf, rf, wf, z[i], r)
             outcome[i] = 3
-            xyz_out[i] = (x / r * rn, y / r * rn, zc / r * rn)
+            if lasers is None:
+                xyz_out[i] = (x / r * rn, y / r * rn, zc / r * rn)
+            else:
+                o = lasers[i]
+                d = np.array([x, y, zc]) - o
+                xyz_out[i] = o + d / math.sqrt(float(d @ d)) * rn
         else:
             outcome[i] = 2
     if blank is not None and scan.ring is not None and (scan.range_m[blank.rows] < PLACEHOLDER_M).any():

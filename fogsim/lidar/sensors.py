@@ -180,6 +180,17 @@ class LidarSensor:
                              "(LidarSensor.with_inclinations)")
         return np.radians(np.asarray(self.inclinations_deg, np.float64))
 
+    def beam_origins(self, beam: np.ndarray, azimuth: np.ndarray) -> np.ndarray:
+        """Where the rays of ``beam`` (indices into the inclinations) at ``azimuth`` (radians) start, in the
+        sensor frame (N×3 float64): h·(−sin θ cos φ, −sin θ sin φ, cos θ), so each beam's line passes its
+        ``vertical_offsets_m`` h from the origin (a Velodyne's lasers sit off its axis); zeros without offsets."""
+        beam, azimuth = np.asarray(beam).reshape(-1), np.asarray(azimuth, np.float64).reshape(-1)
+        if self.vertical_offsets_m is None:
+            return np.zeros((len(beam), 3))
+        theta, h = self.inclinations_rad[beam], np.asarray(self.vertical_offsets_m, np.float64)[beam]
+        return h[:, None] * np.stack([-np.sin(theta) * np.cos(azimuth), -np.sin(theta) * np.sin(azimuth),
+                                      np.cos(theta)], 1)
+
     @property
     def horizontal_resolution_deg(self) -> float:
         return self.horizontal_fov_deg / self.steps_per_sweep
