@@ -97,8 +97,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fogsim.lidar.points import PointCloud
-from fogsim.lidar.rays import PLACEHOLDER_M, EmptyRays, laser_origins, no_returns
+from fogsim.lidar.points import PointCloud, nearest_offset_beams
+from fogsim.lidar.rays import PLACEHOLDER_M, EmptyRays, no_returns
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor, load_sensor
 from fogsim.lidar.soft_target import backscatter_coefficient, echo_per_point, fog_echo
@@ -206,6 +206,7 @@ class LidarFogger:
         if empty_rays is not None and not isinstance(empty_rays, EmptyRays):
             empty_rays = EmptyRays(empty_rays)
         self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
+        self._laser = None  # each point's laser (a sensor with vertical offsets: a fog echo on the laser's line)
         #: the scan's no-return rows (nearer than the sensor's minimum range: fogsim.lidar.rays.no_returns)
         self.blank = no_returns(scan, self.sensor) if (r < self.sensor.min_range_m).any() else None
         self.blank_mask = None
@@ -343,10 +344,27 @@ class LidarFogger:
 
     def _on_laser_line(self, rows, r):
         """Points at range ``r`` from their laser along the laser's line through input points ``rows`` (a sensor
-        with vertical offsets: :func:`fogsim.lidar.rays.laser_origins`)."""
-        o = laser_origins(self.scan.select(rows), self.sensor)
-        d = self._xyz[rows] - o
-        return o + d * (r / np.linalg.norm(d, axis=1))[:, None]
+        with vertical offsets: the laser k of each point — its ring, else
+        :func:`~fogsim.lidar.points.nearest_offset_beams` — found once, when a fog echo first needs it). With
+        o = h_k·(−sin θ_k·x/ρ, −sin θ_k·y/ρ, cos θ_k) ⊥ the line and the point t = √(R² − h_k²) along it from o:
+        q = o + (p − o)·r/t, i.e. x, y scaled by f − h_k sin θ_k (1 − f)/ρ and z = z·f + h_k cos θ_k (1 − f),
+        f = r/t."""
+        if self._laser is None:  # per point, found when first needed: (h_k sin θ_k / ρ, h_k cos θ_k, t)
+            self._laser = np.full((len(self.scan), 3), np.nan)
+        unknown = rows[np.isnan(self._laser[rows, 0])]
+        if len(unknown):
+            s, ring = self.sensor, self.scan.ring
+            k = ring[unknown] if ring is not None and int(ring.max()) < s.beams else \
+                nearest_offset_beams(self.scan.xyz[unknown], s.inclinations_rad, np.asarray(s.vertical_offsets_m))
+            h, theta = np.asarray(s.vertical_offsets_m, np.float64)[k], s.inclinations_rad[k]
+            p, rr = self._xyz[unknown], self.range_m[unknown]
+            self._laser[unknown] = np.stack([h * np.sin(theta) / np.maximum(np.hypot(p[:, 0], p[:, 1]), 1e-9),
+                                             h * np.cos(theta), np.sqrt(np.maximum(rr * rr - h * h, 1e-12))], 1)
+        a, hc, t = self._laser[rows].T
+        p = self._xyz[rows]
+        f = r / t
+        g = f - a * (1.0 - f)
+        return np.stack([p[:, 0] * g, p[:, 1] * g, p[:, 2] * f + hc * (1.0 - f)], 1)
 
     def _echo_range(self, rf, wf, qc, z, limit):
         """Where a detected fog echo is reported: r_f + σ_c·z, σ_c² = σ₀² + (σ₁·(w_f/(L/2))/q_c)², kept

@@ -29,7 +29,7 @@ import numpy as np
 from fogsim.errors import InputError
 from fogsim.lidar.scales import scale as scale_named
 
-__all__ = ["PointCloud"]
+__all__ = ["PointCloud", "nearest_offset_beams"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,7 +128,7 @@ class PointCloud:
         above its own."""
         incl = np.asarray(inclinations_rad, np.float64).reshape(-1)
         if vertical_offsets_m is not None:
-            return self._nearest_offset_beams(incl, np.asarray(vertical_offsets_m, np.float64).reshape(-1))
+            return nearest_offset_beams(self.xyz, incl, np.asarray(vertical_offsets_m, np.float64).reshape(-1))
         order = np.argsort(incl)
         s = incl[order]
         el = self.elevation
@@ -136,37 +136,6 @@ class PointCloud:
         if len(s) > 1:
             k = np.where(np.abs(el - s[k - 1]) <= np.abs(el - s[k]), k - 1, k)
         return order[k].astype(np.int16)
-
-    def _nearest_offset_beams(self, incl: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-        """argmin over k of |g_k|, g_k = z·cos θ_k − ρ·sin θ_k − h_k (a point's signed distance from beam k's
-        line). With the beams sorted by θ and h rising together (a Velodyne's), g_k falls with k: a binary
-        search for its sign change, then the nearer of the two beams around it; otherwise every beam."""
-        if offsets.shape != incl.shape:
-            raise ValueError(f"{len(offsets)} vertical offsets for {len(incl)} inclinations")
-        x, y, z = (self.xyz[:, k].astype(np.float64) for k in range(3))
-        rho = np.hypot(x, y)
-        order = np.argsort(incl, kind="stable")
-        th, h = incl[order], offsets[order]
-        cos, sin = np.cos(th), np.sin(th)
-        if len(th) > 1 and np.all(np.diff(h) >= 0):
-            lo, hi = np.zeros(len(z), np.int64), np.full(len(z), len(th) - 1)
-            while True:  # invariant: g_lo ≥ 0 unless lo = 0; g_hi < 0 unless hi = K − 1
-                open_ = hi - lo > 1
-                if not open_.any():
-                    break
-                mid = (lo + hi) // 2
-                g = z * cos[mid] - rho * sin[mid] - h[mid]
-                lo, hi = np.where(open_ & (g >= 0), mid, lo), np.where(open_ & (g < 0), mid, hi)
-            g_lo = np.abs(z * cos[lo] - rho * sin[lo] - h[lo])
-            g_hi = np.abs(z * cos[hi] - rho * sin[hi] - h[hi])
-            return order[np.where(g_hi < g_lo, hi, lo)].astype(np.int16)
-        best = np.full(len(z), np.inf)
-        out = np.zeros(len(z), np.int64)
-        for k in range(len(th)):
-            d = np.abs(z * cos[k] - rho * sin[k] - h[k])
-            closer = d < best
-            best[closer], out[closer] = d[closer], k
-        return order[out].astype(np.int16)
 
     def transformed(self, pose: np.ndarray) -> "PointCloud":
         """The scan with ``xyz`` mapped by the 4×4 rigid ``pose`` (p' = R·p + t, in float64); all
@@ -194,3 +163,35 @@ class PointCloud:
         return (self.scale == other.scale and same(self.xyz, other.xyz) and same(self.intensity, other.intensity)
                 and same(self.raw_intensity, other.raw_intensity) and same(self.index, other.index)
                 and same(self.ring, other.ring) and same(self.return_index, other.return_index))
+
+
+def nearest_offset_beams(xyz: np.ndarray, incl: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """The beam of each point (rows of ``xyz``, N×3, sensor frame): argmin over k of |g_k|,
+    g_k = z·cos θ_k − ρ·sin θ_k − h_k (a point's signed distance from beam k's line). With the beams sorted
+    by θ and h rising together (a Velodyne's), g_k falls with k: a binary search for its sign change, then
+    the nearer of the two beams around it; otherwise every beam."""
+    if offsets.shape != incl.shape:
+        raise ValueError(f"{len(offsets)} vertical offsets for {len(incl)} inclinations")
+    x, y, z = (xyz[:, k].astype(np.float64) for k in range(3))
+    rho = np.hypot(x, y)
+    order = np.argsort(incl, kind="stable")
+    th, h = incl[order], offsets[order]
+    cos, sin = np.cos(th), np.sin(th)
+    if len(th) > 1 and np.all(np.diff(h) >= 0):
+        # g_k ≥ 0 ⇔ elevation − θ_k ≥ asin(h_k / R) ≈ h_k / R (to 10⁻⁴ rad beyond 2 m): search on that
+        el, inv_r = np.arctan2(z, rho), 1.0 / np.maximum(np.hypot(rho, z), 1e-6)
+        lo, hi = np.zeros(len(z), np.int64), np.full(len(z), len(th) - 1)
+        for _ in range(int(np.ceil(np.log2(len(th))))):  # invariant: lo = 0 or g_lo ≥ 0; hi = K − 1 or g_hi < 0
+            mid = (lo + hi) // 2
+            up = el - th[mid] >= h[mid] * inv_r
+            lo, hi = np.where(up, mid, lo), np.where(up, hi, mid)
+        g_lo = np.abs(z * cos[lo] - rho * sin[lo] - h[lo])
+        g_hi = np.abs(z * cos[hi] - rho * sin[hi] - h[hi])
+        return order[np.where(g_hi < g_lo, hi, lo)].astype(np.int16)
+    best = np.full(len(z), np.inf)
+    out = np.zeros(len(z), np.int64)
+    for k in range(len(th)):
+        d = np.abs(z * cos[k] - rho * sin[k] - h[k])
+        closer = d < best
+        best[closer], out[closer] = d[closer], k
+    return order[out].astype(np.int16)

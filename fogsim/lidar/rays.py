@@ -265,17 +265,18 @@ def empty_rays(scan: PointCloud, sensor: LidarSensor, view: CameraView | None = 
     return EmptyRays(d, b.astype(np.int16) if scan.ring is not None else None, origins=origins)
 
 
-def laser_origins(scan: PointCloud, sensor: LidarSensor) -> np.ndarray | None:
+def laser_origins(scan: PointCloud, sensor: LidarSensor, beams_only: bool = False) -> np.ndarray | None:
     """Where the ray of each point of ``scan`` started (N×3, sensor frame): its laser's origin
     (:meth:`LidarSensor.beam_origins`; the laser: the file's ring, else :meth:`PointCloud.estimated_rings`),
-    or None for a sensor whose beams all pass through the origin (no ``vertical_offsets_m``)."""
+    or None for a sensor whose beams all pass through the origin (no ``vertical_offsets_m``). ``beams_only``:
+    the lasers (N int64) instead."""
     if sensor.vertical_offsets_m is None or sensor.inclinations_deg is None:
         return None
     if scan.ring is not None and len(scan) and int(scan.ring.max()) < sensor.beams:
         beam = scan.ring.astype(np.int64)
     else:
         beam = scan.estimated_rings(sensor.inclinations_rad, sensor.vertical_offsets_m).astype(np.int64)
-    return sensor.beam_origins(beam, scan.azimuth)
+    return beam if beams_only else sensor.beam_origins(beam, towards=scan.xyz)
 
 
 def _directions(elevation: np.ndarray, azimuth: np.ndarray) -> np.ndarray:

@@ -183,10 +183,10 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
             outcome[i] = 3
             if lasers is None:
                 xyz_out[i] = (x / r * rn, y / r * rn, zc / r * rn)
-            else:
+            else:  # from the laser's origin o (⊥ its line) along the line through the point: √(R² − |o|²) to it
                 o = lasers[i]
-                d = np.array([x, y, zc]) - o
-                xyz_out[i] = o + d / math.sqrt(float(d @ d)) * rn
+                t = math.sqrt(max(r * r - float(o @ o), 1e-12))
+                xyz_out[i] = o + (np.array([x, y, zc]) - o) * (rn / t)
         else:
             outcome[i] = 2
     if blank is not None and scan.ring is not None and (scan.range_m[blank.rows] < PLACEHOLDER_M).any():

@@ -180,16 +180,26 @@ class LidarSensor:
                              "(LidarSensor.with_inclinations)")
         return np.radians(np.asarray(self.inclinations_deg, np.float64))
 
-    def beam_origins(self, beam: np.ndarray, azimuth: np.ndarray) -> np.ndarray:
-        """Where the rays of ``beam`` (indices into the inclinations) at ``azimuth`` (radians) start, in the
-        sensor frame (N×3 float64): h·(−sin θ cos φ, −sin θ sin φ, cos θ), so each beam's line passes its
-        ``vertical_offsets_m`` h from the origin (a Velodyne's lasers sit off its axis); zeros without offsets."""
-        beam, azimuth = np.asarray(beam).reshape(-1), np.asarray(azimuth, np.float64).reshape(-1)
+    def beam_origins(self, beam: np.ndarray, azimuth: np.ndarray | None = None, towards: np.ndarray | None = None
+                     ) -> np.ndarray:
+        """Where the rays of ``beam`` (indices into the inclinations) at ``azimuth`` (radians; or the azimuth of
+        the points ``towards``, N×3) start, in the sensor frame (N×3 float64): h·(−sin θ cos φ, −sin θ sin φ,
+        cos θ), so each beam's line passes its ``vertical_offsets_m`` h from the origin (a Velodyne's lasers
+        sit off its axis); zeros without offsets."""
+        beam = np.asarray(beam).reshape(-1)
         if self.vertical_offsets_m is None:
             return np.zeros((len(beam), 3))
-        theta, h = self.inclinations_rad[beam], np.asarray(self.vertical_offsets_m, np.float64)[beam]
-        return h[:, None] * np.stack([-np.sin(theta) * np.cos(azimuth), -np.sin(theta) * np.sin(azimuth),
-                                      np.cos(theta)], 1)
+        theta = self.inclinations_rad[beam]
+        h = np.asarray(self.vertical_offsets_m, np.float64)[beam]
+        if towards is not None:  # cos φ, sin φ = x/ρ, y/ρ
+            p = np.asarray(towards, np.float64).reshape(-1, 3)
+            rho = np.maximum(np.hypot(p[:, 0], p[:, 1]), 1e-12)
+            cos_phi, sin_phi = p[:, 0] / rho, p[:, 1] / rho
+        else:
+            azimuth = np.asarray(azimuth, np.float64).reshape(-1)
+            cos_phi, sin_phi = np.cos(azimuth), np.sin(azimuth)
+        hs = h * np.sin(theta)
+        return np.stack([-hs * cos_phi, -hs * sin_phi, h * np.cos(theta)], 1)
 
     @property
     def horizontal_resolution_deg(self) -> float:
