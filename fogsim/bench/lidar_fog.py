@@ -2,8 +2,8 @@
 literal per-point transcription of the same model (:mod:`fogsim.lidar.reference`) in the same run, with the
 two published models (``hahner2021``, ``stf2020``) timed beside the default.
 
-The scan is built from geometry (:func:`synthetic_scan`): the ``hdl64e`` preset's 64 beams (−24.9° …
-+2.0°) × 1875 azimuth steps = 120 000 rays from 1.73 m above a flat road, each cast against the road,
+The scan is built from geometry (:func:`synthetic_scan`): the ``hdl64e`` preset's 64 lasers (−25.0° …
++1.9°) × 1875 azimuth steps = 120 000 rays from 1.73 m above a flat road, each cast against the road,
 two building rows 12 m either side, the street's ends 80 m ahead and behind, and parked and driving
 cars (boxes) of dark to bright paint, so every ray returns. Intensities are KITTI-like (0–1) from each
 surface's reflectivity (ρ / 2.55) with a ±10 % texture.

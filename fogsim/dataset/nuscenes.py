@@ -13,8 +13,8 @@ a render with ``--lidar``, a ``fogsim fog --kitti/--stf/--waymo … --lidar`` ru
   the points either);
 * intensity on nuScenes' 0–255 scale (a 0–1 scan: 255 × its normalised intensity, :mod:`fogsim.lidar.formats`);
 * ring: the scan's own where it has one (renders, nuScenes, STF, Waymo), else the nearest beam by elevation
-  among the recorded sensor's inclinations (``lidar.sensor.inclinations_deg``,
-  :meth:`~fogsim.lidar.points.PointCloud.estimated_rings`; KITTI's
+  among the recorded sensor's inclinations (``lidar.sensor.inclinations_deg``, with its lasers'
+  ``vertical_offsets_m`` where recorded: :meth:`~fogsim.lidar.points.PointCloud.estimated_rings`; KITTI's
   ``.bin`` holds none).
 
 Not written — nuScenes' 13 JSON tables (``attribute``, ``calibrated_sensor``, ``category``, ``ego_pose``,
@@ -264,7 +264,9 @@ def export_nuscenes(dataset: str | os.PathLike, out: str | os.PathLike, levels: 
                     if cloud.ring is None:
                         if inclinations is None:
                             inclinations = _inclinations_rad(sensor_block, where)
-                        cloud = replace(cloud, ring=cloud.estimated_rings(inclinations))
+                        offsets = sensor_block.get("vertical_offsets_m")  # the lasers' offsets, where recorded
+                        offsets = offsets if isinstance(offsets, list) and len(offsets) == len(inclinations) else None
+                        cloud = replace(cloud, ring=cloud.estimated_rings(inclinations, offsets))
                     atomic_write_bytes(sample_path(stage, key, frame), encode_points(cloud, "nuscenes"))
         summary = _summary(root, plan, written, radar_written)
         write_json(stage / SUMMARY_NAME, summary)

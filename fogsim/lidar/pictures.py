@@ -3,7 +3,8 @@
 * :func:`bev_image` — a bird's-eye view of one level: the sensor at the centre, x (forward) up, y (left)
   to the left, rings every 10 m; each input point drawn where the sensor reports it, coloured by outcome
   (:data:`OUTCOME_COLOURS`: kept green, attenuated blue, clutter orange — at its new range near the
-  sensor), a lost point faint grey where it was; optional 3D boxes as their footprints.
+  sensor), a lost point faint grey where it was (a no-return row too, at the sensor); optional 3D boxes
+  as their footprints.
 * :func:`bev_levels` — one bird's-eye view per level side by side, captioned with β and the outcome shares.
 * :func:`projected_image` — a level's reported points drawn on the camera image, coloured by outcome.
 * :func:`points_vs_distance` — points per object (log scale) against the object's distance, one colour
@@ -21,16 +22,17 @@ from fogsim.fileio import write_image
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.objects import MIN_POINTS, distances_and_points
-from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, LOST
+from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, LOST, NO_RETURN
 from fogsim.lidar.points import PointCloud
 from fogsim.viz import strip
 
 __all__ = ["OUTCOME_COLOURS", "bev_image", "bev_levels", "points_vs_distance", "projected_image", "write_png"]
 
-OUTCOME_COLOURS = {KEPT: (44, 160, 44), ATTENUATED: (31, 119, 180), LOST: (205, 205, 205), CLUTTER: (255, 127, 14)}
+OUTCOME_COLOURS = {KEPT: (44, 160, 44), ATTENUATED: (31, 119, 180), LOST: (205, 205, 205), CLUTTER: (255, 127, 14),
+                   NO_RETURN: (205, 205, 205)}
 LEVEL_COLOURS = ((40, 40, 40), (31, 119, 180), (44, 160, 44), (255, 127, 14), (214, 39, 40), (148, 103, 189))
-#: drawing order: lost underneath, clutter on top
-ORDER = (LOST, KEPT, ATTENUATED, CLUTTER)
+#: drawing order: lost (and no-return rows, which sit at the sensor) underneath, clutter on top
+ORDER = (NO_RETURN, LOST, KEPT, ATTENUATED, CLUTTER)
 
 
 def _to_pixels(xyz: np.ndarray, extent_m: float, px_per_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

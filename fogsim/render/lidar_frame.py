@@ -100,7 +100,7 @@ def lidar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int
     pose = np.asarray(desc["lidar"]["lidar_to_world"], np.float64)
     if caster is None:  # its own Embree scene: only the triangles the sensor can reach
         if geometry is None:
-            geometry = Geometry.of_frame(desc, meshes, within=(pose[:3, 3], sensor.max_range_m))
+            geometry = Geometry.of_frame(desc, meshes, within=(pose[:3, 3], sensor.reach_m))
         caster = RayCaster(geometry)
     scan = sweep(caster, pose, sensor, f"frame {desc.get('seed')}")
     w2c, w2l = np.asarray(desc["camera"]["world_to_camera"], np.float64), np.linalg.inv(pose)

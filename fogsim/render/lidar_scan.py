@@ -9,14 +9,16 @@ and a reflectivity. :func:`sweep` casts one ray per beam and azimuth step of a s
 ``fogsim bench render`` measures both), and returns the points the sensor reports in clear air.
 
 Conventions: the sensor frame is x forward, y left, z up (metres); azimuth φ is measured from x towards y,
-the beams' inclinations from the horizontal plane (up positive). A ray's range R is its distance from the
-sensor's origin to the first triangle it hits; the point is p = R·d in the sensor frame, exactly on the
-surface. Per point: the range, azimuth, beam (ring), the object it hit, the incidence angle θ between the
-ray and the surface normal, the surface's reflectivity ρ, and the intensity the sensor reports for the
-Lambertian return of apparent reflectivity ρ·cos θ at R (:meth:`~fogsim.lidar.sensors.LidarSensor.intensity_of`,
-in its intensity scale). A ray is reported when it hits within [min range, max range] and its clear-air
-signal (ρ·cos θ/ρ_ref)·(R_max/R)²·ξ(R) reaches the detection threshold (1): dark, grazing or far surfaces
-drop out as on a real sensor. Every point of one sweep is taken at one instant (no rolling-shutter motion).
+the beams' inclinations from the horizontal plane (up positive). A ray starts at its laser (the sensor's
+origin, or — a sensor with ``vertical_offsets_m``, KITTI's HDL-64E — h·(−sin θ cos φ, −sin θ sin φ, cos θ):
+:meth:`~fogsim.lidar.sensors.LidarSensor.beam_origins`); its range R is its distance from there to the first
+triangle it hits; the point is p = o + R·d in the sensor frame, exactly on the surface. Per point: the range,
+azimuth, beam (ring), the object it hit, the incidence angle θ between the ray and the surface normal, the
+surface's reflectivity ρ, and the intensity the sensor reports for the Lambertian return of apparent
+reflectivity ρ·cos θ at R (:meth:`~fogsim.lidar.sensors.LidarSensor.intensity_of`, in its intensity scale). A
+ray is reported when it hits within [min range, max range] and its clear-air signal
+(ρ·cos θ/ρ_ref)·(R_max/R)²·ξ(R) reaches the detection threshold (1): dark, grazing or far surfaces drop out as
+on a real sensor. Every point of one sweep is taken at one instant (no rolling-shutter motion).
 
 Reflectivity (at 905 nm, diffuse, Lambertian-equivalent): from the 905 nm table of
 :mod:`fogsim.scene.reflectivity`, never from the visible colour — each material slot its entry, car paint by
@@ -224,7 +226,8 @@ def sweep(caster: RayCaster, lidar_to_world: np.ndarray, sensor: LidarSensor, so
     d, beam, az = sweep_directions(sensor)
     T = np.asarray(lidar_to_world, np.float64)
     dirs_world = d @ T[:3, :3].T
-    origin = np.broadcast_to(T[:3, 3], dirs_world.shape)
+    start = sensor.beam_origins(beam, az)  # each laser's line, its vertical offset off the axis (if any)
+    origin = start @ T[:3, :3].T + T[:3, 3]
     t, prim, normal = caster.cast(origin, dirs_world, sensor.max_range_m)
     hit = np.isfinite(t) & (t >= sensor.min_range_m) & (t <= sensor.max_range_m)
     idx = np.flatnonzero(hit)
@@ -239,12 +242,13 @@ def sweep(caster: RayCaster, lidar_to_world: np.ndarray, sensor: LidarSensor, so
     keep = idx[seen]
     r, p, apparent, cos_i, rho, n_world = r[seen], p[seen], apparent[seen], cos_i[seen], rho[seen], n_world[seen]
     _, raw = scale_named(sensor.intensity_scale).from_linear(sensor.intensity_of(apparent, r))
-    xyz = (d[keep] * r[:, None]).astype(np.float32)
+    xyz = (start[keep] + d[keep] * r[:, None]).astype(np.float32)
     cloud = PointCloud.from_raw(xyz, raw, sensor.intensity_scale, source, ring=beam[keep], index=keep,
                                 allow_empty=True)
     unreported = np.ones(len(d), bool)
     unreported[keep] = False
-    empty = EmptyRays(d[unreported], beam[unreported], np.maximum(t[unreported], 1e-6)) if unreported.any() else None
+    empty = EmptyRays(d[unreported], beam[unreported], np.maximum(t[unreported], 1e-6),
+                      None if sensor.vertical_offsets_m is None else start[unreported]) if unreported.any() else None
     return SyntheticScan(cloud, caster.geometry.face_id[p], az[keep].astype(np.float32),
                          np.degrees(np.arccos(np.clip(cos_i, 0.0, 1.0))).astype(np.float32), rho.astype(np.float32),
                          (n_world @ T[:3, :3]).astype(np.float32), rays=len(d), hits=int(hit.sum()), empty=empty)
