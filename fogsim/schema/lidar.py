@@ -158,7 +158,7 @@ class LidarSensorSpec(Closed):
     fluctuation_sigma: number_in(0, 3) = FLUCTUATION_SIGMA
     # the STF authors' chamber-fitted noise level n and gain g (stf2020; None: not published for this sensor)
     stf_noise_level: number_in(0, 1, lo_open=True) | None = None
-    stf_gain: number_in(0, 10) | None = None
+    stf_gain: number_in(0, 10, lo_open=True) | None = None
     mount: Mount = Mount()
     sources: dict[str, Text] | None = None  # where each parameter's value comes from (key → source)
 
@@ -213,7 +213,7 @@ class LidarCalibration(Closed):
     intensity_reference_range_m: number_in(0, 1e4, lo_open=True) | None = None
     retro_reflectivity_max: number_in(1, 1e6) | None = None
     stf_noise_level: number_in(0, 1, lo_open=True) | None = None
-    stf_gain: number_in(0, 10) | None = None
+    stf_gain: number_in(0, 10, lo_open=True) | None = None
 
     @model_validator(mode="after")
     def _sourced(self):
