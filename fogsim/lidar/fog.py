@@ -207,7 +207,7 @@ class LidarFogger:
         if empty_rays is not None and not isinstance(empty_rays, EmptyRays):
             empty_rays = EmptyRays(empty_rays)
         self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
-        self._laser = None  # each point's laser (a sensor with vertical offsets: a fog echo on the laser's line)
+        self._laser = None  # each point's laser, found when first needed (a fog echo on the laser's line)
         #: the scan's no-return rows (nearer than the sensor's minimum range: fogsim.lidar.rays.no_returns)
         self.blank = no_returns(scan, self.sensor) if (r < self.sensor.min_range_m).any() else None
         self.blank_mask = None
@@ -318,13 +318,16 @@ class LidarFogger:
             reported = np.ones(n, bool)
         elif blank is not None:
             reported = reported | self.blank_mask  # a no-return row stays a row: clutter or as it was
-        idx = np.flatnonzero(reported)
-        pick = slice(None) if len(idx) == n else idx  # every point reported: views, no gathers
+        every = bool(reported.all())  # every row reported (the common case): views, no gathers
+        idx = None if every else np.flatnonzero(reported)
+        pick = slice(None) if every else idx
         rh = reported_hard[pick]
         t2i, ri, zi = t2[pick], r[pick], z[pick]
         norm_out, raw_out = self.scale.from_linear(self.linear[pick] * t2i)
         kept = rh & (self.normalised[pick] - norm_out < self.spec.kept_tolerance)
-        oc = np.where(rh, np.where(kept, KEPT, ATTENUATED), CLUTTER).astype(np.int8)
+        oc = np.full(len(rh), CLUTTER, np.int8)
+        oc[rh] = ATTENUATED
+        oc[kept] = KEPT
         stay = None
         if blank is not None:  # no-return rows that did not become the fog echo's clutter stay as they were
             stay = self.blank_mask[pick] if clutter is None else self.blank_mask[pick] & ~clutter[pick]
@@ -333,21 +336,26 @@ class LidarFogger:
         if gone is not None and gone.any():
             oc[gone] = LOST  # (every row is picked)
             placed.append((np.flatnonzero(gone), np.zeros((int(gone.sum()), 3))))
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # σ₁·√(1/q_h² − 1/q0²)
-            inv_t2 = 1.0 / t2i
-            gain = np.sqrt(np.maximum(inv_t2 * inv_t2 - 1.0, 0.0))
-            sigma = (s.range_noise_at_threshold_m * np.exp(-log_clear[pick])) * gain
-        new_r = np.where(kept, ri, np.maximum(ri + sigma * zi, MIN_REPORTED_M))
+        with np.errstate(over="ignore", invalid="ignore"):  # σ₁·√(1/q_h² − 1/q0²) = σ₁/q0·√(e^(4β₉₀₅R) − 1)
+            sigma = np.expm1(-2.0 * nb[pick])
+            np.sqrt(sigma, out=sigma)
+            sigma *= np.exp(-log_clear[pick])
+            sigma *= s.range_noise_at_threshold_m
+            sigma *= zi
+            sigma += ri
+            np.maximum(sigma, MIN_REPORTED_M, out=sigma)
+        new_r = sigma  # a kept point's range as it was (bit for bit)
+        np.copyto(new_r, ri, where=kept)
         if stay is not None:
             new_r[stay] = ri[stay]
         if clutter is not None and not rh.all():
             c = np.flatnonzero(oc == CLUTTER)
-            ic = idx[c]
+            ic = c if every else idx[c]
             qcc = np.exp(log_qc[ic]) if scalar else qc[ic]
             rfc, wfc, qfc = (rf, wf, qf) if scalar else (rf[ic], wf[ic], qf[ic])
             limit = ri[c] if blank is None else np.where(self.blank_mask[ic], np.inf, ri[c])
             new_r[c] = self._echo_range(rfc, wfc, qcc, zi[c], limit)
-            norm_out[c], raw_out[c] = self._echo_intensity(qfc, rfc, c.shape)
+            norm_out[c], raw_out[c] = self._echo_intensity(qfc, rfc)  # (one value for one β)
             on_ray = np.zeros(len(c), bool) if blank is None else self.blank_mask[ic]
             if blank is not None:  # a no-return row's clutter point: on its ray, not along its (void) position
                 where = np.searchsorted(blank.rows, ic[on_ray])
@@ -365,27 +373,32 @@ class LidarFogger:
 
     def _on_laser_line(self, rows, r):
         """Points at range ``r`` from their laser along the laser's line through input points ``rows`` (a sensor
-        with vertical offsets: the laser k of each point — its ring, else
-        :func:`~fogsim.lidar.points.nearest_offset_beams` — found once, when a fog echo first needs it). With
-        o = h_k·(−sin θ_k·x/ρ, −sin θ_k·y/ρ, cos θ_k) ⊥ the line and the point t = √(R² − h_k²) along it from o:
-        q = o + (p − o)·r/t, i.e. x, y scaled by f − h_k sin θ_k (1 − f)/ρ and z = z·f + h_k cos θ_k (1 − f),
+        with vertical offsets). A point's laser k — its ring, else the one whose line passes nearest
+        (:func:`~fogsim.lidar.points.nearest_offset_beams`) — is found once, when a fog echo first needs it. Its
+        origin o = h_k·(−sin θ_k·x/ρ, −sin θ_k·y/ρ, cos θ_k) is ⊥ the line and the point lies t = √(R² − h_k²)
+        along it: q = o + (p − o)·r/t, i.e. x, y scaled by f − h_k sin θ_k (1 − f)/ρ and z = z·f + h_k cos θ_k (1 − f),
         f = r/t."""
-        if self._laser is None:  # per point, found when first needed: (h_k sin θ_k / ρ, h_k cos θ_k, t)
-            self._laser = np.full((len(self.scan), 3), np.nan)
-        unknown = rows[np.isnan(self._laser[rows, 0])]
-        if len(unknown):
-            s, ring = self.sensor, self.scan.ring
-            k = ring[unknown] if ring is not None and int(ring.max()) < s.beams else \
-                nearest_offset_beams(self.scan.xyz[unknown], s.inclinations_rad, np.asarray(s.vertical_offsets_m))
-            h, theta = np.asarray(s.vertical_offsets_m, np.float64)[k], s.inclinations_rad[k]
-            p, rr = self._xyz[unknown], self.range_m[unknown]
-            self._laser[unknown] = np.stack([h * np.sin(theta) / np.maximum(np.hypot(p[:, 0], p[:, 1]), 1e-9),
-                                             h * np.cos(theta), np.sqrt(np.maximum(rr * rr - h * h, 1e-12))], 1)
-        a, hc, t = self._laser[rows].T
-        p = self._xyz[rows]
-        f = r / t
-        g = f - a * (1.0 - f)
-        return np.stack([p[:, 0] * g, p[:, 1] * g, p[:, 2] * f + hc * (1.0 - f)], 1)
+        s = self.sensor
+        if self._laser is None:  # per point, −1 until found; per laser h sin θ, h cos θ, h²
+            h, theta = np.asarray(s.vertical_offsets_m, np.float64), s.inclinations_rad
+            self._laser = np.full(len(self.scan), -1, np.int16), (h * np.sin(theta), h * np.cos(theta), h * h)
+        laser, (hs, hc, hh) = self._laser
+        k = laser[rows]
+        unknown = k < 0
+        if unknown.any():
+            u, ring = rows[unknown], self.scan.ring
+            k[unknown] = ring[u] if ring is not None and int(ring.max()) < s.beams else \
+                nearest_offset_beams(self.scan.xyz[u], s.inclinations_rad, np.asarray(s.vertical_offsets_m))
+            laser[u] = k[unknown]
+        p, rr = self._xyz[rows], self.range_m[rows]
+        f = r / np.sqrt(np.maximum(rr * rr - hh[k], 1e-12))
+        rest = 1.0 - f
+        g = f - hs[k] * rest / np.maximum(np.hypot(p[:, 0], p[:, 1]), 1e-9)
+        p[:, 0] *= g
+        p[:, 1] *= g
+        p[:, 2] *= f
+        p[:, 2] += hc[k] * rest
+        return p
 
     def _echo_range(self, rf, wf, qc, z, limit):
         """Where a detected fog echo is reported: r_f + σ_c·z, σ_c² = σ₀² + (σ₁·(w_f/(L/2))/q_c)², kept
@@ -395,12 +408,13 @@ class LidarFogger:
         sigma_c = np.sqrt(s.range_noise_m ** 2 + spread ** 2)
         return np.maximum(np.clip(rf + sigma_c * z, s.min_range_m, limit), MIN_REPORTED_M)
 
-    def _echo_intensity(self, qf, rf, shape):
+    def _echo_intensity(self, qf, rf):
         """The intensity the sensor reports for the fog echo (its calibrated value: the echo's apparent
-        reflectivity q_f·ρ_ref·(r_f/R_max)²/ξ(r_f), without the fluctuation) in the scan's scale."""
+        reflectivity q_f·ρ_ref·(r_f/R_max)²/ξ(r_f), without the fluctuation) in the scan's scale: (normalised,
+        raw), shaped as ``qf`` and ``rf`` broadcast."""
         s = self.sensor
         rho_app = qf * s.reference_reflectivity * (rf / s.max_range_m) ** 2 / s.overlap(rf)
-        return self.scale.from_linear(np.broadcast_to(s.intensity_of(rho_app, rf), shape))
+        return self.scale.from_linear(s.intensity_of(rho_app, rf))
 
     def _empty_ray_clutter(self, beta, rng, echo):
         """The clutter points of the empty rays (:attr:`empty`) at ``beta`` (a per-point β: its mean), or
@@ -423,7 +437,7 @@ class LidarFogger:
         rows = np.flatnonzero(log_qc >= 0.0)
         qc = np.exp(log_qc[rows])
         rr = self._echo_range(e.range_m, e.width_m, qc, z[rows], self.empty.range_m[rows])
-        norm, raw = self._echo_intensity(e.signal, e.range_m, rows.shape)
+        norm, raw = (np.broadcast_to(a, rows.shape) for a in self._echo_intensity(e.signal, e.range_m))
         xyz = self.empty.directions[rows] * rr[:, None]
         if self.empty.origins is not None:  # each ray from its laser
             xyz += self.empty.origins[rows]
@@ -436,20 +450,24 @@ class LidarFogger:
         (``placed``: [(positions among them, xyz)] of rows placed otherwise: a no-return row's clutter on its
         ray, a lost firing's placeholder at 0); then the empty rays' clutter points (``extra``: their rows and
         (xyz, normalised, raw)), index −1; then the points the model adds (``added``: (xyz, normalised, raw,
-        the input rows whose ring and return index they carry)), index −1."""
+        the input rows whose ring and return index they carry)), index −1. ``new_r`` is overwritten."""
         scan = self.scan
-        xyz = self._xyz.copy() if isinstance(pick, slice) else np.take(self._xyz, idx, axis=0)
-        factor = new_r / self.range_m[pick]
-        for k in range(3):  # column by column: numpy broadcasts over a last axis of 3 slowly
-            xyz[:, k] *= factor
+        every = isinstance(pick, slice)  # every row reported: no gathers
+        base = scan.xyz if every else np.take(scan.xyz, idx, axis=0)
+        factor = np.divide(new_r, self.range_m[pick], out=new_r)  # (new_r is the caller's scratch)
+        xyz = np.empty(base.shape, np.float32)
+        for k in range(3):  # column by column (numpy broadcasts over a last axis of 3 slowly), in float64
+            np.multiply(base[:, k], factor, out=xyz[:, k])
         for where, at in placed or ():
             xyz[where] = at
         moved = (oc != KEPT) & (oc != NO_RETURN)
-        inten = np.where(moved, norm_out, scan.intensity[pick])
-        raw = np.where(moved, raw_out, scan.raw_intensity[pick])
+        inten, raw = (scan.intensity.copy(), scan.raw_intensity.copy()) if every else \
+            (scan.intensity[idx], scan.raw_intensity[idx])
+        np.copyto(inten, norm_out, where=moved)
+        np.copyto(raw, raw_out, where=moved)
 
         def take(a):
-            return None if a is None else a[idx]
+            return None if a is None else a.copy() if every else a[idx]
         ring, ret, index = take(scan.ring), take(scan.return_index), take(scan.index)
         rows = np.zeros(0, np.int64) if extra is None else extra[0]
         if len(rows):
@@ -470,10 +488,14 @@ class LidarFogger:
             index = np.concatenate([index, np.full(n_added, EMPTY_RAY_INDEX, np.int64)])
             ring = None if ring is None else np.concatenate([ring, scan.ring[src]])
             ret = None if ret is None else np.concatenate([ret, scan.return_index[src]])
-        cloud = PointCloud(xyz.astype(np.float32), inten.astype(np.float32), raw.astype(np.float32), scan.scale,
-                           index, scan.source, ring, ret)
-        out_index = np.full(len(outcome), -1, np.int64)  # (a lost firing's placeholder row: its row)
-        out_index[idx] = np.arange(len(idx))
+        f32 = {"dtype": np.float32, "copy": False}
+        cloud = PointCloud(xyz.astype(**f32), inten.astype(**f32), raw.astype(**f32), scan.scale, index, scan.source,
+                           ring, ret)
+        if every:
+            out_index = np.arange(len(outcome), dtype=np.int64)
+        else:
+            out_index = np.full(len(outcome), -1, np.int64)  # (a lost firing's placeholder row: its row)
+            out_index[idx] = np.arange(len(idx))
         blank = 0 if self.blank is None else len(self.blank)
         return FoggedScan(cloud, outcome, out_index, parameters, 0 if self.empty is None else len(self.empty),
                           int(len(rows)), n_added, blank, blank - int((outcome == NO_RETURN).sum()))
