@@ -232,14 +232,14 @@ def check_points_on_depth(out: Path, frame: str, caster=None, min_points: int = 
         centre = c2w[:3, 3]
         to_point = world - centre
         dist = np.linalg.norm(to_point, axis=1)
-        first, prim = caster.cast(np.broadcast_to(centre, world.shape), to_point / dist[:, None])
+        first, prim, _ = caster.cast(np.broadcast_to(centre, world.shape), to_point / dist[:, None])
         inside &= first >= dist - 0.005  # nothing hides the point from the camera
         normal = caster.normals(np.maximum(prim, 0))
         for du, dv in ((0, 0), (1, 0), (0, 1), (1, 1)):  # the pixel centres the depth is interpolated from
             pu, pv = np.floor(u) + du, np.floor(v) + dv
             d = np.stack([(pu - K["cx"]) / K["fx"], (pv - K["cy"]) / K["fy"], np.ones_like(pu)], 1) @ c2w[:3, :3].T
             d /= np.linalg.norm(d, axis=1)[:, None]
-            t, _ = caster.cast(np.broadcast_to(centre, d.shape), d)
+            t, _, _ = caster.cast(np.broadcast_to(centre, d.shape), d)
             q = centre + d * np.where(np.isfinite(t), t, 1e9)[:, None]
             inside &= np.abs(np.einsum("ij,ij->i", q - world, normal)) < 1e-3  # on the point's plane
     ui, vi = np.floor(u[inside]).astype(int), np.floor(v[inside]).astype(int)
