@@ -437,3 +437,14 @@ def test_a_script_that_used_tqdm_exits_cleanly(kind):
     res = run(runner(kind)(SCRIPTS / "tqdm_exit.py"))
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]  # Blender 3.4: -11 without the fix
     assert "written above the bar" in res.stdout + res.stderr
+
+
+def test_no_api_blender_5_deprecates(tmp_path):
+    """Materials, the fog's material and an HDRI world are made without what Blender 5.0 deprecates
+    (``use_nodes``, removed in 6.0): a render with every warning shown prints none of them (issue 47)."""
+    env = dict(os.environ, PYTHONWARNINGS="always::DeprecationWarning")
+    res = run(runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(tmp_path / "d"), "--frames", "1",
+                            "--resolution", "96x64", "--samples", "1", "--levels", "clear,0.06", "--preset", "hdri",
+                            "--fog", "volumetric", "--quiet"), env=env)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "expected to be removed in Blender 6.0" not in res.stderr, res.stderr[-2000:]

@@ -35,7 +35,8 @@ def test_a_fogged_kitti_set_exports_as_nuscenes_samples(tmp_path, capsys):
     before = tree_digest(ds)
     nusc = tmp_path / "nusc"
     assert main(["export", "nuscenes", str(ds), "--out", str(nusc)]) == 0
-    assert "LIDAR_TOP" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "\nexported LIDAR_TOP (" in said and "RADAR" not in said  # the channels written, no other
     assert tree_digest(ds) == before
     incl = np.radians(np.asarray(LidarSensor.preset("hdl64e").inclinations_deg))
     h = np.asarray(LidarSensor.preset("hdl64e").vertical_offsets_m)

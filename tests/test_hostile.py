@@ -153,7 +153,7 @@ CASES = [
     Case("levels-unknown-preset", _flags("--levels", "heavy"), 2, ("heavy", "unknown fog preset")),
     Case("levels-duplicate", _flags("--levels", "0.1,0.1"), 2, ("duplicate",)),
     Case("levels-and-visibility", _flags("--visibility", "50"), 2, ("--levels", "--visibility")),
-    Case("visibility-zero", lambda t: fog(good_folder(t), t / "out")[:-4] + ["--visibility", "0", "--out",
+    Case("visibility-zero", lambda t: fog(good_folder(t), t / "out")[:-5] + ["--visibility", "0", "--out",
                                                                               str(t / "out")], 2, ("visibility",)),
     Case("airlight-out-of-range", _flags("--airlight", "300"), 2, ("--airlight",)),
     Case("airlight-two-values", _flags("--airlight", "1,2"), 2, ("--airlight",)),

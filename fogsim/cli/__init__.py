@@ -17,6 +17,7 @@ from fogsim.errors import run_command
 
 def build_parser() -> argparse.ArgumentParser:
     from fogsim.cli import bench, demo, depth, export, fit_fog, fog, ila, lidar_fit, render, schema, study
+    from fogsim.cli.help import use_everywhere
 
     parser = argparse.ArgumentParser(prog="fogsim", description="Labeled images in fog: render street scenes, "
                                      "fog rendered and real datasets, train and evaluate detectors per fog level.")
@@ -33,7 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
     lidar_fit.add_parsers(sub)
     schema.add_parsers(sub)
     export.add_parsers(sub)
-    return parser
+    return use_everywhere(parser)
 
 
 def positional_names(parser: argparse.ArgumentParser) -> frozenset[str]:

@@ -33,10 +33,12 @@ OTHER_INPUTS_FLAGS = ("depth", "depth_dir", "depth_scale", "intrinsics", "hfov",
 
 def add_inputs(src) -> None:
     """The LiDAR-bearing inputs in the mutually exclusive input group."""
-    src.add_argument("--kitti", help="KITTI object-detection root (training/{image_2,velodyne,calib,label_2}, "
-                                     "ImageSets/): camera fog with depth from the projected scan")
-    src.add_argument("--stf", help="Seeing Through Fog root (cam_stereo_left_lut/, lidar_hdl64_strongest|last/, "
-                                   "gt_labels/cam_left_labels_TMP/); needs --stf-calib")
+    src.add_argument("--kitti", metavar="ROOT",
+                     help="KITTI object-detection root (training/{image_2,velodyne,calib,label_2}, "
+                          "ImageSets/): camera fog with depth from the projected scan")
+    src.add_argument("--stf", metavar="ROOT",
+                     help="Seeing Through Fog root (cam_stereo_left_lut/, lidar_hdl64_strongest|last/, "
+                          "gt_labels/cam_left_labels_TMP/); needs --stf-calib")
     src.add_argument("--points", nargs="+", metavar="FILE_OR_DIR",
                      help="LiDAR scans or radar sweeps without a dataset: files, or folders searched for "
                           "--point-format's files; writes OUT/<level>/<name>.<ext> + outcomes + a sidecar JSON per "
@@ -59,26 +61,18 @@ def add_options(fog: argparse.ArgumentParser) -> None:
                         "in the source's format, + per-point outcomes), count each object's points per level, "
                         "and (KITTI, STF) each level as a KITTI tree OUT/kitti/<level>/")
     g.add_argument("--lidar-model", choices=LIDAR_FOG_MODELS, default=None,
-                   help="soft-target (attenuation + the fog's own echo + threshold; default), attenuation "
-                        "(attenuation + threshold only), hahner2021 (Hahner et al. 2021's released code as it fogs "
-                        "datasets) or stf2020 (the Seeing Through Fog authors' chamber-fitted rule; needs the "
-                        "sensor's noise level and gain: hdl64e, hdl64-s3d, or a calibration file)")
+                   help="soft-target (fogsim's, default), attenuation (no fog echo), hahner2021 (Hahner et al.'s "
+                        "released code) or stf2020 (the STF authors' chamber-fitted rule: hdl64e, hdl64-s3d)")
     g.add_argument("--hahner-variant", choices=HAHNER_VARIANTS, default=None,
-                   help="--lidar-model hahner2021: batch (the released batch path, backscatter frozen at α 0.06; "
-                        "default) or viewer (the backscatter at each β, as its viewer)")
+                   help="hahner2021: its batch path (default) or its viewer's backscatter")
     g.add_argument("--stf-beta-field", choices=STF_BETA_FIELDS, default=None,
-                   help="--lidar-model stf2020: homogeneous (one β, the camera's; default) or random (the STF "
-                        "authors' random β field added to it, a new one per scan)")
+                   help="stf2020: one β (default) or the STF authors' random β field")
     g.add_argument("--lidar-sensor", "--sensor", dest="lidar_sensor", metavar="NAME|FILE",
-                   help="a bundled sensor (hdl64e, hdl64-s3d, hdl32e, waymo-top) or a custom sensor JSON "
-                        "(default: the format's usual one: KITTI hdl64e, STF hdl64-s3d, nuScenes hdl32e, Waymo "
-                        "waymo-top with the frame's beams); with --point-format nuscenes-radar a radar (ars408-lr, "
-                        "srr-corner, or a JSON; default ars408-lr)")
+                   help="hdl64e, hdl64-s3d, hdl32e, waymo-top or a sensor JSON (default: the format's usual "
+                        "one); radar sweeps: ars408-lr (default), srr-corner or a JSON")
     g.add_argument("--lidar-calibration", default=None, metavar="datasheet|hahner-constants|FILE",
-                   help="the sensor's parameters: datasheet (the preset's values, each with its source; default), "
-                        "hahner-constants (Hahner et al. 2021's pulse and overlap in fogsim's model: 20 ns pulse, "
-                        "full overlap from 1 m; 'reference' is its deprecated name) or a calibration JSON (any of "
-                        "the sensor's radiometric keys, with 'name' and 'sources')")
+                   help="datasheet (default), hahner-constants (Hahner et al.'s pulse and overlap in fogsim's "
+                        "model) or a calibration JSON (its keys with 'name' and 'sources')")
     g.add_argument("--lidar-extinction-ratio", type=float, default=None, metavar="K",
                    help="β at 905 nm / the camera's β (default 1: fog droplets much larger than both wavelengths)")
     g.add_argument("--lidar-min-points", type=int, default=None, metavar="N",
@@ -367,12 +361,22 @@ def cmd_points(args) -> int:
     recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
     job = PointsJob(levels, args.out, FogSettings(lidar=spec), sensor, fmt, args.point_scale, args.seed, recorded)
     shard = parse_shard(args.shard)
-    summary = run(select_shard(items, shard), job, args.workers, not args.no_resume, not args.quiet,
+    mine = select_shard(items, shard)
+    summary = run(mine, job, args.workers, not args.no_resume, not args.quiet,
                   package_versions() | {"samples": len(items)})
     for source, error in summary.failed:
         print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
+    _print_totals(job, mine, "points", args.quiet)
     print(summary.line(job))
     return EXIT_FAILED if summary.failed else EXIT_OK
+
+
+def _print_totals(job, items, what: str, quiet: bool) -> None:
+    """Each level's outcome totals (:mod:`fogsim.fog.outcome_totals`), unless quiet."""
+    from fogsim.fog.outcome_totals import outcome_totals, totals_lines
+
+    if not quiet:
+        print("\n".join(totals_lines(outcome_totals(job, items), what, job.unit)))
 
 
 def cmd_radar_points(args) -> int:
@@ -400,10 +404,12 @@ def cmd_radar_points(args) -> int:
     items = point_files(args.points, fmt)
     recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
     job = RadarPointsJob(levels, args.out, FogSettings(radar=spec), sensor, fmt, recorded)
-    summary = run(select_shard(items, parse_shard(args.shard)), job, args.workers, not args.no_resume,
-                  not args.quiet, package_versions() | {"samples": len(items)})
+    mine = select_shard(items, parse_shard(args.shard))
+    summary = run(mine, job, args.workers, not args.no_resume, not args.quiet,
+                  package_versions() | {"samples": len(items)})
     for source, error in summary.failed:
         print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
+    _print_totals(job, mine, "detections", args.quiet)
     print(summary.line(job))
     return EXIT_FAILED if summary.failed else EXIT_OK
 

@@ -16,6 +16,14 @@ On a fogged real dataset (fogsim fog --cityscapes/--waymo writes one), with a si
 Post-process fog vs path-traced fog (three renders of the same scenes; docs/study.md):
     fogsim study --out study --dataset ds --scatter-dataset ds_scatter --eval-dataset ds_volumetric
 
+LiDAR and LiDAR + radar (bird's-eye-view rasters, oriented-box YOLO per level + mixed; docs/study.md):
+    fogsim study --sensor lidar+radar --render 12 --resolution 320x213 --epochs 1 --mixed-epochs 1 \\
+        --imgsz 160 --out S                               (renders with --lidar hdl64e --radar ars408-lr)
+    fogsim fog --kitti ROOT --lidar --out KFOG && fogsim study --sensor lidar --dataset KFOG --out S
+    fogsim study --sensor lidar --dataset ds --fog-models soft-target,attenuation --out S
+    fogsim study --sensor lidar+radar --dataset ds --model yolo11m-obb.yaml --imgsz 640 --epochs 100 \\
+        --out S --dry-run                                 (the plan, checked, nothing trained)
+
 Resumable: finished models and prediction files are skipped, an interrupted training resumes
 from its last.pt. Needs the 'detect' extra. Exit 0 done, 1 failed, 2 bad input.
 """
@@ -39,6 +47,10 @@ def add_parsers(sub) -> None:
                        "report (needs the 'detect' extra)", description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, help="study folder (resumed when it exists)")
+    p.add_argument("--sensor", choices=SENSORS, default="camera",
+                   help="camera (2D boxes on the images), lidar (BEV rasters of each level's scans) or lidar+radar "
+                        "(lidar's models plus fused ones with the radar's RCS and radial velocity); the BEV study "
+                        "writes under OUT/bev and sets a camera study of the same OUT beside its tables")
     src = p.add_argument_group("dataset")
     src.add_argument("--dataset", help="an existing fogsim dataset, rendered or fogged real data (default: "
                                        "OUT/dataset); its classes come from its dataset.json")
@@ -58,10 +70,29 @@ def add_parsers(sub) -> None:
     src.add_argument("--resolution", default="320x213", help="render resolution WxH (with --render)")
     src.add_argument("--samples", type=int, help="Cycles samples (with --render; default: the preset's)")
     src.add_argument("--render-seed", type=int, help="dataset seed (with --render)")
+    src.add_argument("--lidar-sensor", default="hdl64e", help="the LiDAR a --render with --sensor lidar or "
+                     "lidar+radar sweeps: a bundled sensor or a sensor .json (default hdl64e)")
+    src.add_argument("--radar-sensor", default="ars408-lr", help="the radar a --render with --sensor lidar+radar "
+                     "sweeps (default ars408-lr)")
+    bev = p.add_argument_group("LiDAR and radar (--sensor lidar, lidar+radar)")
+    bev.add_argument("--bev-grid", default="0:50,-25:25", metavar="X0:X1,Y0:Y1",
+                     help="the BEV grid in the LiDAR frame, metres (x forward, y left; default 0:50,-25:25); its "
+                          "cell is the longer side / --imgsz, so the raster is the network's input")
+    bev.add_argument("--fog-models", metavar="MODEL,MODEL,…",
+                     help="also fog the clear scans again with each LiDAR fog model (the LiDAR fog spec's model, as "
+                          "fog --lidar-model: soft-target, attenuation, …), train a mixed model on each and evaluate "
+                          "every one on every model's levels")
+    bev.add_argument("--difficulty", choices=("auto", "all", "easy", "moderate", "hard"), default="auto",
+                     help="KITTI's difficulty counted in the scores (objects above it are ignored; auto: moderate "
+                          "on real data, all on renders, whose small images fail KITTI's pixel heights)")
+    bev.add_argument("--prepare-only", action="store_true", help="only write the BEV rasters, labels and ground "
+                     "truth (run once before an array job of --shard tasks)")
+    bev.add_argument("--dry-run", action="store_true", help="check the dataset and the model and print the plan "
+                     "(models, epochs, rasters per shard); train nothing")
     tr = p.add_argument_group("training (Ultralytics; --report-only reads them from OUT/study.json)")
-    tr.add_argument("--model", default=d.model, help="model YAML, trained from scratch (e.g. yolo12m.yaml, "
-                    "the paper's), or an existing weights file (a pickle: Ultralytics loads it, so only "
-                    "weights you trust)")
+    tr.add_argument("--model", help=f"model YAML, trained from scratch (default {d.model}; yolo12m.yaml is the "
+                    "paper's; the BEV study needs an oriented-box one, default yolov8n-obb.yaml), or an existing "
+                    "weights file (a pickle: Ultralytics loads it, so only weights you trust)")
     tr.add_argument("--epochs", type=int, default=d.epochs)
     tr.add_argument("--mixed-epochs", type=int, help="epochs of the mixed model (default: --epochs, i.e. "
                     "the compute of all level models together)")
@@ -104,6 +135,25 @@ def add_parsers(sub) -> None:
 
 #: bounds on the training flags that become allocations (Ultralytics holds batch × 3 × imgsz² floats)
 MAX_IMGSZ, MAX_BATCH = 8192, 4096
+SENSORS = ("camera", "lidar", "lidar+radar")
+#: flags of one kind of study only: (dest, flag, default)
+CAMERA_ONLY = (("sim_dataset", "--sim-dataset", None), ("eval_dataset", "--eval-dataset", None),
+               ("scatter_dataset", "--scatter-dataset", None), ("augment", "--augment", None),
+               ("class_map", "--class-map", None), ("visible_only", "--visible-only", False),
+               ("unknown_distance", "--unknown-distance", "ignore"), ("max_distance", "--max-distance", 100.0))
+BEV_ONLY = (("fog_models", "--fog-models", None), ("bev_grid", "--bev-grid", "0:50,-25:25"),
+            ("difficulty", "--difficulty", "auto"), ("prepare_only", "--prepare-only", False),
+            ("dry_run", "--dry-run", False), ("lidar_sensor", "--lidar-sensor", "hdl64e"),
+            ("radar_sensor", "--radar-sensor", "ars408-lr"))
+
+
+def check_sensor_flags(args) -> None:
+    """A flag of the other kind of study is a usage error, not silently unused."""
+    other = BEV_ONLY if args.sensor == "camera" else CAMERA_ONLY
+    given = [flag for dest, flag, default in other if getattr(args, dest) != default]
+    if given:
+        kind = "--sensor lidar or lidar+radar" if args.sensor == "camera" else "the camera study (--sensor camera)"
+        raise ValueError(f"{', '.join(given)}: only for {kind}")
 
 
 def check_args(args) -> None:
@@ -136,19 +186,45 @@ def check_args(args) -> None:
                          "render first (fogsim render --shard), then train with --dataset")
 
 
-def render(dataset: Path, args) -> None:
-    """Render (or complete) the dataset in a process of its own: bpy keeps its memory until exit."""
+def render_command(dataset: Path, args) -> list[str]:
+    """``fogsim render`` for --render: the study's sensors too (--lidar, --radar) for a BEV study."""
     cmd = [sys.executable, "-m", "fogsim", "render", "--out", str(dataset), "--preset",
            args.preset, "--frames", str(args.render), "--resolution", args.resolution]
+    if args.sensor != "camera":
+        cmd += ["--lidar", args.lidar_sensor]
+    if args.sensor == "lidar+radar":
+        cmd += ["--radar", args.radar_sensor]
     if args.samples:
         cmd += ["--samples", str(args.samples)]
     if args.render_seed is not None:
         cmd += ["--seed", str(args.render_seed)]
     if args.quiet:
         cmd.append("--quiet")
-    code = subprocess.run(cmd).returncode
+    return cmd
+
+
+def render(dataset: Path, args) -> None:
+    """Render (or complete) the dataset in a process of its own: bpy keeps its memory until exit."""
+    code = subprocess.run(render_command(dataset, args)).returncode
     if code:
         raise SystemExit(code)
+
+
+def cmd_sensor_study(args, dataset: Path) -> int:
+    """``--sensor lidar|lidar+radar``: checks, the render (printed with --dry-run), then the BEV study."""
+    from fogsim.cli.study_bev import bev_setup, cmd_bev
+
+    setup = bev_setup(args)
+    check_args(args)
+    if args.render and args.dry_run:
+        print("render: fogsim " + " ".join(render_command(dataset, args)[3:]))
+        if not (dataset / "dataset.json").is_file():
+            print("then the BEV study on its levels; the dataset does not exist yet, so its plan cannot be checked: "
+                  "dry-run again with --dataset after the render")
+            return EXIT_OK
+    elif args.render:
+        render(dataset, args)
+    return cmd_bev(args, dataset, setup)
 
 
 def cmd_study(args) -> int:
@@ -161,11 +237,14 @@ def cmd_study(args) -> int:
     inputs = {"--dataset": args.dataset, "--sim-dataset": args.sim_dataset, "--eval-dataset": args.eval_dataset,
               "--scatter-dataset": args.scatter_dataset}
     check_output(args.out, inputs, allow_inside_out=tuple(inputs))  # read through a view
+    check_sensor_flags(args)
     out = Path(args.out)
     dataset = Path(args.dataset) if args.dataset else out / "dataset"
-    cfg = TrainConfig(model=args.model, epochs=args.epochs, mixed_epochs=args.mixed_epochs, imgsz=args.imgsz,
-                      batch=args.batch, nbs=args.nbs, device=args.device, workers=args.workers, seed=args.seed,
-                      patience=args.patience, cache=args.cache, plots=not args.no_plots)
+    if args.sensor != "camera":
+        return cmd_sensor_study(args, dataset)
+    cfg = TrainConfig(model=args.model or TrainConfig().model, epochs=args.epochs, mixed_epochs=args.mixed_epochs,
+                      imgsz=args.imgsz, batch=args.batch, nbs=args.nbs, device=args.device, workers=args.workers,
+                      seed=args.seed, patience=args.patience, cache=args.cache, plots=not args.no_plots)
     check_args(args)
     augment = parse_augment(args.augment) if args.augment else None
     shard = parse_shard(args.shard)

@@ -159,7 +159,7 @@ def match(gt: dict, dets: list[dict], iou_thr: float = 0.5, max_dets: int = 100)
     return records, gt_matched
 
 
-def _curves(records, n_gt: dict):
+def pr_curves(records, n_gt: dict):
     """Per category: scores (descending), cumulative TP and FP, number of non-ignored GT."""
     out = {}
     for cat, n in n_gt.items():
@@ -245,7 +245,7 @@ def evaluate(gt: dict, dets: list[dict], max_distance_m: float = 100.0, conf: fl
     records, matched = match(gt, dets)
     real = [a for a in gt["annotations"] if not a["iscrowd"]]
     n_gt = {c["id"]: sum(a["category_id"] == c["id"] for a in real) for c in gt["categories"]}
-    curves = _curves(records, n_gt)
+    curves = pr_curves(records, n_gt)
     P, R, at = ultralytics_pr(curves)
     n = max(len(real), 1)
     by_bin = {}

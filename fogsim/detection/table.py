@@ -41,21 +41,25 @@ def cross_density(gt_by_level: dict[str, dict], predictions: dict[str, dict[str,
             for model, by_level in predictions.items()}
 
 
-def _grid(table: dict, metric: str) -> tuple[list[str], list[str], np.ndarray]:
+def _grid(table: dict, metric: str, key: str | None = None) -> tuple[list[str], list[str], np.ndarray]:
     models = list(table)
     levels = list(dict.fromkeys(lv for m in models for lv in table[m]))
-    key = METRICS.get(metric, metric)
+    key = key or METRICS.get(metric, metric)
     grid = np.array([[table[m].get(lv, {}).get(key, np.nan) for lv in levels] for m in models], float)
     return models, levels, grid
 
 
-def markdown(table: dict) -> str:
-    """The paper's layout: one block per metric, rows = trained model, columns = validation level."""
+def markdown(table: dict, metrics: dict[str, str] | None = None, notes: dict | None = None) -> str:
+    """The paper's layout: one block per metric, rows = trained model, columns = validation level
+    (``metrics``: {name shown: cell key}, default :data:`METRICS`; ``notes``: a line per metric, default
+    :data:`METRIC_NOTES`)."""
     lines = []
-    for metric in METRICS:
-        models, levels, g = _grid(table, metric)
-        best = np.nanmax(g, axis=0) if g.size else []
-        note = f"{METRIC_NOTES[metric]}; " if metric in METRIC_NOTES else ""
+    notes = METRIC_NOTES if notes is None else notes
+    for metric, key in (METRICS if metrics is None else metrics).items():
+        models, levels, g = _grid(table, metric, key)
+        with np.errstate(all="ignore"):
+            best = np.nanmax(np.where(np.isfinite(g), g, -np.inf), axis=0) if g.size else []
+        note = f"{notes[metric]}; " if metric in notes else ""
         lines += [f"**{metric}** ({note}rows: trained on; columns: validated on)", "",
                   "| model | " + " | ".join(levels) + " |", "|---" * (len(levels) + 1) + "|"]
         for i, m in enumerate(models):
@@ -66,9 +70,10 @@ def markdown(table: dict) -> str:
     return "\n".join(lines)
 
 
-def heatmap(table: dict, metric: str, cell: int = 90, title: str | None = None) -> np.ndarray:
-    """RGB image of one metric: a cell per (row, column), value written in it, darker = higher."""
-    models, levels, g = _grid(table, metric)
+def heatmap(table: dict, metric: str, cell: int = 90, title: str | None = None, key: str | None = None) -> np.ndarray:
+    """RGB image of one metric (the cell key ``key``, default the metric's): a cell per (row, column), value
+    written in it, darker = higher."""
+    models, levels, g = _grid(table, metric, key)
     left = 16 + max([110] + [cv2.getTextSize(m, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)[0][0] for m in models])
     top = 40
     img = np.full((top + cell * len(models) + 10, max(360, left + cell * len(levels) + 10), 3), 255, np.uint8)

@@ -99,17 +99,22 @@ def resolve_device(device: str) -> str:
     return "0" if torch.cuda.is_available() else "cpu"
 
 
-def check_model(model: str, config_dir: str | Path) -> None:
+def check_model(model: str, config_dir: str | Path, task: str | None = None) -> None:
     """Refuse, before any training, a model that is neither a YAML Ultralytics knows nor an
-    existing weights file (a missing ``.pt`` name would be fetched from the hub)."""
+    existing weights file (a missing ``.pt`` name would be fetched from the hub), or whose task is not
+    ``task`` (e.g. ``obb``: oriented boxes) when given."""
     ultralytics = load_ultralytics(config_dir)
     if not (model.endswith((".yaml", ".yml")) or Path(model).is_file()):
         raise InputError(model, "--model must be a model YAML (yolov8n.yaml, yolo11n.yaml, yolo12m.yaml …) "
                                 "or an existing weights file: nothing can be downloaded")
     try:
-        ultralytics.YOLO(model)
+        built = ultralytics.YOLO(model)
     except Exception as exc:  # Ultralytics raises FileNotFoundError, KeyError … for bad YAMLs
         raise InputError(model, f"Ultralytics cannot build this model: {exc}") from None
+    if task is not None and built.task != task:
+        kind = {"obb": "an oriented-box"}.get(task, f"a {task}")
+        raise InputError(model, f"a {built.task} model; this study needs {kind} model "
+                                f"(task {task}: e.g. yolov8n-{task}.yaml, yolo11n-{task}.yaml)")
 
 
 # --- training view -------------------------------------------------------------------------------
@@ -146,7 +151,7 @@ def training_view(dataset: Path, view: Path, levels: list[str], classes=None,
                 base = view / model / part / lv
                 base.mkdir(parents=True, exist_ok=True)
                 for kind, folder in folders.items():
-                    _symlink(base / kind, folder(lv))
+                    replace_symlink(base / kind, folder(lv))
                 paths += [base / "images" / layout.image(lv, f).name for f in read_split(layout, lv, part)]
             atomic_write_bytes(view / model / f"{part}.txt", ("\n".join(map(str, paths)) + "\n").encode())
         data[model] = view / model / "data.yaml"
@@ -155,7 +160,7 @@ def training_view(dataset: Path, view: Path, levels: list[str], classes=None,
     return data
 
 
-def _symlink(link: Path, target: Path) -> None:
+def replace_symlink(link: Path, target: Path) -> None:
     """``link`` → ``target``, also when shards build the same view at the same time."""
     if link.is_symlink() and link.resolve() == target.resolve():
         return
@@ -167,14 +172,16 @@ def _symlink(link: Path, target: Path) -> None:
 
 # --- training ------------------------------------------------------------------------------------
 
-def train(name: str, data_file: Path, run: Path, cfg: TrainConfig, config_dir: Path, trainer=None) -> Path:
+def train(name: str, data_file: Path, run: Path, cfg: TrainConfig, config_dir: Path, trainer=None,
+          overrides: dict | None = None) -> Path:
     """Train (or resume, or skip when done) model ``name``; returns its ``best.pt``.
 
     ``run`` is the model's Ultralytics run folder (:meth:`fogsim.detection.layout.StudyLayout.run`:
     weights, results.csv, plots); its :data:`~fogsim.detection.layout.DONE_FILE`, written last,
     marks it trained. An interrupted run resumes from ``weights/last.pt`` (data, folder and device
     of this call, in case the study moved). ``trainer``: a custom Ultralytics trainer class
-    (``YOLO.train(trainer=…)``), e.g. :func:`fogsim.detection.augmented.fog_trainer`'s.
+    (``YOLO.train(trainer=…)``), e.g. :func:`fogsim.detection.augmented.fog_trainer`'s. ``overrides``: more
+    Ultralytics training arguments (the BEV study turns its colour augmentation off).
     """
     run = Path(run).resolve()
     best, last, done = run / "weights" / "best.pt", run / "weights" / "last.pt", run / DONE_FILE
@@ -197,7 +204,8 @@ def train(name: str, data_file: Path, run: Path, cfg: TrainConfig, config_dir: P
                 data=str(data_file), epochs=cfg.epochs_for(name), imgsz=cfg.imgsz, batch=cfg.batch,
                 nbs=cfg.nbs or cfg.batch, device=device, workers=cfg.workers, seed=cfg.seed, deterministic=True,
                 patience=cfg.patience, cache="ram" if cfg.cache else False, plots=cfg.plots,
-                pretrained=False, amp=False, project=str(run.parent), name=run.name, exist_ok=True, trainer=trainer)
+                pretrained=False, amp=False, project=str(run.parent), name=run.name, exist_ok=True, trainer=trainer,
+                **(overrides or {}))
     if not best.is_file():
         raise FogsimError(f"{run}: Ultralytics finished without writing weights/best.pt")
     write_json(done, {"model": name, "data": str(data_file), "config": asdict(cfg),
@@ -270,4 +278,41 @@ def predict(weights: Path, gt: dict, image_root: Path, cfg: TrainConfig, config_
                 for xyxy, score, cls in zip(boxes.xyxy.tolist(), boxes.conf.tolist(), boxes.cls.tolist()):
                     out.append({"image_id": im["id"], "category_id": coco_category(int(cls)), "score":
                                 round(float(score), 5), "bbox": [round(v, 2) for v in xyxy_to_xywh(xyxy)]})
+    return out
+
+
+def predict_obb(weights: Path, images: list[tuple[str, Path]], cfg: TrainConfig, config_dir: Path,
+                conf: float = 0.001, iou: float = 0.7, max_det: int = 100, chunk: int = 32) -> list[dict]:
+    """Oriented boxes of an OBB model on ``images`` ((image id, path) pairs): ``{"image_id", "category_id"
+    (YOLO class), "score", "corners_px" (4 × [u, v], pixels of the image)}``. Each image is read as
+    Ultralytics' own loader reads it for training (a multi-page TIFF's pages as channels), so a model of
+    any channel count sees what it was trained on."""
+    import cv2
+
+    ultralytics = load_ultralytics(config_dir)
+    from ultralytics.utils.patches import imread
+
+    with _failure(f"loading {weights} failed"):
+        model = ultralytics.YOLO(str(weights))
+    device = resolve_device(cfg.device)
+    out = []
+    for start in range(0, len(images), chunk):
+        batch = images[start:start + chunk]
+        arrays = []
+        for _, path in batch:
+            flags = cv2.IMREAD_UNCHANGED if Path(path).suffix.lower() in (".tif", ".tiff") else cv2.IMREAD_COLOR
+            im = imread(str(path), flags) if Path(path).is_file() else None
+            if im is None:
+                raise InputError(path, "BEV raster missing or unreadable")
+            arrays.append(im)
+        with _failure(f"prediction with {weights} failed"):
+            results = model.predict(arrays, imgsz=cfg.imgsz, conf=conf, iou=iou, max_det=max_det, device=device,
+                                    verbose=False, stream=True)
+            for (image_id, _), res in zip(batch, results):
+                obb = res.obb
+                if obb is None:
+                    raise FogsimError(f"{weights} is not an oriented-box (OBB) model")
+                for corners, score, cls in zip(obb.xyxyxyxy.tolist(), obb.conf.tolist(), obb.cls.tolist()):
+                    out.append({"image_id": image_id, "category_id": int(cls), "score": round(float(score), 5),
+                                "corners_px": [[round(u, 3), round(v, 3)] for u, v in corners]})
     return out

@@ -28,7 +28,7 @@ from fogsim.render.fog_settings import fog_settings
 from fogsim.render.labels import object_records
 from fogsim.render.lidar_frame import lidar_stage, write_lidar
 from fogsim.render.lidar_rig import mounted_pose
-from fogsim.render.lidar_scan import Geometry, RayCaster
+from fogsim.render.lidar_scan import Geometry
 from fogsim.render.preset import RenderConfig
 from fogsim.render.radar_frame import radar_stage, write_radar_files
 from fogsim.render.silhouette import silhouette_areas
@@ -192,16 +192,14 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
     lab = config.label_settings
     records = object_records(mask, ray, desc["objects"], sil, min_pixels=lab.min_pixels,
                              min_visible_fraction=lab.min_visible_fraction)
-    lidar, t_truth = None, time.perf_counter()
-    caster = None  # one Embree scene of the frame for the LiDAR and the radar
-    if config.lidar_sensor is not None and config.radar_sensor is not None:
-        caster = RayCaster(passes.geometry if passes.geometry is not None else Geometry.of_frame(desc, meshes))
+    lidar, t_truth, c_truth = None, time.perf_counter(), time.process_time()
+    # each sensor its own Embree scene of what its rays can reach (a shared one of the whole frame costs more)
     if config.lidar_sensor is not None:  # the sweep, 3D boxes, fogged scans (records gain box3d, lidar_points)
-        lidar = lidar_stage(config, desc, meshes, records, int(desc["seed"] or 0), passes.geometry, caster)
-    t_lidar = time.perf_counter()
+        lidar = lidar_stage(config, desc, meshes, records, int(desc["seed"] or 0), passes.geometry)
+    t_lidar, c_lidar = time.perf_counter(), time.process_time()
     radar = None
     if config.radar_sensor is not None:  # detections, fogged levels (records gain radar_detections)
-        radar = radar_stage(config, desc, meshes, records, int(desc["seed"] or 0), passes.geometry, caster)
+        radar = radar_stage(config, desc, meshes, records, int(desc["seed"] or 0), passes.geometry)
     t1 = time.perf_counter()
     if fog is None:  # post-process fog (Koschmieder, scatter) from the clear render
         fs = fog_settings(config)
@@ -235,6 +233,7 @@ def commit_frame(layout: DatasetLayout, config: RenderConfig, frame: DescribedFr
     timings = dict(timings or {}, ground_truth=t_truth - t0, fog=t2 - t1, write=t3 - t2)
     if lidar is not None:
         timings["lidar"] = t_lidar - t_truth  # sweep, boxes and fogged scans (their files: in write)
+        timings["lidar_cpu"] = c_lidar - c_truth  # the same stage's CPU seconds (the process: every thread)
     if radar is not None:
         timings["radar"] = t1 - t_lidar  # sweep, clusters and fogged levels (their files: in write)
     meta = {"frame": name, "index": index, "seed": desc["seed"], "width": w, "height": h,

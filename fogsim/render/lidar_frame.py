@@ -51,14 +51,14 @@ from fogsim.fileio import atomic_write_bytes
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.formats import FORMAT_SUFFIX, write_points
-from fogsim.lidar.objects import attach_lidar_points
+from fogsim.lidar.objects import attach_lidar_points, fogged_object_points
 from fogsim.lidar.outcome_file import write_outcomes
 from fogsim.lidar.outcomes import CLUTTER
 from fogsim.lidar.scan_pcd import PCD_SUFFIX, write_level_pcd
 from fogsim.lidar.sensors import LidarSensor
 from fogsim.readers.kitti.calib import KittiCalib
 from fogsim.render.boxes3d import box_record, object_box, transformed
-from fogsim.render.lidar_scan import Geometry, RayCaster, SyntheticScan, sweep
+from fogsim.render.lidar_scan import Geometry, RayCaster, SyntheticScan, sensor_caster, sweep
 from fogsim.scene.classes import LABELLED, is_labelled
 
 #: the LiDAR noise generator of level i: default_rng([frame seed, i, LIDAR_STREAM])
@@ -98,14 +98,15 @@ def lidar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int
 
     sensor = config.lidar_sensor
     pose = np.asarray(desc["lidar"]["lidar_to_world"], np.float64)
-    if caster is None:  # its own Embree scene: only the triangles the sensor can reach
-        if geometry is None:
+    if caster is None:  # its own Embree scene: only the triangles the sensor's rays can reach
+        ranged = geometry is None
+        if ranged:
             geometry = Geometry.of_frame(desc, meshes, within=(pose[:3, 3], sensor.reach_m))
-        caster = RayCaster(geometry)
+        caster = sensor_caster(geometry, pose, sensor, ranged)
     scan = sweep(caster, pose, sensor, f"frame {desc.get('seed')}")
     w2c, w2l = np.asarray(desc["camera"]["world_to_camera"], np.float64), np.linalg.inv(pose)
     by_id = {o["id"]: o for o in desc["objects"]}
-    hit = set(np.unique(scan.object_id).tolist())
+    hit = set(np.flatnonzero(np.bincount(scan.object_id.astype(np.int64))).tolist())
     seen = {r["id"] for r in records}  # the camera's records; the LiDAR's objects: every labelled one it hits
     objects = [{"id": o["id"], "class": o["class"]} for o in desc["objects"]
                if is_labelled(o["class"]) and (o["id"] in hit or o["id"] in seen)]
@@ -122,7 +123,8 @@ def lidar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int
     fogged = {lv.key: fogger(lv.beta, np.random.default_rng([seed, i, LIDAR_STREAM]))
               for i, lv in enumerate(config.levels)}
     clouds = {k: f.cloud for k, f in fogged.items()}
-    attach_lidar_points(objects, clouds, [boxes.get(r["id"]) for r in objects])
+    in_boxes = [boxes.get(r["id"]) for r in objects]
+    attach_lidar_points(objects, clouds, in_boxes, fogged_object_points(scan.cloud, fogged, in_boxes))
     points = {r["id"]: r["lidar_points"] for r in objects if "lidar_points" in r}
     for rec in records:  # the camera's records get the same box and counts
         if rec["id"] in box3d:

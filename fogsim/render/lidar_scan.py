@@ -24,16 +24,20 @@ Reflectivity (at 905 nm, diffuse, Lambertian-equivalent): from the 905 nm table 
 :mod:`fogsim.scene.reflectivity`, never from the visible colour — each material slot its entry, car paint by
 the colour family of the instance's colour, every spread drawn once per object
 (:func:`~fogsim.scene.reflectivity.instance_reflectivity`: frame seed, object id, slot), a library model's
-materials by their names (``library:<name>`` slots, :func:`~fogsim.scene.reflectivity.named_reflectivity`,
-else the stated fallback). In scene mode a ``fogsim_reflectivity`` custom property on the material or the
+materials by their names and kinds (``library:<name>`` slots, :func:`~fogsim.scene.reflectivity.material_entry`:
+its own ``fogsim_reflectivity``, transmissive as glass, the name's keywords, a paint's colour; else the stated
+fallback). In scene mode a ``fogsim_reflectivity`` custom property on the material or the
 object wins (:mod:`fogsim.render.blender.realise`), then the material's name, then the fallback.
 
-Speed (one core): the geometry is culled to the parts that can lie within the sensor's range
-(:meth:`Geometry.of_frame`'s ``within``), Embree builds without its robust mode, rays stop at the maximum
-range, the surface normal comes from Embree's hit record, the sweep's directions are computed once per sensor.
+Speed (one core): each sensor builds its own Embree scene of only what its rays can meet — the parts within
+its range (:meth:`Geometry.of_frame`'s ``within``), then the triangles not wholly above its top beam, below
+its bottom one or outside its field of view (:meth:`Geometry.seen_from`, exact; :func:`sensor_caster`) —
+Embree builds without its robust mode, rays stop at the maximum range, the surface normal comes from
+Embree's hit record, the sweep's directions are computed once per sensor.
 """
 from __future__ import annotations
 
+import math
 import zlib
 from dataclasses import dataclass
 from functools import lru_cache
@@ -44,19 +48,15 @@ from fogsim.lidar.points import PointCloud
 from fogsim.lidar.rays import EmptyRays
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor
+from fogsim.scene.library import LIBRARY_SLOT
 from fogsim.scene.materials import MATERIALS
-from fogsim.scene.reflectivity import SURFACES, instance_reflectivity, named_reflectivity, slot_entry
-
-#: the prefix of a library model's material slots (``library:<material name>``; ``library`` alone: unnamed)
-LIBRARY_SLOT = "library"
+from fogsim.scene.reflectivity import instance_reflectivity, material_entry, slot_entry
 
 
-def surface_reflectivity(name: str | None, transmission: float = 0.0) -> tuple[float, str]:
-    """(ρ at 905 nm, the rule) of a material known by its name alone (a user's or a library model's):
-    transmissive (≥ 0.5) surfaces are glass; else :func:`~fogsim.scene.reflectivity.named_reflectivity`."""
-    if transmission >= 0.5:
-        return SURFACES["glass"].rho, "glass (transmission)"
-    entry, rule = named_reflectivity(name)
+def surface_reflectivity(name: str | None, transmission: float = 0.0, colour=None) -> tuple[float, str]:
+    """(ρ at 905 nm, the rule) of a user's material (scene mode) known by its name, transmission and base
+    colour (linear RGB; a paint's family): :func:`~fogsim.scene.reflectivity.material_entry`'s median."""
+    entry, rule = material_entry(name, transmission, colour)
     return entry.rho, rule
 
 
@@ -66,10 +66,13 @@ def _salt(slot: str) -> int:
 
 def slot_reflectivity(obj: dict, slot: str, seed: int = 0) -> float:
     """ρ (905 nm) of one material slot of a procedural object: the table's entry (``body_paint``: the family
-    of the instance's colour; a ``library:<name>`` slot: by its material name), its spread drawn for this
-    object (``seed``: the frame's)."""
-    if slot == LIBRARY_SLOT or slot.startswith(LIBRARY_SLOT + ":"):
-        entry, _ = named_reflectivity(slot[len(LIBRARY_SLOT) + 1:] or None)
+    of the instance's colour; a ``library:<name>`` slot: by its material's name, transmission, colour or own
+    value, :func:`~fogsim.scene.reflectivity.material_entry`, as the asset's ``materials[slot]`` records them),
+    its spread drawn for this object (``seed``: the frame's)."""
+    if slot == LIBRARY_SLOT or slot.startswith(LIBRARY_SLOT + ":"):  # what the model's file said of it
+        info = obj.get("asset", {}).get("materials", {}).get(slot, {})
+        entry, _ = material_entry(slot[len(LIBRARY_SLOT) + 1:] or None, float(info.get("transmission", 0.0)),
+                                  info.get("color"), info.get("reflectivity"))
     else:
         override = obj.get("asset", {}).get("materials", {}).get(slot, {})
         colour = override.get("color", MATERIALS[slot]["color"]) if slot in MATERIALS else None
@@ -90,21 +93,22 @@ class Geometry:
     @classmethod
     def from_parts(cls, parts) -> "Geometry":
         """From ``(vertices N×3, faces F×3, object id, reflectivity: a number or one per face)`` parts."""
-        vs, fs, ids, rhos, offset = [], [], [], [], 0
-        for v, f, oid, rho in parts:
-            v, f = np.asarray(v, np.float64).reshape(-1, 3), np.asarray(f, np.int64).reshape(-1, 3)
-            if not len(f):
-                continue
-            vs.append(v)
-            fs.append(f + offset)
-            ids.append(np.full(len(f), int(oid), np.int32))
-            rhos.append(np.broadcast_to(np.asarray(rho, np.float32), (len(f),)))
-            offset += len(v)
-        if not fs:
+        parts = [(np.asarray(v, np.float32).reshape(-1, 3), np.asarray(f).reshape(-1, 3), oid, rho)
+                 for v, f, oid, rho in parts]
+        parts = [p for p in parts if len(p[1])]
+        if not parts:
             return cls(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32), np.zeros(0, np.int32),
                        np.zeros(0, np.float32))
-        return cls(np.concatenate(vs).astype(np.float32), np.concatenate(fs).astype(np.int32),
-                   np.concatenate(ids), np.concatenate(rhos).astype(np.float32))
+        nv = np.array([len(p[0]) for p in parts], np.int64)
+        nf = np.array([len(p[1]) for p in parts], np.int64)
+        offset = np.repeat(np.concatenate([[0], np.cumsum(nv)[:-1]]), nf).astype(np.int32)
+        faces = np.concatenate([p[1] for p in parts]).astype(np.int32) + offset[:, None]
+        ids = np.repeat(np.array([int(p[2]) for p in parts], np.int32), nf)
+        if all(np.ndim(p[3]) == 0 for p in parts):
+            rho = np.repeat(np.array([float(p[3]) for p in parts], np.float32), nf)
+        else:
+            rho = np.concatenate([np.broadcast_to(np.asarray(p[3], np.float32), (len(p[1]),)) for p in parts])
+        return cls(np.concatenate([p[0] for p in parts]), faces, ids, rho)
 
     @classmethod
     def of_frame(cls, desc: dict, meshes: dict, within: tuple | None = None) -> "Geometry":
@@ -114,17 +118,69 @@ class Geometry:
         from the origin that hits nothing of them within the radius hits nothing there at all)."""
         by_id = {o["id"]: o for o in desc["objects"]}
         seed = int(desc.get("seed") or 0)
-        origin = None if within is None else np.asarray(within[0], np.float64)
-
-        def near(v) -> bool:
-            if origin is None or not len(v):
-                return True
-            v = np.asarray(v, np.float64).reshape(-1, 3)
-            lo, hi = v.min(0), v.max(0)
+        rho: dict = {}  # (object, slot) → ρ: an object's parts of one slot share its draw
+        parts = []
+        for oid, obj_parts in meshes.items():
+            for v, f, slot in obj_parts:
+                if len(v) and len(f):
+                    if (oid, slot) not in rho:
+                        rho[oid, slot] = slot_reflectivity(by_id[oid], slot, seed)
+                    parts.append((v, f, oid, rho[oid, slot]))
+        if within is not None and parts:  # each part's bounding box, all at once
+            vertices = np.concatenate([np.asarray(p[0], np.float64).reshape(-1, 3) for p in parts])
+            starts = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
+            lo, hi = np.minimum.reduceat(vertices, starts), np.maximum.reduceat(vertices, starts)
             centre = (lo + hi) / 2
-            return float(np.linalg.norm(centre - origin) - np.linalg.norm(hi - centre)) <= within[1]
-        return cls.from_parts((v, f, oid, slot_reflectivity(by_id[oid], slot, seed))
-                              for oid, parts in meshes.items() for v, f, slot in parts if near(v))
+            gap = (np.sqrt(((centre - np.asarray(within[0], np.float64)) ** 2).sum(-1))
+                   - np.sqrt(((hi - centre) ** 2).sum(-1)))
+            parts = [p for p, g in zip(parts, gap) if g <= within[1]]
+        return cls.from_parts(parts)
+
+    def subset(self, keep: np.ndarray) -> "Geometry":
+        """The faces where ``keep`` (F bool) holds, with only the vertices they use."""
+        faces = self.faces[keep]
+        used = np.zeros(len(self.vertices), bool)
+        used[faces.reshape(-1)] = True
+        remap = (np.cumsum(used, dtype=np.int32) - 1).astype(np.int32)
+        return Geometry(self.vertices[used], remap[faces], self.face_id[keep], self.face_rho[keep])
+
+    def seen_from(self, pose: np.ndarray, elevation_deg: tuple | None = None, azimuth_deg: tuple | None = None,
+                  max_range_m: float | None = None, margin_deg: float = 0.05,
+                  heights_m: tuple[float, float] = (0.0, 0.0)) -> "Geometry":
+        """Only the triangles a sensor at ``pose`` (sensor → world, 4×4; x forward, y left, z up) can meet with
+        rays of inclination within ``elevation_deg`` (lo, hi), azimuth within ``azimuth_deg`` (lo, hi; None:
+        360°) that stop at ``max_range_m``, each widened by ``margin_deg``. Exact (no triangle a ray meets is
+        dropped): a triangle is dropped when its three corners lie in one convex region no ray enters — above
+        the top beam's cone (hi ≥ 0: {z ≥ tan(hi)·ρ + b_hi} is convex), below the bottom one's (lo ≤ 0,
+        {z ≤ tan(lo)·ρ + b_lo}), beyond one side of a wedge narrower than 180°, or farther than the range (a
+        corner's distance less the longest edge). ``heights_m`` (b_lo, b_hi): the lowest and highest height at
+        which the rays' lines cross the sensor's axis — 0 when every ray starts at the origin; a laser whose
+        line passes h from it at inclination θ (``vertical_offsets_m``) crosses at h/cos θ and runs
+        z = tan θ·ρ + h/cos θ in its azimuth's half-plane (to within h·|sin θ| of the axis)."""
+        if not len(self.faces):
+            return self
+        T = np.asarray(pose, np.float64)
+        v = (self.vertices.astype(np.float64) - T[:3, 3]) @ T[:3, :3]  # sensor frame
+        code = np.zeros(len(v), np.uint8)  # one bit per region no ray enters; a face is out when its corners share one
+        if elevation_deg is not None:
+            lo, hi = elevation_deg[0] - margin_deg, elevation_deg[1] + margin_deg
+            rho = np.hypot(v[:, 0], v[:, 1])
+            if hi >= 0:
+                code |= (v[:, 2] - heights_m[1] > math.tan(math.radians(hi)) * rho).view(np.uint8)
+            if lo <= 0:
+                code |= (v[:, 2] - heights_m[0] < math.tan(math.radians(lo)) * rho).view(np.uint8) << 1
+        if azimuth_deg is not None and azimuth_deg[1] - azimuth_deg[0] + 2 * margin_deg < 180:
+            a0, a1 = math.radians(azimuth_deg[0] - margin_deg), math.radians(azimuth_deg[1] + margin_deg)
+            code |= (-math.sin(a0) * v[:, 0] + math.cos(a0) * v[:, 1] < 0).view(np.uint8) << 2  # clockwise of a0
+            code |= (-math.sin(a1) * v[:, 0] + math.cos(a1) * v[:, 1] > 0).view(np.uint8) << 3  # beyond a1
+        corners = code[self.faces]
+        drop = (corners[:, 0] & corners[:, 1] & corners[:, 2]) != 0
+        if max_range_m is not None:  # |p| ≥ |corner| − longest edge for every point p of the face
+            tri = v[self.faces[~drop]]
+            edge = np.sqrt(np.max([((tri[:, i] - tri[:, (i + 1) % 3]) ** 2).sum(-1) for i in range(3)], axis=0))
+            near = np.sqrt((tri[:, 0] ** 2).sum(-1)) - edge <= max_range_m * (1 + 1e-6) + 1e-3
+            drop[np.flatnonzero(~drop)[~near]] = True
+        return self.subset(~drop) if drop.any() else self
 
 
 class RayCaster:
@@ -172,6 +228,20 @@ class RayCaster:
         tri = self.geometry.vertices[self.geometry.faces[prim]].astype(np.float64)
         n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+
+
+def sensor_caster(geometry: Geometry, pose: np.ndarray, sensor: LidarSensor, ranged: bool = False) -> RayCaster:
+    """The ray caster of ``sensor`` at ``pose`` (sensor → world): ``geometry`` less every triangle none of its
+    rays can meet (:meth:`Geometry.seen_from`: above its top beam, below its bottom one, beyond its horizontal
+    field of view, and — unless ``ranged``: already cut to the range — beyond its range): the same first hits,
+    a smaller Embree scene. Each laser's own origin (``vertical_offsets_m``) is allowed for."""
+    incl = sensor.inclinations_deg
+    fov = sensor.horizontal_fov_deg
+    heights = (0.0,) if sensor.vertical_offsets_m is None else \
+        np.asarray(sensor.vertical_offsets_m) / np.cos(sensor.inclinations_rad)  # each laser's line at ρ = 0
+    return RayCaster(geometry.seen_from(pose, (min(incl), max(incl)), None if fov >= 360 else (-fov / 2, fov / 2),
+                                        None if ranged else sensor.reach_m,
+                                        heights_m=(float(np.min(heights)), float(np.max(heights)))))
 
 
 def sweep_directions(sensor: LidarSensor) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -3,7 +3,8 @@ objects and the files (pure Python; :func:`fogsim.render.frame.commit_frame` cal
 
 Per frame with a radar (preset key ``radar``, ``fogsim render --radar SENSOR``):
 
-* the sweep (:func:`fogsim.render.radar_scan.radar_sweep`) over the frame's geometry — the LiDAR's triangles
+* the sweep (:func:`fogsim.render.radar_scan.radar_sweep`) over the frame's geometry — the LiDAR's triangles,
+  less those outside the radar's field of view and range (:meth:`~fogsim.render.lidar_scan.Geometry.seen_from`)
   — from the sensor's pose (``desc["radar"]["radar_to_world"]``: procedural streets, the sensor's ``mount``
   on the ego vehicle, :func:`fogsim.render.lidar_rig.mounted_pose`; scene mode, an object marked
   ``fogsim_radar`` or the camera plus :data:`RADAR_CAMERA_OFFSET`), with the objects' and the ego's
@@ -40,7 +41,7 @@ from fogsim.radar.outcome_file import write_radar_outcomes
 from fogsim.radar.sensors import RadarSensor
 from fogsim.render.boxes3d import box_record, object_box
 from fogsim.render.lidar_scan import Geometry, RayCaster
-from fogsim.render.radar_scan import Motion, SyntheticRadar, radar_sweep
+from fogsim.render.radar_scan import Motion, SyntheticRadar, radar_sweep, ray_grid
 from fogsim.scene.classes import is_labelled
 
 #: the radar's generators: the sweep default_rng([frame seed, RADAR_STREAM]), level i [frame seed, i, RADAR_STREAM]
@@ -101,7 +102,12 @@ def radar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int
 
     sensor = config.radar_sensor
     pose = np.asarray(desc["radar"]["radar_to_world"], np.float64)
-    geometry = geometry if geometry is not None else Geometry.of_frame(desc, meshes)
+    if caster is None:  # its own Embree scene: the triangles its rays can reach (field of view, range)
+        _, az, el, _, _ = ray_grid(sensor)
+        if geometry is None:
+            geometry = Geometry.of_frame(desc, meshes, within=(pose[:3, 3], sensor.max_range_m))
+        caster = RayCaster(geometry.seen_from(pose, tuple(np.degrees([el.min(), el.max()])),
+                                              tuple(np.degrees([az.min(), az.max()])), sensor.max_range_m))
     classes = {int(o["id"]): o["class"] for o in desc["objects"]}
     boxes = {}
     for o in desc["objects"]:
@@ -111,7 +117,7 @@ def radar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int
                 boxes[int(o["id"])] = box
     headings = {i: b.axes[:, 0] for i, b in boxes.items()}
     motion = _motion(config, desc)
-    sweep = radar_sweep(caster or RayCaster(geometry), pose, sensor, classes, headings, Motion.of(motion),
+    sweep = radar_sweep(caster, pose, sensor, classes, headings, Motion.of(motion),
                         np.random.default_rng([seed, RADAR_STREAM]))
     scan = radar_scan(sweep, f"frame {desc.get('seed')} radar")
     fogger = fog_settings(config).radar_fogger(scan, sensor)

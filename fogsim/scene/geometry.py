@@ -10,7 +10,8 @@ Object record (an entry of ``scene["objects"]``)::
 with ``params.boxes = [[cx, cy, z0, sx, sy, sz], …]`` (each resting on z0) — both with
 ``params.material``: the road, sidewalks, curbs and lane marks are boxes. ``"library"`` is one of
 the user's models (:mod:`fogsim.scene.library`): its mesh comes from the run's asset library
-(one part, slot ``"library"``; the renderer keeps the model's own materials).
+(one part per material, slot ``"library:<material name>"``, or one ``"library"``; the renderer keeps the
+model's own materials, the LiDAR maps them by name and kind).
 """
 from __future__ import annotations
 
@@ -26,8 +27,8 @@ def local_parts(asset: dict, library=None) -> list[tuple[trimesh.Trimesh, str]]:
     if asset["type"] == "library":
         if library is None:
             raise ValueError(f"the library model {asset['params']['file']} needs the run's asset library")
-        v, f = library.mesh(asset["params"]["file"])
-        return [(trimesh.Trimesh(vertices=v, faces=f, process=False), "library")]
+        return [(trimesh.Trimesh(vertices=v, faces=f, process=False), slot)
+                for v, f, slot in library.model(asset["params"]["file"]).parts()]
     if asset["type"] in ("box", "boxes"):
         p = asset["params"]
         boxes = [[0.0, 0.0, 0.0, *p["size"]]] if asset["type"] == "box" else p["boxes"]

@@ -35,6 +35,8 @@ SIZE_RANGES = {"car": ("length", 3.0, 6.0), "van": ("length", 4.0, 7.5), "truck"
                "bus": ("length", 8.0, 20.0), "pedestrian": ("height", 1.4, 2.1), "cyclist": ("height", 1.4, 2.3),
                "traffic_light": ("height", 2.0, 8.0), "traffic_sign": ("height", 1.0, 5.0)}
 assert tuple(SIZE_RANGES) == ASSET_CLASSES  # one list of classes, declared by the schema
+#: the material slot of a library model's parts (``library:<material name>``; ``library`` alone: unnamed)
+LIBRARY_SLOT = "library"
 #: rotation about z (degrees) that turns a model's front axis to +y
 _TURN = {"+y": 0.0, "-y": 180.0, "+x": 90.0, "-x": -90.0}
 
@@ -259,7 +261,11 @@ def fit_size(file: str, cls: str, size: tuple[float, float, float], out_of_range
 class LibraryModel:
     """One imported model in the asset frame: ``vertices`` (N×3 metres) and triangle ``faces``
     (F×3), its bounding-box ``extent`` and the ``scale`` applied on top of its units (≠ 1 only
-    when scaled into range)."""
+    when scaled into range); ``materials``: what its file says of each of its materials (``name``;
+    ``color``, the base colour in linear RGB or None; ``transmission`` 0–1; ``reflectivity``, its own
+    ``fogsim_reflectivity`` or None) and ``face_material`` (F int, an index into them; None: one unnamed
+    material), which the LiDAR maps to 905 nm reflectivities by name and kind
+    (:func:`fogsim.scene.reflectivity.material_entry`)."""
 
     file: str
     cls: str
@@ -267,11 +273,32 @@ class LibraryModel:
     faces: np.ndarray
     extent: tuple[float, float, float]
     scale: float = 1.0
+    materials: tuple[dict, ...] = ()
+    face_material: np.ndarray | None = None
+
+    def slots(self) -> list[str]:
+        """The material slot of each of :attr:`materials`: ``library:<name>`` (:data:`LIBRARY_SLOT`)."""
+        return [f"{LIBRARY_SLOT}:{m['name']}" if m.get("name") else LIBRARY_SLOT for m in self.materials]
 
     def spec(self) -> dict:
         return {"type": "library", "params": {"file": self.file, "class": self.cls,
                                               "extent": [round(e, 6) for e in self.extent],
-                                              "scale": self.scale}, "materials": {}}
+                                              "scale": self.scale},
+                "materials": {slot: {k: m[k] for k in ("color", "transmission", "reflectivity") if m.get(k) is not None}
+                              for slot, m in zip(self.slots(), self.materials)}}
+
+    def parts(self) -> list[tuple[np.ndarray, np.ndarray, str]]:
+        """(vertices, faces, slot) per material (each with only the vertices its faces use); one
+        ``library`` part without materials."""
+        if self.face_material is None or not self.materials:
+            return [(self.vertices, self.faces, LIBRARY_SLOT)]
+        out = []
+        for k, slot in enumerate(self.slots()):
+            f = self.faces[self.face_material == k]
+            if len(f):
+                used, inverse = np.unique(f, return_inverse=True)
+                out.append((self.vertices[used], inverse.reshape(f.shape), slot))
+        return out
 
 
 @dataclass
@@ -291,10 +318,15 @@ class AssetLibrary:
             return None
         return models[int(rng.integers(len(models)))].spec()
 
-    def mesh(self, file: str) -> tuple[np.ndarray, np.ndarray]:
-        """(vertices, faces) of the model ``file`` in the asset frame."""
+    def model(self, file: str) -> LibraryModel:
+        """The model ``file``."""
         for models in self.models.values():
             for m in models:
                 if m.file == file:
-                    return m.vertices, m.faces
+                    return m
         raise KeyError(f"{file} is not in the asset library of this run")
+
+    def mesh(self, file: str) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices, faces) of the model ``file`` in the asset frame."""
+        m = self.model(file)
+        return m.vertices, m.faces

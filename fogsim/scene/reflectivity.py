@@ -14,7 +14,9 @@ paint, plates, signs and tail-light reflex reflectors are retro-reflective.
   object (:func:`instance_reflectivity`), so two black cars need not be equally dark.
 * :func:`named_reflectivity` — a library model's or a user's material mapped by its name (keywords of
   :data:`NAME_KEYWORDS`, first match wins), else the fallback :data:`FALLBACK` (a mid-grey painted
-  surface), the rule that matched returned beside the value.
+  surface), the rule that matched returned beside the value; :func:`material_entry` — the same with what
+  else the renderer knows of such a material (its own ``fogsim_reflectivity``, transmission, a paint's
+  colour word or base colour).
 
 Values are medians over the materials a source reports near 905 nm (±50 nm; spectra are smooth there), rounded:
 JPL ECOSTRESS spectral library v1 (Meerdink et al. 2019: construction materials, rubber, metals, soils and
@@ -33,13 +35,14 @@ from __future__ import annotations
 
 import colorsys
 import math
+import re
 from dataclasses import dataclass
 from statistics import NormalDist
 
 import numpy as np
 
-__all__ = ["FALLBACK", "NAME_KEYWORDS", "PAINT_FAMILIES", "Reflectivity", "SURFACES", "instance_reflectivity",
-           "named_reflectivity", "paint_family", "slot_entry"]
+__all__ = ["FALLBACK", "NAME_KEYWORDS", "PAINT_FAMILIES", "PAINT_WORDS", "Reflectivity", "SURFACES",
+           "instance_reflectivity", "material_entry", "named_reflectivity", "paint_family", "slot_entry"]
 
 #: mixed into the hash that draws each instance's spread (:func:`instance_reflectivity`)
 REFLECTIVITY_STREAM = 0x905
@@ -201,6 +204,35 @@ def named_reflectivity(name: str | None) -> tuple[Reflectivity, str]:
         if any(w in low for w in words):
             return SURFACES[slot], slot
     return FALLBACK, "fallback"
+
+
+#: colour words in a paint's name → its family (:data:`PAINT_FAMILIES`), before its base colour is looked at
+PAINT_WORDS = {"white": "white", "silver": "silver", "grey": "grey", "gray": "grey", "black": "black", "red": "red",
+               "blue": "blue", "green": "green", "yellow": "yellow", "orange": "yellow", "brown": "brown",
+               "beige": "brown"}
+
+
+def material_entry(name: str | None, transmission: float = 0.0, colour=None, reflectivity: float | None = None
+                   ) -> tuple[Reflectivity, str]:
+    """(entry, rule) of a user's or a library model's material as the renderer knows it: its own
+    ``fogsim_reflectivity`` (0–100, no spread; above 1 retro-reflective) wins, then a transmissive surface
+    (``transmission`` ≥ 0.5: glass), then its name (:func:`named_reflectivity`); a paint (the ``body_paint``
+    rule) takes its family from a colour word of its name (:data:`PAINT_WORDS`), else from its visible
+    linear-RGB ``colour`` (:func:`paint_family`), else the catalogue's own (silver)."""
+    if reflectivity is not None:
+        r = float(reflectivity)
+        return Reflectivity(r, retro=r > 1.0, source="the material's fogsim_reflectivity"), "fogsim_reflectivity"
+    if transmission >= 0.5:
+        return SURFACES["glass"], "glass (transmission)"
+    entry, rule = named_reflectivity(name)
+    if rule == "body_paint":
+        words = [w for w in re.split(r"[^a-z]+", (name or "").lower()) if w in PAINT_WORDS]
+        if words:
+            return PAINT_FAMILIES[PAINT_WORDS[words[0]]], f"body_paint ({PAINT_WORDS[words[0]]}: its name)"
+        if colour is not None:
+            family = paint_family(colour)
+            return PAINT_FAMILIES[family], f"body_paint ({family}: its colour)"
+    return entry, rule
 
 
 _MASK = (1 << 64) - 1

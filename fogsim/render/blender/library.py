@@ -28,6 +28,8 @@ from fogsim.render.blender.compat import enable_importers
 from fogsim.render.blender.output import show
 from fogsim.scene.library import FORMATS, AssetLibrary, LibraryModel, extent, fit_size, normalise
 
+#: the custom property on a material (or, in scene mode, an object) that sets its LiDAR reflectivity (0–100)
+REFLECTIVITY = "fogsim_reflectivity"
 #: bpy.data collections an import may add to; all but the kept ones are emptied again afterwards
 _KINDS = ("objects", "meshes", "armatures", "cameras", "lights", "curves", "collections", "actions", "lattices")
 _MESHLIKE = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
@@ -96,7 +98,58 @@ def _model(file: str, cls: str, parts: list, assets: dict) -> LibraryModel:
     offsets = np.cumsum([0] + [len(v) for v, _ in tris[:-1]])
     faces = np.concatenate([f + o for (_, f), o in zip(tris, offsets)])
     vertices = local * scale
-    return LibraryModel(file, cls, vertices, faces, extent(vertices), scale)
+    materials, face_material = _materials(file, [mesh for mesh, _ in parts])
+    return LibraryModel(file, cls, vertices, faces, extent(vertices), scale, materials, face_material)
+
+
+def material_info(material) -> dict:
+    """What the LiDAR needs of a Blender material (:func:`fogsim.scene.reflectivity.material_entry`):
+    ``name``; ``color`` (its Principled BSDF's base colour, linear RGB) and ``transmission`` (0–1), None
+    and 0 without one; ``reflectivity``, its ``fogsim_reflectivity`` custom property (0–100) or None — a
+    value out of range is an InputError naming the material."""
+    from fogsim.render.blender.compat import node_tree_in_use, principled_inputs
+
+    info = {"name": material.name, "color": None, "transmission": 0.0, "reflectivity": None}
+    if REFLECTIVITY in material:
+        where = f"{type(material).__name__} {material.name!r}"
+        info["reflectivity"] = checked_reflectivity(material[REFLECTIVITY], where)
+    tree = node_tree_in_use(material)
+    nodes = tree.nodes if tree is not None else ()
+    bsdf = next((n for n in nodes if n.type == "BSDF_PRINCIPLED"), None)
+    if bsdf is not None:
+        sockets = principled_inputs(bsdf)
+        if sockets["base"] is not None:
+            info["color"] = [round(float(c), 6) for c in sockets["base"].default_value[:3]]
+        if sockets["transmission"] is not None:
+            info["transmission"] = float(sockets["transmission"].default_value)
+    return info
+
+
+def checked_reflectivity(value, where: str) -> float:
+    """A ``fogsim_reflectivity`` value: a number in [0, 100], else an InputError naming ``where``."""
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not 0 <= float(value) <= 100:
+        raise InputError(where, f"{REFLECTIVITY} must be a number in [0, 100], got {value!r}")
+    return float(value)
+
+
+def _materials(file: str, meshes: list) -> tuple[tuple[dict, ...], np.ndarray | None]:
+    """The model's materials (:func:`material_info`, one per distinct material of its meshes' slots; an
+    empty slot: an unnamed one) and each triangle's index into them (the meshes' triangles in order)."""
+    infos, index, per_face = [], {}, []
+    for mesh in meshes:
+        slots = [m for m in mesh.materials] or [None]
+        local = []
+        for m in slots:
+            key = None if m is None else m.name
+            if key not in index:
+                index[key] = len(infos)
+                infos.append({"name": None} if m is None else material_info(m))
+            local.append(index[key])
+        mats = mesh_triangle_materials(mesh)
+        per_face.append(np.asarray(local, np.int32)[np.clip(mats, 0, len(local) - 1)])
+    if all(i.get("name") is None for i in infos):
+        return (), None
+    return tuple(infos), np.concatenate(per_face)
 
 
 def mesh_triangles(mesh) -> tuple[np.ndarray, np.ndarray]:

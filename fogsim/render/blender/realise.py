@@ -18,7 +18,13 @@ import mathutils
 import numpy as np
 
 from fogsim.errors import InputError
-from fogsim.render.blender.library import mesh_triangle_materials, mesh_triangles
+from fogsim.render.blender.library import (
+    REFLECTIVITY,
+    checked_reflectivity,
+    material_info,
+    mesh_triangle_materials,
+    mesh_triangles,
+)
 from fogsim.render.blender.scratch import Scratch
 from fogsim.render.lidar_scan import surface_reflectivity
 from fogsim.render.scene_classes import PROPERTY, ClassMap
@@ -198,27 +204,20 @@ def _copy_visibility(src, dst, holdout: bool) -> None:
     dst.is_holdout = dst.is_holdout or holdout
 
 
-REFLECTIVITY = "fogsim_reflectivity"  # a custom property on a material or an object: its LiDAR reflectivity
-
-
 def _reflectivity(material, obj) -> float:
     """The LiDAR reflectivity (905 nm) of a surface: ``fogsim_reflectivity`` on the object, else on the material,
-    else a transmissive Principled BSDF's glass, else the material's name mapped by the 905 nm table
-    (:func:`fogsim.render.lidar_scan.surface_reflectivity`: keywords such as "glass", "tyre", "paint",
-    "foliage"; no match or no material: the stated fallback, a mid-grey painted surface)."""
-    for holder in (obj, material):
-        if holder is not None and REFLECTIVITY in holder:
-            v = holder[REFLECTIVITY]
-            if not isinstance(v, (int, float)) or isinstance(v, bool) or not 0 <= float(v) <= 100:
-                raise InputError(f"{type(holder).__name__} {holder.name!r}",
-                                 f"{REFLECTIVITY} must be a number in [0, 100], got {v!r}")
-            return float(v)
+    else a transmissive Principled BSDF's glass, else the material's name mapped by the 905 nm table, a paint
+    by the colour word of its name or its base colour (:func:`fogsim.render.lidar_scan.surface_reflectivity`:
+    keywords such as "glass", "tyre", "paint", "foliage"; no match or no material: the stated fallback, a
+    mid-grey painted surface)."""
+    if obj is not None and REFLECTIVITY in obj:
+        return checked_reflectivity(obj[REFLECTIVITY], f"{type(obj).__name__} {obj.name!r}")
     if material is None:
         return surface_reflectivity(None)[0]
-    bsdf = next((n for n in (material.node_tree.nodes if material.use_nodes and material.node_tree else ())
-                 if n.type == "BSDF_PRINCIPLED"), None)
-    trans = None if bsdf is None else (bsdf.inputs.get("Transmission Weight") or bsdf.inputs.get("Transmission"))
-    return surface_reflectivity(material.name, float(trans.default_value) if trans is not None else 0.0)[0]
+    info = material_info(material)
+    if info["reflectivity"] is not None:
+        return info["reflectivity"]
+    return surface_reflectivity(material.name, info["transmission"], info["color"])[0]
 
 
 def _face_reflectivity(src, obj, material_index: np.ndarray) -> np.ndarray:
