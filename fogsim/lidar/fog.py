@@ -57,7 +57,9 @@ rays, ln g_f/σ (K) and z (K) for the empty rays in their order. Same Generator 
 ``hahner2021`` — Hahner et al. 2021's released code as it fogs datasets (:mod:`fogsim.lidar.hahner2021`);
 ``stf2020`` — the STF authors' chamber-fitted rule (:mod:`fogsim.lidar.stf2020`): each module states its
 equations and its draws. Neither uses the sensor's radiometry above nor the empty rays (counted, never
-fogged); stf2020's random-scatter points are appended last (``FoggedScan.added_points``).
+fogged); stf2020's random-scatter points are appended last (``FoggedScan.added_points``). Both leave no-return
+rows (step 8) as they were (``no-return``) and keep one row per firing in a scan that stores every firing
+(:attr:`LidarFogger.keeps_firings`, :attr:`LidarFogger.blank_mask`).
 
 Outcomes (per input point, :data:`OUTCOMES`):
 
