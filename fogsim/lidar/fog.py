@@ -205,7 +205,6 @@ class LidarFogger:
         self.range_m = np.maximum(r, 1e-6)
         self.normalised = scan.intensity.astype(np.float64)
         self.linear = self.scale.to_linear(scan.intensity, scan.raw_intensity)
-        self._xyz = scan.xyz.astype(np.float64)
         if empty_rays is not None and not isinstance(empty_rays, EmptyRays):
             empty_rays = EmptyRays(empty_rays)
         self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
@@ -392,7 +391,7 @@ class LidarFogger:
             k[unknown] = ring[u] if ring is not None and int(ring.max()) < s.beams else \
                 nearest_offset_beams(self.scan.xyz[u], s.inclinations_rad, np.asarray(s.vertical_offsets_m))
             laser[u] = k[unknown]
-        p, rr = self._xyz[rows], self.range_m[rows]
+        p, rr = self.scan.xyz[rows].astype(np.float64), self.range_m[rows]
         f = r / np.sqrt(np.maximum(rr * rr - hh[k], 1e-12))
         rest = 1.0 - f
         g = f - hs[k] * rest / np.maximum(np.hypot(p[:, 0], p[:, 1]), 1e-9)

@@ -144,7 +144,7 @@ class Model:
         b = owner.spec.extinction_ratio * (beta if np.ndim(beta) == 0 else np.asarray(beta, np.float64))
         field = RandomBetaField.draw(rng) if self.field == "random" else None
         if field is not None:
-            b = b + field(owner._xyz)
+            b = b + field(owner.scan.xyz.astype(np.float64))
         b = np.broadcast_to(np.asarray(b, np.float64), d.shape)
         foggy = b > 0
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -191,7 +191,7 @@ class Model:
         else:
             idx = np.flatnonzero(outcome != LOST)
         # the random-scatter points: on their source point's ray at u
-        axyz = (owner._xyz[src] * (u / d[src])[:, None]).astype(np.float32)
+        axyz = (owner.scan.xyz[src].astype(np.float64) * (u / d[src])[:, None]).astype(np.float32)
         pick_rows = slice(None) if len(idx) == n else idx
         return owner._assemble(idx, pick_rows, outcome[idx], new_r[idx], norm[idx], raw[idx], outcome, params,
                                placed=placed, added=(axyz, a_norm, a_raw, src))
