@@ -161,8 +161,10 @@ def test_painted_cars_at_10_to_100_m_follow_the_lidar_equation_with_the_table():
     pose[2, 3] = 1.73
     caster = RayCaster(geo)
     scan = sweep(caster, pose, s, "street")
-    d, _, _ = sweep_directions(s)
-    t, prim, normal = caster.cast(np.broadcast_to(pose[:3, 3], d.shape), d, s.max_range_m)
+    d, beam, az = sweep_directions(s)
+    origins = s.beam_origins(beam, az) + pose[:3, 3]  # each ray from its laser (KITTI's vertical offsets)
+    assert np.abs(origins[:, 2] - 1.73).max() > 0.1
+    t, prim, normal = caster.cast(origins, d, s.max_range_m)
     hit = np.flatnonzero(np.isfinite(t) & (t >= s.min_range_m))
     cos_t = np.abs(np.einsum("ij,ij->i", normal[hit], d[hit]))
     rho = geo.face_rho[prim[hit]].astype(np.float64)

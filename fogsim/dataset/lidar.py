@@ -195,8 +195,8 @@ def lidar_summary(layout: DatasetLayout, levels, frames: list[str], metas: list[
           f"{model_rule}, {radar_rule}the camera with a contrast ≥ 5 % (n = objects in the bin).", "",
           table_markdown(rows)]
     if totals:
-        md += ["", "## LiDAR outcomes per level", "", "| level | points | kept | attenuated | lost | clutter |",
-               "|---|---|---|---|---|---|"]
+        md += ["", "## LiDAR outcomes per level", "", "| level | points | " + " | ".join(OUTCOMES) + " |",
+               "|---|---|" + "---|" * len(OUTCOMES)]
         md += [f"| {k} | {t['points']} | " + " | ".join(f"{100 * t['shares'][o]:.1f} %" for o in OUTCOMES) + " |"
                for k, t in totals.items()]
     pictures = [layout.relative(layout.lidar_points_plot())] if lidar else []

@@ -13,8 +13,8 @@ a render with ``--lidar``, a ``fogsim fog --kitti/--stf/--waymo … --lidar`` ru
   the points either);
 * intensity on nuScenes' 0–255 scale (a 0–1 scan: 255 × its normalised intensity, :mod:`fogsim.lidar.formats`);
 * ring: the scan's own where it has one (renders, nuScenes, STF, Waymo), else the nearest beam by elevation
-  among the recorded sensor's inclinations (``lidar.sensor.inclinations_deg``,
-  :meth:`~fogsim.lidar.points.PointCloud.estimated_rings`; KITTI's
+  among the recorded sensor's inclinations (``lidar.sensor.inclinations_deg``, with its lasers'
+  ``vertical_offsets_m`` where recorded: :meth:`~fogsim.lidar.points.PointCloud.estimated_rings`; KITTI's
   ``.bin`` holds none).
 
 Not written — nuScenes' 13 JSON tables (``attribute``, ``calibrated_sensor``, ``category``, ``ego_pose``,
@@ -167,7 +167,10 @@ def _lidar_sample(path: Path, sample: Path, fmt: str, sensor: dict, where: Path)
     inclinations when the scan has none."""
     cloud = read_points(path, fmt, allow_empty=True)  # fogsim's own: a sweep that saw nothing
     if cloud.ring is None:
-        cloud = replace(cloud, ring=cloud.estimated_rings(_inclinations_rad(sensor, where)))
+        inclinations = _inclinations_rad(sensor, where)
+        offsets = sensor.get("vertical_offsets_m")  # the lasers' offsets, where recorded
+        offsets = offsets if isinstance(offsets, list) and len(offsets) == len(inclinations) else None
+        cloud = replace(cloud, ring=cloud.estimated_rings(inclinations, offsets))
     atomic_write_bytes(sample, encode_points(cloud, "nuscenes"))
 
 

@@ -14,7 +14,9 @@ format's suffix :data:`~fogsim.lidar.formats.FORMAT_SUFFIX`)::
                                      without a return, when the sensor's grid is known:
                                      :func:`fogsim.lidar.rays.empty_rays`; else 0) and
                                      ``empty_ray_clutter`` (how many gained a fog-clutter point, appended
-                                     to the scan after the input's points)
+                                     to the scan after the input's points), ``no_returns`` and
+                                     ``no_return_clutter`` (rows nearer than the sensor's minimum range,
+                                     fogged in place: fogsim.lidar.rays.no_returns)
     fogsim_run.json                  the run's parameters (resume refuses others)
 
 Seeds: the level's generator is ``default_rng(level_seed(run seed, <name>, level key))``

@@ -3,8 +3,8 @@
 * :func:`bev_image` — a bird's-eye view of one level: the sensor at the centre, x (forward) up, y (left)
   to the left, rings every 10 m with their distances written on them; each input point drawn where the
   sensor reports it, coloured by outcome (:data:`OUTCOME_COLOURS`: kept green, attenuated blue, clutter
-  orange — at its new range near the sensor), a lost point faint grey where it was; optional 3D boxes as
-  their footprints.
+  orange — at its new range near the sensor), a lost point faint grey where it was (a no-return row too, at
+  the sensor); optional 3D boxes as their footprints.
 * :func:`bev_levels` — one bird's-eye view per level side by side, captioned with β and the outcome shares,
   over the legend (:data:`BEV_LEGEND`), so the picture reads alone.
 * :func:`projected_image` — a level's reported points drawn on the camera image, coloured by outcome.
@@ -23,17 +23,18 @@ from fogsim.io.images import write_image
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.objects import MIN_POINTS, distances_and_points
-from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, LOST
+from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, LOST, NO_RETURN
 from fogsim.lidar.points import PointCloud
 from fogsim.viz import legend_row, ring_labels, strip
 
 __all__ = ["BEV_LEGEND", "OUTCOME_COLOURS", "bev_image", "bev_levels", "points_vs_distance", "projected_image",
            "write_png"]
 
-OUTCOME_COLOURS = {KEPT: (44, 160, 44), ATTENUATED: (31, 119, 180), LOST: (205, 205, 205), CLUTTER: (255, 127, 14)}
+OUTCOME_COLOURS = {KEPT: (44, 160, 44), ATTENUATED: (31, 119, 180), LOST: (205, 205, 205), CLUTTER: (255, 127, 14),
+                   NO_RETURN: (205, 205, 205)}
 LEVEL_COLOURS = ((40, 40, 40), (31, 119, 180), (44, 160, 44), (255, 127, 14), (214, 39, 40), (148, 103, 189))
-#: drawing order: lost underneath, clutter on top
-ORDER = (LOST, KEPT, ATTENUATED, CLUTTER)
+#: drawing order: lost (and no-return rows, which sit at the sensor) underneath, clutter on top
+ORDER = (NO_RETURN, LOST, KEPT, ATTENUATED, CLUTTER)
 BOX_COLOUR = (60, 60, 60)
 #: what the colours of a bird's-eye view (and of the points drawn on an image) mean: :func:`fogsim.viz.legend_row`
 BEV_LEGEND = [("dot", OUTCOME_COLOURS[KEPT], "kept"), ("dot", OUTCOME_COLOURS[ATTENUATED], "attenuated (weaker echo)"),

@@ -200,7 +200,7 @@ def lidar_casters(config, frames: int) -> dict:
             lidar_stage(config, frame.desc, frame.meshes, [], index)
             stage.append(time.perf_counter() - t0)
             stage_cpu.append(time.process_time() - c0)
-            geometry = Geometry.of_frame(frame.desc, frame.meshes, within=(pose[:3, 3], sensor.max_range_m))
+            geometry = Geometry.of_frame(frame.desc, frame.meshes, within=(pose[:3, 3], sensor.reach_m))
             faces = len(geometry.faces)
             t0 = time.perf_counter()
             sweep(RayCaster(geometry), pose, sensor, "bench")
