@@ -22,7 +22,9 @@ import numpy as np
 
 from fogsim._version import __version__
 from fogsim.errors import InputError
-from fogsim.fileio import create_exclusive, read_json, resolve_path
+from fogsim.io.atomic import create_exclusive
+from fogsim.io.documents import read_json
+from fogsim.io.paths import resolve_path
 
 T = TypeVar("T")
 
@@ -70,7 +72,7 @@ def check_output(out: str | os.PathLike, inputs: dict[str, str | os.PathLike | N
 def _check_linked_folders(target: Path, inputs: list[tuple]) -> None:
     """Refuse a link below the output folder ``target`` that leads to a folder in, or around, an input
     (``inputs``: (flag, given, resolved) triples). A link to a file is harmless (every write replaces the
-    link itself: :func:`fogsim.fileio.atomic_path`), and so is one that leads nowhere (a write through it
+    link itself: :func:`fogsim.io.atomic.atomic_path`), and so is one that leads nowhere (a write through it
     fails: nothing is created at its end)."""
     folders = [target]
     while folders:
@@ -137,10 +139,51 @@ def claim_output(path: str | os.PathLike, parameters: dict, record: dict | None 
         stored = legacy(old)
     if isinstance(stored, dict) and upgrade is not None:
         stored = upgrade(stored)
-    if json.loads(json.dumps(parameters, default=str)) != stored:
-        raise InputError(path, f"this output folder holds a {what} with other parameters; use another "
-                               f"--out (or delete it) rather than mixing two {what}s")
+    given = json.loads(json.dumps(parameters, default=str))
+    if given != stored:
+        raise InputError(path, f"this output folder holds a {what} with other parameters "
+                               f"({describe_difference(stored, given, 'there', 'now')}); run with the parameters "
+                               f"recorded in {path.name} to resume or add to it, or choose another --out: two "
+                               f"{what}s are never mixed in one folder")
     return False
+
+
+ABSENT = object()  # a key one side lacks (first_difference)
+
+
+def first_difference(old, new, where: str = ""):
+    """The first place two JSON values differ: ``(dotted path, old part, new part)`` (a key one side
+    lacks: :data:`ABSENT` on that side), or None when they are equal."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        for key in sorted(set(old) | set(new), key=str):
+            found = first_difference(old.get(key, ABSENT), new.get(key, ABSENT), f"{where}.{key}" if where else key)
+            if found is not None:
+                return found
+        return None
+    nested = any(isinstance(v, (dict, list)) for v in (*old, *new)) if isinstance(old, list) and isinstance(
+        new, list) else False  # a list of plain values ([320, 213]) is one value
+    if nested and len(old) == len(new):
+        for i, (a, b) in enumerate(zip(old, new)):
+            if (found := first_difference(a, b, f"{where}[{i}]")) is not None:
+                return found
+        return None
+    return None if old == new else (where, old, new)
+
+
+def describe_difference(old, new, old_side: str = "recorded", new_side: str = "given") -> str:
+    """``"resolution: [320, 213] recorded, [640, 426] given"``: the first difference of two JSON values,
+    each side's value shortened to 80 characters ("" when they are equal)."""
+    found = first_difference(old, new)
+    if found is None:
+        return ""
+    where, a, b = found
+
+    def show(v) -> str:
+        if v is ABSENT:
+            return "absent"
+        text = json.dumps(v, default=str, ensure_ascii=False)
+        return text if len(text) <= 80 else text[:79] + "…"
+    return f"{where or 'the value'}: {show(a)} {old_side}, {show(b)} {new_side}"
 
 
 # ----------------------------------------------------------------------------- shards

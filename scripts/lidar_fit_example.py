@@ -18,6 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: the "real" fog: other streets, fogged at visibility 150 m by this calibration of the hdl32e (hidden from the fit)
 HIDDEN = {"name": "hidden", "fog_echo_scale": 0.05, "pulse_half_power_ns": 14.0, "max_range_m": 110.0,
           "fluctuation_sigma": 0.8}
+HIDDEN["sources"] = dict.fromkeys([k for k in HIDDEN if k != "name"], "assumed: the worked example's hidden fog")
 VISIBILITY_M = 150.0
 CLEAR_SEEDS, FOGGY_SEEDS = (0, 1, 2, 3), (10, 11, 12, 13)
 

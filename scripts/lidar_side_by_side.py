@@ -20,10 +20,7 @@ import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-#: the STF authors' HDL-64 S2 constants, given to the HDL-32E of the nuScenes fixture (none are published for it)
-S2_ASSUMED = {"name": "stf-s2-assumed", "stf_noise_level": 0.05, "stf_gain": 0.35,
-              "sources": {"stf_noise_level": "assumption: the STF authors' HDL-64 S2 constants for an HDL-32E",
-                          "stf_gain": "assumption: the STF authors' HDL-64 S2 constants for an HDL-32E"}}
+
 
 
 def fixture_subjects(folder: Path, calibration=None) -> list:
@@ -31,6 +28,7 @@ def fixture_subjects(folder: Path, calibration=None) -> list:
     import lidar_fixtures as lf
     from fogsim.bench.lidar_side_by_side import Subject
     from fogsim.lidar.formats import read_points
+    from fogsim.lidar.stf2020 import S2_ASSUMED
 
     fixture = "`tests/lidar_fixtures.py: {}` ({})"
     return [Subject("KITTI " + fixture.format("kitti_street_sweep()", "a ray-cast HDL-64E street sweep, camera view "
@@ -60,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     sys.path[:0] = [str(ROOT), str(ROOT / "tests")]  # this repository's fogsim and its fixtures
     from fogsim.bench import lidar_side_by_side as sbs
     from fogsim.cli.fog_lidar import calibration_choice
-    from fogsim.fileio import atomic_write_bytes
+    from fogsim.io.atomic import atomic_write_bytes
     from fogsim.lidar.formats import read_points
 
     try:
@@ -68,6 +66,7 @@ def main(argv: list[str] | None = None) -> int:
         with tempfile.TemporaryDirectory() as tmp:
             if args.scan:
                 from fogsim.lidar.sensors import load_sensor
+                from fogsim.lidar.stf2020 import S2_ASSUMED
 
                 stf = (None, "the sensor's") if load_sensor(args.sensor).stf_noise_level is not None else \
                     (S2_ASSUMED, "the HDL-64 S2's, assumed (none are published for this sensor)")

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsim.fileio import read_image, write_image
+from fogsim.io.images import read_image, write_image
 from fogsim.presets import presets_dir
 from fogsim.viz import strip
 

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.camera import encode_disparity_png
-from fogsim.fileio import write_image
+from fogsim.io.images import write_image
 
 W, H = 64, 32
 CAMERA = {"extrinsic": {"baseline": 0.2}, "intrinsic": {"fx": 50.0, "fy": 50.0, "u0": 31.5, "v0": 15.5}}

@@ -201,14 +201,14 @@ GROUND_Z, HOUSE_Y = -1.73, 9.0
 GROUND_REFLECTANCE, HOUSE_REFLECTANCE = 0.08, 0.25
 
 
-def _box_hits(d: np.ndarray, car: Car) -> np.ndarray:
-    """Ray parameter t (metres, rays from the origin along unit ``d``) where each ray enters the car's box
-    (inf: a miss); the slab method in the box's own frame."""
+def _box_hits(d: np.ndarray, car: Car, origins: np.ndarray | None = None) -> np.ndarray:
+    """Ray parameter t (metres, rays from ``origins`` — default the origin — along unit ``d``) where each ray
+    enters the car's box (inf: a miss); the slab method in the box's own frame."""
     c, s = math.cos(car.yaw), math.sin(car.yaw)
     rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
     centre = np.array([car.x, car.y, car.z + car.height / 2])
     half = np.array([car.length, car.width, car.height]) / 2
-    o, dl = (-centre) @ rot, d @ rot
+    o, dl = ((0.0 if origins is None else origins) - centre) @ rot, d @ rot
     with np.errstate(divide="ignore", invalid="ignore"):
         t1, t2 = (-half - o) / dl, (half - o) / dl
     near = np.nanmax(np.minimum(t1, t2), axis=1)
@@ -217,24 +217,29 @@ def _box_hits(d: np.ndarray, car: Car) -> np.ndarray:
 
 
 def street_scan(cars: list[Car], rng: np.random.Generator, azimuth_deg: float = 60.0, step_deg: float = 0.2,
-                beams: int = 64, max_range: float = 100.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A spinning LiDAR's sweep (HDL-64E's 64 beams, −24.9° … +2°, ±``azimuth_deg`` about +x) of a street:
-    the ground, two house fronts and the cars (their reflectance, else 0.1–0.4), each ray's first hit
-    within ``max_range``. Returns (xyz N×3 float32, KITTI reflectance N float32, hit id N: −1 ground,
-    −2 houses, k car k)."""
-    el = np.radians(np.linspace(-24.9, 2.0, beams))
+                max_range: float = 100.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A spinning LiDAR's sweep (the ``hdl64e`` preset's 64 lasers — KITTI's HDL-64E: two blocks, each
+    laser's line its ``vertical_offsets_m`` off the origin — ±``azimuth_deg`` about +x) of a street: the
+    ground, two house fronts and the cars (their reflectance, else 0.1–0.4), each ray's first hit within
+    ``max_range``. Returns (xyz N×3 float32, KITTI reflectance N float32, hit id N: −1 ground, −2 houses,
+    k car k)."""
+    from fogsim.lidar.sensors import LidarSensor
+
+    sensor = LidarSensor.preset("hdl64e")
     az = np.radians(np.arange(-azimuth_deg, azimuth_deg + 1e-9, step_deg))
-    E, A = np.meshgrid(el, az, indexing="ij")
+    E, A = np.meshgrid(sensor.inclinations_rad, az, indexing="ij")
+    H = np.broadcast_to(np.asarray(sensor.vertical_offsets_m)[:, None], E.shape)
     d = np.stack([np.cos(E) * np.cos(A), np.cos(E) * np.sin(A), np.sin(E)], -1).reshape(-1, 3)
+    o = (H[..., None] * np.stack([-np.sin(E) * np.cos(A), -np.sin(E) * np.sin(A), np.cos(E)], -1)).reshape(-1, 3)
     with np.errstate(divide="ignore", invalid="ignore"):
-        t_ground = np.where(d[:, 2] < 0, GROUND_Z / d[:, 2], np.inf)
-        t_house = np.where(np.abs(d[:, 1]) > 1e-9, HOUSE_Y / np.abs(d[:, 1]), np.inf)
-    t = np.stack([t_ground, t_house] + [_box_hits(d, c) for c in cars], 1)
+        t_ground = np.where(d[:, 2] < 0, (GROUND_Z - o[:, 2]) / d[:, 2], np.inf)
+        t_house = np.where(np.abs(d[:, 1]) > 1e-9, (HOUSE_Y * np.sign(d[:, 1]) - o[:, 1]) / d[:, 1], np.inf)
+    t = np.stack([t_ground, t_house] + [_box_hits(d, c, o) for c in cars], 1)
     which = np.argmin(t, 1)
     best = t[np.arange(len(t)), which]
     hit = np.isfinite(best) & (best <= max_range)
-    which, best, d = which[hit], best[hit], d[hit]
-    xyz = d * best[:, None]
+    which, best, d, o = which[hit], best[hit], d[hit], o[hit]
+    xyz = o + d * best[:, None]
     ids = np.where(which == 0, -1, np.where(which == 1, -2, which - 2))
     refl = np.where(ids == -1, GROUND_REFLECTANCE, HOUSE_REFLECTANCE) + rng.normal(0, 0.01, len(ids))
     for k, car in enumerate(cars):

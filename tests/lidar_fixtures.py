@@ -77,9 +77,9 @@ def write_surfaces(folder: Path, surfaces: list[Surface]) -> tuple[Path, Path, n
 SWEEP_AZIMUTH_DEG, SWEEP_STEP_DEG = 40.0, 0.25
 SWEEP_CARS = ((5.5, -3.0, 0.05), (9.0, 2.8, 0.6), (14.0, -3.2, 0.3), (21.0, 3.0, 0.05), (27.0, -2.5, 0.9),
               (35.0, 2.6, 0.2), (46.0, -3.0, 0.05), (58.0, 3.1, 0.6), (70.0, -2.8, 0.3))
-#: glass: the house fronts' windows (3 m of every 4 m along the street, 0.8–2.6 m above the road) return
+#: glass: the house fronts' windows (3 m of every 4 m along the street, 1.0–2.2 m above the road) return
 #: no reflectance, as windows do in KITTI scans
-WINDOW_PITCH_M, WINDOW_WIDTH_M, WINDOW_BANDS_M = 4.0, 3.0, ((0.8, 2.6),)
+WINDOW_PITCH_M, WINDOW_WIDTH_M, WINDOW_BANDS_M = 4.0, 3.0, ((1.0, 2.2),)
 #: KITTI reflectance of the road and the house fronts, and the weakest non-zero reflectance reported
 SWEEP_ROAD, SWEEP_HOUSE, SWEEP_ZERO_BELOW = 0.3, 0.4, 0.05
 
@@ -191,3 +191,155 @@ def stf_sweep(folder: Path, steps: int = 400, seed: int = 0) -> Path:
     path = folder / "sweep_stf.bin"
     path.write_bytes(stf_bin(scan.xyz, stf_intensities(len(scan), np.random.default_rng(seed + 1)), ring))
     return path
+
+
+# ----------------------------------------------------------------------------- every firing stored (nuScenes)
+#: a nuScenes LIDAR_TOP sweep: 1 084 firings × 32 rings, stored firing by firing (row = 32·firing + ring)
+NUSCENES_FIRINGS, NUSCENES_RINGS = 1084, 32
+#: the open street of :func:`nuscenes_firings`: road 1.84 m below the sensor, house fronts 11 m to each side
+#: (9 m high, a 6 m gap every 20 m), no street ends (sky along the street), returns up to 90 m
+OPEN_STREET_ROAD_M, OPEN_STREET_HOUSE_M, OPEN_STREET_HOUSE_TOP_M, OPEN_STREET_REACH_M = 1.84, 11.0, 9.0, 90.0
+#: the vehicle's own roof: the two lowest rings, ±25° about straight back, echo from 0.6 m (the blind zone)
+EGO_RINGS, EGO_HALF_ANGLE_DEG, EGO_RANGE_M = (30, 31), 25.0, 0.6
+
+
+def open_street_hits(d: np.ndarray, origins: np.ndarray | None = None, road_m: float = OPEN_STREET_ROAD_M,
+                     windows: bool = False) -> np.ndarray:
+    """The range (+inf: nothing within :data:`OPEN_STREET_REACH_M`) at which rays ``d`` (N×3 unit, from
+    ``origins``, N×3, default the sensor origin) meet the open street ``road_m`` below the sensor: the road,
+    the house fronts with their gaps, four parked cars. ``windows``: the house fronts' windows (1–2.6 m
+    above the road, 3 m of every 4 m) return nothing, as glass does in KITTI's scans."""
+    o = np.zeros_like(d) if origins is None else origins
+    glass = np.full(len(d), np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(d[:, 2] < 0, (-road_m - o[:, 2]) / d[:, 2], np.inf)
+        for side in (1.0, -1.0):
+            th = np.where(d[:, 1] * side > 0, (side * OPEN_STREET_HOUSE_M - o[:, 1]) / d[:, 1], np.inf)
+            x, z = o[:, 0] + th * d[:, 0], o[:, 2] + th * d[:, 2] + road_m  # z: above the road
+            wall = (z < OPEN_STREET_HOUSE_TOP_M) & (np.mod(x, 20.0) < 14.0)
+            t = np.minimum(t, np.where(wall, th, np.inf))
+            if windows:
+                glass = np.minimum(glass, np.where(wall & (z > 1.0) & (z < 2.6) & (np.mod(x, 4.0) < 3.0), th, np.inf))
+        for cx, cy in ((8.0, -4.0), (-12.0, 4.5), (25.0, 4.0), (-30.0, -4.0)):  # cars 4.4 × 1.8 × 1.5 m
+            lo = np.array([cx - 2.2, cy - 0.9, -road_m])
+            hi = np.array([cx + 2.2, cy + 0.9, -road_m + 1.5])
+            t0, t1 = (lo - o) / d, (hi - o) / d
+            near = np.nanmax(np.minimum(t0, t1), axis=1)
+            far = np.nanmin(np.maximum(t0, t1), axis=1)
+            t = np.minimum(t, np.where((near <= far) & (near > 0), near, np.inf))
+    return np.where((t <= OPEN_STREET_REACH_M) & (glass > t), t, np.inf)
+
+
+def nuscenes_firings(folder: Path, seed: int = 0) -> tuple[Path, dict]:
+    """A nuScenes-format sweep that stores every firing (``firings.pcd.bin``: 5 × float32 x y z
+    intensity(0–255) ring, :data:`NUSCENES_FIRINGS` × :data:`NUSCENES_RINGS` rows, firing by firing, the
+    sensor turning clockwise): the ``hdl32e`` preset's beams (ring 0 the highest) over the open street of
+    :func:`open_street_hits`. A firing without a return is a row at exactly 0 m (intensity 0); one that
+    meets the vehicle's roof (:data:`EGO_RINGS`) a row at :data:`EGO_RANGE_M`. Returns (path, truth):
+    ``direction`` (rows × 3, each firing's ray), ``void`` (rows at 0 m), ``ego`` (rows on the roof)."""
+    from fogsim.lidar.sensors import LidarSensor
+
+    incl = np.sort(LidarSensor.preset("hdl32e").inclinations_rad)[::-1]  # ring 0 = the highest beam
+    rng = np.random.default_rng(seed)
+    start = rng.uniform(-np.pi, np.pi)
+    az = start - np.arange(NUSCENES_FIRINGS) * (2 * np.pi / NUSCENES_FIRINGS)  # clockwise seen from above
+    az = az + rng.normal(0.0, np.radians(0.01), NUSCENES_FIRINGS)
+    el, a = np.meshgrid(incl, az, indexing="xy")  # rows: firing-major, 32 rings per firing
+    el, a = el.reshape(-1), a.reshape(-1)
+    ring = np.tile(np.arange(NUSCENES_RINGS), NUSCENES_FIRINGS)
+    d = np.stack([np.cos(el) * np.cos(a), np.cos(el) * np.sin(a), np.sin(el)], 1)
+    t = open_street_hits(d)
+    back = np.abs(np.angle(np.exp(1j * (a - np.pi)))) < np.radians(EGO_HALF_ANGLE_DEG)
+    ego = np.isin(ring, EGO_RINGS) & back
+    t = np.where(ego, EGO_RANGE_M, t)
+    void = ~np.isfinite(t)
+    xyz = np.where(void[:, None], 0.0, d * np.where(void, 0.0, t)[:, None])
+    inten = nuscenes_intensities(len(d), rng)
+    inten[void] = 0.0
+    inten[ego] = np.minimum(inten[ego], 3.0)
+    path = folder / "firings.pcd.bin"
+    path.write_bytes(stf_bin(xyz.astype(np.float32), inten, ring.astype(np.float32)))
+    return path, {"direction": d, "void": void, "ego": ego}
+
+
+# ----------------------------------------------------------------------------- a cropped KITTI frame (real lasers)
+#: a KITTI object frame's calibration (the 2011_09_26 drives', rounded) and image size: LiDAR → image 2
+KITTI_P2 = np.array([[721.5377, 0.0, 609.5593, 44.85728], [0.0, 721.5377, 172.854, 0.2163791],
+                     [0.0, 0.0, 1.0, 0.002745884]])
+KITTI_R0 = np.array([[0.9999239, 0.00983776, -0.007445048], [-0.009869795, 0.9999421, -0.004278459],
+                     [0.007402527, 0.004351614, 0.9999631]])
+KITTI_TR = np.array([[0.007533745, -0.9999714, -0.000616602, -0.004069766],
+                     [0.01480249, 0.0007280733, -0.9998902, -0.07631618],
+                     [0.9998621, 0.00752379, 0.01480755, -0.2717806]])
+KITTI_IMAGE = (1242, 375)
+KITTI_HEIGHT_M = 1.73
+
+
+def kitti_p2(scale: float = 1.0) -> np.ndarray:
+    """P2 for image 2 resampled by ``scale`` (1/3: 414 × 125 pixels, the same view)."""
+    p = KITTI_P2.copy()
+    p[:2] *= scale
+    return p
+
+
+def kitti_image(scale: float = 1.0) -> tuple[int, int]:
+    return round(KITTI_IMAGE[0] * scale), round(KITTI_IMAGE[1] * scale)
+
+
+def kitti_projection(scale: float = 1.0) -> np.ndarray:
+    """3×4: LiDAR point → image 2 (P2 · R0_rect · Tr_velo_to_cam; pixel-centre coordinates)."""
+    r0, tr = np.eye(4), np.vstack([KITTI_TR, [0, 0, 0, 1]])
+    r0[:3, :3] = KITTI_R0
+    return kitti_p2(scale) @ r0 @ tr
+
+
+def kitti_calib_text(scale: float = 1.0) -> str:
+    """The calibration as a KITTI ``calib/*.txt`` (P2 for every camera; an identity IMU line)."""
+    p = kitti_p2(scale)
+    rows = {"P0": p, "P1": p, "P2": p, "P3": p, "R0_rect": KITTI_R0,
+            "Tr_velo_to_cam": KITTI_TR, "Tr_imu_to_velo": np.hstack([np.eye(3), np.zeros((3, 1))])}
+    return "".join(f"{k}: {' '.join(f'{v:.9e}' for v in m.ravel())}\n" for k, m in rows.items())
+
+
+def kitti_laser_frame(folder: Path, seed: int = 0, steps: int = 2000) -> tuple[Path, dict]:
+    """A KITTI velodyne scan cropped to camera 2 (``frame.bin``, KITTI's 4 × float32, the points of rays that
+    project into the image, as ``velodyne_reduced`` keeps them) of the open street (:func:`open_street_hits`,
+    1.73 m below), made as KITTI's HDL-64E makes it: the ``hdl64e`` preset's 64 lasers (KITTI's factory
+    calibration: two blocks, each laser's line :attr:`~LidarSensor.vertical_offsets_m` off the origin),
+    each firing ``steps`` times a turn at its own phase. A ray without a hit (sky, the road beyond 90 m, a
+    window) leaves no point. Returns (path, truth): ``laser`` (per point), ``missing`` (unit directions of the rays
+    without a return whose ray projects into the image at 20 m), ``elevation`` (theirs, radians)."""
+    from fogsim.lidar.sensors import LidarSensor
+
+    s = LidarSensor.preset("hdl64e")
+    theta = s.inclinations_rad
+    h = np.asarray(s.vertical_offsets_m)
+    rng = np.random.default_rng(seed)
+    step = 2 * np.pi / steps
+    phase = rng.uniform(0, step, len(theta))
+    az = np.arange(steps)[None, :] * step + phase[:, None] + rng.normal(0, step * 0.05, (len(theta), steps))
+    th = np.broadcast_to(theta[:, None], az.shape)
+    laser = np.broadcast_to(np.arange(len(theta))[:, None], az.shape).reshape(-1)
+    az, th = az.reshape(-1), th.reshape(-1)
+    d = np.stack([np.cos(th) * np.cos(az), np.cos(th) * np.sin(az), np.sin(th)], 1)
+    hk = h[laser]
+    origins = hk[:, None] * np.stack([-np.sin(th) * np.cos(az), -np.sin(th) * np.sin(az), np.cos(th)], 1)
+    t = open_street_hits(d, origins, KITTI_HEIGHT_M, windows=True)
+    m = kitti_projection()
+
+    def inside(p):
+        q = p @ m[:, :3].T + m[:, 3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u, v = q[:, 0] / q[:, 2], q[:, 1] / q[:, 2]
+        return (q[:, 2] > 0) & (u >= 0) & (u < KITTI_IMAGE[0]) & (v >= 0) & (v < KITTI_IMAGE[1])
+
+    hit = np.isfinite(t)
+    xyz = origins[hit] + d[hit] * t[hit, None]
+    keep = inside(xyz)
+    xyz, point_laser = xyz[keep], laser[hit][keep]
+    i01 = np.clip(np.round(np.exp(np.log(0.25) + 0.6 * rng.standard_normal(len(xyz))), 2), 0.01, 0.99)
+    i01[rng.random(len(i01)) < ZERO_INTENSITY_SHARE] = 0.0
+    path = folder / "frame.bin"
+    path.write_bytes(kitti_bin(xyz.astype(np.float32), i01.astype(np.float32)))
+    gone = ~hit & inside(origins + 20.0 * d)
+    return path, {"laser": point_laser, "missing": d[gone], "elevation": th[gone]}

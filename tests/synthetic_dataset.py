@@ -10,10 +10,12 @@ import numpy as np
 from fogsim.camera import planar_to_ray
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import finalize, write_frame_labels
-from fogsim.fileio import write_depth, write_image, write_json
 from fogsim.fog.levels import parse_levels
 from fogsim.fog.model import Fogger
 from fogsim.fog.synthetic import demo_scene
+from fogsim.io.depth_files import write_depth
+from fogsim.io.documents import write_json
+from fogsim.io.images import write_image
 
 COLOURS = ((200, 30, 30), (30, 160, 40), (40, 60, 200), (230, 200, 40))
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from asset_models import MODELS, make_library
-from fogsim.fileio import read_uint16_map
+from fogsim.io.depth_files import read_uint16_map
 from test_blender import KINDS, SCRIPTS, render_dataset, run, runner
 
 pytestmark = pytest.mark.blender

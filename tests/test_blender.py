@@ -18,7 +18,8 @@ import pytest
 
 from conftest import expected_yolo_lines, signal_mid_run
 from fogsim.boxes import parse_yolo_line
-from fogsim.fileio import read_depth_file, read_image, read_uint16_map
+from fogsim.io.depth_files import read_depth_file, read_uint16_map
+from fogsim.io.images import read_image
 
 pytestmark = pytest.mark.blender
 slow = pytest.mark.slow  # over ~10 s on 2 cores: several render runs, or building the add-on zips
@@ -255,8 +256,8 @@ def test_killed_render_leaves_no_temp_files(tmp_path):
     assert not (out / "meta" / "000002.json").exists(), "the kill came too late to interrupt the run"
     assert not list(systmp.glob("fogsim_render_*")), "Cycles' EXR was written to the system temp folder"
     # what a kill at an unlucky moment leaves: a part file of each kind of output (named after the
-    # killed writer, as fogsim.fileio names them), a temporary EXR
-    from fogsim.fileio import _HOST
+    # killed writer, as fogsim.io names them), a temporary EXR
+    from fogsim.io.parts import _HOST
 
     w = f"{_HOST}-{proc.pid}"
     stale = [out / "labels" / "clear" / f".000001.txt.{w}.k1ll3d_a.part",
@@ -437,3 +438,14 @@ def test_a_script_that_used_tqdm_exits_cleanly(kind):
     res = run(runner(kind)(SCRIPTS / "tqdm_exit.py"))
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]  # Blender 3.4: -11 without the fix
     assert "written above the bar" in res.stdout + res.stderr
+
+
+def test_no_api_blender_5_deprecates(tmp_path):
+    """Materials, the fog's material and an HDRI world are made without what Blender 5.0 deprecates
+    (``use_nodes``, removed in 6.0): a render with every warning shown prints none of them (issue 47)."""
+    env = dict(os.environ, PYTHONWARNINGS="always::DeprecationWarning")
+    res = run(runner("bpy")(ROOT / "scripts" / "render_batch.py", "--out", str(tmp_path / "d"), "--frames", "1",
+                            "--resolution", "96x64", "--samples", "1", "--levels", "clear,0.06", "--preset", "hdri",
+                            "--fog", "volumetric", "--quiet"), env=env)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "expected to be removed in Blender 6.0" not in res.stderr, res.stderr[-2000:]

@@ -7,7 +7,7 @@ import pytest
 
 from cityscapes_tree import BASES, hand_distance, make_tree, scene
 from fogsim.errors import InputError
-from fogsim.fileio import write_image
+from fogsim.io.images import write_image
 from fogsim.readers.base import Labels
 from fogsim.readers.cityscapes import cityscapes_samples
 from fogsim.readers.cityscapes_labels import CITYSCAPES_CLASSES, instance_records, png_size

@@ -8,8 +8,9 @@ import pytest
 from conftest import tree_digest
 from fogsim.camera import Intrinsics, decode_disparity_png, disparity_to_depth, planar_to_ray
 from fogsim.cli import main
-from fogsim.fileio import read_depth_file, read_image, read_uint16_map, write_depth, write_image
 from fogsim.fog.fill import fill_holes
+from fogsim.io.depth_files import read_depth_file, read_uint16_map, write_depth
+from fogsim.io.images import read_image, write_image
 
 
 def fog_args(ds, out, *extra):
@@ -274,7 +275,7 @@ def test_16_bit_input_to_jpg_is_scaled_not_saturated(tmp_path):
     assert np.array_equal(read_image(tmp_path / "p" / "clear" / "x.png"), img16)
     assert json.loads((tmp_path / "p" / "beta0.05" / "x.json").read_text())["bit_depth"] == \
         {"input": 16, "output": 16}
-    from fogsim.fileio import encode_image
+    from fogsim.io.images import encode_image
 
     with pytest.raises(ValueError, match="JPEG holds 8-bit"):
         encode_image(img16, ".jpg")

@@ -102,7 +102,7 @@ def test_yolo_predictions(tmp_path):
 
 def test_cross_density_table_and_report(tmp_path):
     from fogsim.detection.table import cross_density, markdown, write_report
-    from fogsim.fileio import read_image
+    from fogsim.io.images import read_image
 
     perfect = [det(a["image_id"], a["bbox"], 0.9) for a in GT["annotations"]]
     half = perfect[:1] + [det(1, (150, 60, 10, 10), 0.95)]

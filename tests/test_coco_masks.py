@@ -16,7 +16,9 @@ import pytest
 from fogsim.dataset.coco import EVERY_CLASS, expand_every_class
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import finalize, write_frame_labels
-from fogsim.fileio import read_uint16_map, write_image, write_json
+from fogsim.io.depth_files import read_uint16_map
+from fogsim.io.documents import write_json
+from fogsim.io.images import write_image
 from fogsim.render.labels import object_records
 from fogsim.rle import box_mask, box_rle, rle_counts, rle_encode, rle_encode_box
 from fogsim.scene.classes import LABELLED
@@ -198,7 +200,8 @@ def test_a_kitti_frame_with_4_dontcare_boxes_gives_4_ignore_annotations(tmp_path
             assert a["segmentation"] == box_rle(a["bbox"][:2] + [a["bbox"][0] + a["bbox"][2],
                                                                  a["bbox"][1] + a["bbox"][3]], kt.HEIGHT, kt.WIDTH)
         car = next(a for a in anns if not a["iscrowd"])
-        assert "segmentation" not in car  # a box-only label has no outline
+        x, y, w, h = car["bbox"]  # a box-only label: its box as a polygon, marked so
+        assert car["segmentation"] == [[x, y, x + w, y, x + w, y + h, x, y + h]] and car["segmentation_is_box"]
         assert all("segmentation" in a for a in gt["annotations"] if a["iscrowd"])
         # per-category evaluation: the region ignores a detection of every class there
         per_class = expand_every_class(gt)
@@ -213,3 +216,28 @@ def test_a_kitti_frame_with_4_dontcare_boxes_gives_4_ignore_annotations(tmp_path
         assert evaluate(one, det + [car_there])["ap50"] < 1.0  # unexpanded, it would be a false alarm
     val = val_ground_truth(out, "clear")  # the study's ground truth: expanded
     assert all(a["category_id"] <= len(KITTI_CLASSES) for a in val["annotations"])
+
+
+# ----------------------------------------------------------------------------- box-only labels: a polygon
+def test_box_only_coco_files_work_with_annToMask(tmp_path):
+    """A fogged KITTI tree (box labels only): every annotation has a ``segmentation`` pycocotools reads —
+    a kept object its box as a polygon, whose mask is the box's pixels (up to a pixel whose centre sits on
+    a fractional edge) — as KITTI→COCO converters write it (issue 47)."""
+    pytest.importorskip("pycocotools")
+    import kitti_tree as kt
+    from fogsim.cli import main
+
+    root = kt.write_kitti(tmp_path / "in" / "kitti")
+    out = tmp_path / "out"
+    assert main(["fog", "--quiet", "--kitti", str(root), "--levels", "clear,0.06", "--out", str(out)]) == 0
+    coco = coco_api(out / "coco" / "beta0.06.json")
+    kept = [a for a in coco.dataset["annotations"] if not a["iscrowd"]]
+    assert kept and all(a["segmentation_is_box"] for a in kept)
+    for a in coco.dataset["annotations"]:
+        image = coco.imgs[a["image_id"]]
+        mask = coco.annToMask(a).astype(bool)  # a KeyError before: no "segmentation"
+        x, y, w, h = a["bbox"]
+        want = box_mask([x, y, x + w, y + h], image["height"], image["width"])
+        assert mask.shape == want.shape
+        assert (mask & ~want).sum() == 0 and (want & ~mask).sum() <= 2 * (w + h) + 4  # the box, edges aside
+        assert mask.sum() > 0.8 * want.sum()

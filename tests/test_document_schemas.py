@@ -115,7 +115,7 @@ def _read_done_file(root: Path, doc):
 
 def _read_frame_camera(root: Path, doc):
     from fogsim.depth.score import score_dataset
-    from fogsim.fileio import write_depth
+    from fogsim.io.depth_files import write_depth
 
     depth = np.full((8, 12), 10.0, np.float32)
     write_depth(root / "ds" / "depth" / "000000.exr", depth)

@@ -10,10 +10,11 @@ import pytest
 from fogsim.augment import Draw, FogSpec, apply_fog
 from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.cli import main
-from fogsim.fileio import read_depth_file, read_image
 from fogsim.fog.engine import FogSettings, Heterogeneity
 from fogsim.fog.model import Fogger, Kernel
 from fogsim.fog.scatter import ScatterFogger, load_params
+from fogsim.io.depth_files import read_depth_file
+from fogsim.io.images import read_image
 from fogsim.schema.vocabulary import FOG_KINDS, model_word
 
 BETA = 0.06

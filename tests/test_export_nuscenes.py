@@ -35,9 +35,11 @@ def test_a_fogged_kitti_set_exports_as_nuscenes_samples(tmp_path, capsys):
     before = tree_digest(ds)
     nusc = tmp_path / "nusc"
     assert main(["export", "nuscenes", str(ds), "--out", str(nusc)]) == 0
-    assert "LIDAR_TOP" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "\nexported LIDAR_TOP (" in said and "RADAR" not in said  # the channels written, no other
     assert tree_digest(ds) == before
     incl = np.radians(np.asarray(LidarSensor.preset("hdl64e").inclinations_deg))
+    h = np.asarray(LidarSensor.preset("hdl64e").vertical_offsets_m)
     metas = [json.loads(p.read_text()) for p in sorted((ds / "meta").glob("*.json"))]
     assert len(metas) == 2
     for meta in metas:
@@ -48,9 +50,10 @@ def test_a_fogged_kitti_set_exports_as_nuscenes_samples(tmp_path, capsys):
             np.testing.assert_array_equal(got[:, :3], scan[:, :3])
             np.testing.assert_allclose(got[:, 3], 255.0 * scan[:, 3], rtol=1e-6)
             assert (got[:, 4] == np.round(got[:, 4])).all()
-            elevation = np.arctan2(scan[:, 2].astype(np.float64), np.hypot(scan[:, 0], scan[:, 1]))
-            nearest = np.abs(elevation[:, None] - incl[None, :]).min(1)
-            np.testing.assert_allclose(np.abs(elevation - incl[got[:, 4].astype(int)]), nearest, atol=1e-12)
+            # the ring: the laser whose line passes nearest (its vertical offset h: |z cos θ − ρ sin θ − h|)
+            z, rho = scan[:, 2].astype(np.float64), np.hypot(scan[:, 0], scan[:, 1]).astype(np.float64)
+            off = np.abs(z[:, None] * np.cos(incl) - rho[:, None] * np.sin(incl) - h)
+            np.testing.assert_allclose(off[np.arange(len(scan)), got[:, 4].astype(int)], off.min(1), atol=1e-12)
     summary = json.loads((nusc / "fogsim_nuscenes.json").read_text())
     assert summary["tables_not_written"] == list(TABLES_NOT_WRITTEN) and len(TABLES_NOT_WRITTEN) == 13
     assert summary["samples_per_level"] == {"clear": 2, "beta0.06": 2}

@@ -14,9 +14,9 @@ from conftest import tree_digest
 from fogsim.cli import main
 from fogsim.dataset.layout import DatasetLayout, frame_from_key, frames_from_keys
 from fogsim.errors import InputError
-from fogsim.fileio import read_image, write_image
 from fogsim.fog.batch import FogJob, finalize_dataset, run
 from fogsim.fog.levels import parse_levels
+from fogsim.io.images import read_image, write_image
 from fogsim.readers.base import DepthSpec, Labels
 from fogsim.readers.cityscapes_labels import CITYSCAPES_CLASSES
 from fogsim.readers.folder import folder_samples
@@ -497,7 +497,7 @@ def test_real_dataset_objects_get_box_based_visibility_per_level(tmp_path):
     beyond the visibility ln(20)/0.12 ≈ 25 m and is flagged invisible there (contrast < 5 %),
     in the meta and in that level's COCO file; numbers checked against Koschmieder by hand."""
     from fogsim.colour import srgb_to_linear
-    from fogsim.fileio import write_depth
+    from fogsim.io.depth_files import write_depth
 
     img = np.full((48, 64, 3), 128, np.uint8)
     img[16:32, 24:40] = 0

@@ -17,7 +17,7 @@ import pytest
 import kitti_tree as kt
 from conftest import tree_digest
 from fogsim.cli import main
-from fogsim.fileio import read_image
+from fogsim.io.images import read_image
 from fogsim.lidar.fog import ATTENUATED, CLUTTER, KEPT, LOST, LidarFogger
 from fogsim.lidar.objects import cross_sensor_table
 from fogsim.lidar.outcome_file import read_outcomes

@@ -15,8 +15,8 @@ from fogsim.bench.fog_physics import analyse, linear_path, read_linear_rgb, rend
 from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.colour import srgb_to_linear
 from fogsim.dataset.layout import DatasetLayout
-from fogsim.fileio import read_image
 from fogsim.fog.physics import koschmieder_linear, koschmieder_model, noisy_render
+from fogsim.io.images import read_image
 
 W, H, EXPOSURE = 96, 64, 0.35
 
@@ -115,7 +115,8 @@ def test_front_door_analyse_only_and_a_label_mismatch(bench_dir, tmp_path, capsy
     out = tmp_path / "b"
     shutil.copytree(bench_dir, out, ignore=shutil.ignore_patterns("report"))
     m = DatasetLayout(out / "volumetric_seed1").mask("000000")
-    from fogsim.fileio import read_uint16_map, write_image
+    from fogsim.io.depth_files import read_uint16_map
+    from fogsim.io.images import write_image
 
     mask = read_uint16_map(m)
     mask[0, 0] = 9

@@ -159,3 +159,49 @@ def test_a_bad_scan_fails_alone(scans, capsys):
     err = capsys.readouterr().err
     assert "sweeps/a.bin" in err and "not a whole number of 16-byte kitti records" in err
     assert (out / "beta0.06" / "a.json").is_file() and not (out / "beta0.06" / "sweeps").exists()
+
+
+def _totals(out: str) -> dict[str, dict[str, int]]:
+    """The ``outcomes per level`` lines of a run's output: level → outcome → count."""
+    lines = out[out.index("outcomes per level"):].splitlines()[1:]
+    got = {}
+    for line in lines:
+        if not line.startswith("  "):
+            break
+        key, rest = line.strip().split(": ", 1)
+        got[key] = {w.split()[0]: int(w.split()[1]) for w in rest.split(" + ")[0].split(", ")}
+    return got
+
+
+def test_the_run_ends_with_each_levels_outcome_totals(scans, capsys):
+    """Summed from the outcome files on disk, without fogsim's summary code: kept, attenuated, lost per input
+    point, clutter adding the empty rays' (the sidecar's count); a resumed run counts the scans it found done."""
+    from fogsim.lidar.fog import OUTCOMES
+    from fogsim.lidar.outcome_file import read_outcomes
+
+    tmp, *_ = scans
+    src, out = tmp / "in" / "kitti", tmp / "totals"
+    argv = ["fog", "--points", str(src), "--point-format", "kitti", "--levels", "0,0.06,0.12", "--out", str(out)]
+    capsys.readouterr()
+    assert main(argv) == 0
+    said = capsys.readouterr().out
+    want, extra = {}, {}
+    for level in ("clear", "beta0.06", "beta0.12"):
+        counts, extra[level] = np.zeros(len(OUTCOMES), np.int64), 0
+        for f in (out / level).rglob("*.outcomes.npz"):
+            counts += np.bincount(read_outcomes(f)[0], minlength=len(OUTCOMES))
+            extra[level] += json.loads(f.with_name(f.name.replace(".outcomes.npz", ".json")).read_text())[
+                "empty_ray_clutter"]
+        want[level] = dict(zip(OUTCOMES, counts.tolist()))
+    assert _totals(said) == want
+    for level, n in extra.items():  # the fog's points on rays with no input point, said apart
+        line = next(ln for ln in said.splitlines() if ln.strip().startswith(f"{level}:"))
+        assert line.endswith(f" + {n} on empty rays") if n else "empty rays" not in line
+        share = 100 * want[level]["kept"] / sum(want[level].values())
+        assert f"kept {want[level]['kept']} ({share:.1f} %)" in line  # shares of the input points
+    assert want["beta0.12"]["kept"] < want["clear"]["kept"] and want["clear"]["lost"] == 0
+    assert said.index("outcomes per level") < said.index("fogged 2 of 2 scans")  # before the summary line
+    assert main(argv) == 0  # resumed: nothing fogged, the same totals
+    again = capsys.readouterr().out
+    assert "2 already done" in again and _totals(again) == want
+    assert main([*argv, "--quiet"]) == 0 and "outcomes per level" not in capsys.readouterr().out

@@ -126,3 +126,19 @@ def test_a_bad_sweep_fails_alone_naming_it(sweeps, capsys):
     err = capsys.readouterr().err
     assert "sub/n008__RADAR_FRONT__2.pcd" in err and "truncated" in err
     assert (out / "beta0.06" / "n008__RADAR_FRONT__1.json").is_file() and not (out / "beta0.06" / "sub").exists()
+
+
+def test_the_run_ends_with_each_levels_detections_kept_and_lost(sweeps, capsys):
+    """The totals summed from the outcome files on disk (kept and lost per input detection)."""
+    tmp, src = sweeps
+    out = tmp / "totals"
+    argv = ["fog", "--points", str(src), "--point-format", "nuscenes-radar", "--levels", "paper", "--out", str(out)]
+    assert main(argv) == 0
+    said = capsys.readouterr().out
+    lines = said[said.index("outcomes per level (detections"):].splitlines()[1:6]
+    for line in lines:
+        key, rest = (part.strip() for part in line.split(": ", 1))
+        outcome = np.concatenate([read_radar_outcomes(f)[0] for f in (out / key).rglob("*.outcomes.npz")])
+        kept, lost = int((outcome == KEPT).sum()), int((outcome != KEPT).sum())
+        assert rest.startswith(f"kept {kept} (") and f"lost {lost} (" in rest, line
+    assert [ln.strip().split(":")[0] for ln in lines] == ["clear", "beta0.03", "beta0.06", "beta0.09", "beta0.12"]

@@ -14,9 +14,10 @@ import pytest
 
 from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.errors import InputError
-from fogsim.fileio import read_depth_file, read_rgb_exr, read_uint16_map
 from fogsim.fog.model import transmission
 from fogsim.fog.physics import interior_mask
+from fogsim.io.depth_files import read_depth_file, read_uint16_map
+from fogsim.io.exr import read_rgb_exr
 from fogsim.render.fog_rebuild import fit_fog_terms, low_size, rebuild
 from fogsim.render.fog_settings import volumetric_settings
 from fogsim.render.preset import load_render_preset

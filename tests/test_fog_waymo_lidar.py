@@ -12,7 +12,7 @@ import pytest
 import waymo_fixtures as wfx
 import waymo_lidar_fixtures as lfx
 from fogsim.cli import main
-from fogsim.fileio import encode_image
+from fogsim.io.images import encode_image
 from fogsim.lidar.fog import LidarFogger
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.outcome_file import read_outcomes
@@ -101,7 +101,7 @@ def test_no_lidar_in_the_data_is_refused_before_out(tmp_path, capsys):
     image = encode_image(np.full((lfx.IMAGE_H, lfx.IMAGE_W, 3), 60, np.uint8), ".png")
     write_tfrecord(src, [lfx.frame_msg(lfx.wall_scene(), STAMP, with_lasers=False, image=image)])
     depth = tmp_path / "depth" / lfx.CONTEXT
-    from fogsim.fileio import write_depth
+    from fogsim.io.depth_files import write_depth
 
     write_depth(depth / f"{STAMP}_FRONT.exr", np.full((lfx.IMAGE_H, lfx.IMAGE_W), 20.0, np.float32))
     out = tmp_path / "out"

@@ -10,7 +10,8 @@ import fogsim.render.frame as frame_mod
 from conftest import expected_yolo_lines
 from fogsim.camera import Intrinsics, decode_disparity_png
 from fogsim.dataset.layout import DatasetLayout
-from fogsim.fileio import read_depth_file, read_image, read_uint16_map
+from fogsim.io.depth_files import read_depth_file, read_uint16_map
+from fogsim.io.images import read_image
 from fogsim.render.frame import DescribedFrame, FramePasses, commit_frame, describe_frame, frame_name, scene_meshes
 from fogsim.render.preset import load_render_preset
 from fogsim.render.silhouette import silhouette_areas

@@ -1,4 +1,4 @@
-"""fogsim.headers: the size each format's header declares, checked against what the decoders make of the
+"""fogsim.io.headers: the size each format's header declares, checked against what the decoders make of the
 same bytes (OpenCV for images, OpenEXR for EXR, NumPy for .npy), and the bounded .npy reader."""
 from __future__ import annotations
 
@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from fogsim.errors import InputError
-from fogsim.fileio import encode_image, write_depth, write_rgb_exr
-from fogsim.headers import exr_header, image_header, npy_header, read_npy
+from fogsim.io.depth_files import write_depth
+from fogsim.io.exr import write_rgb_exr
+from fogsim.io.headers import exr_header, image_header, npy_header, read_npy
+from fogsim.io.images import encode_image
 
 
 @pytest.mark.parametrize("suffix, shape", [(suffix, shape) for suffix in (".png", ".jpg", ".bmp", ".tif", ".webp")

@@ -19,7 +19,8 @@ import pytest
 from conftest import run_hostile_case, tree_digest
 from fogsim.camera import Intrinsics, depth_to_disparity, encode_disparity_png
 from fogsim.cli import main
-from fogsim.fileio import write_depth, write_image
+from fogsim.io.depth_files import write_depth
+from fogsim.io.images import write_image
 
 
 # ----------------------------------------------------------------------------- inputs
@@ -101,7 +102,7 @@ def _npy(name: str, array: np.ndarray):
 
 
 def _jpeg_truncated(base: Path):
-    from fogsim.fileio import encode_image, read_image
+    from fogsim.io.images import encode_image, read_image
 
     for name in ("a", "b"):
         img = read_image(base / "images" / f"{name}.png")
@@ -153,7 +154,7 @@ CASES = [
     Case("levels-unknown-preset", _flags("--levels", "heavy"), 2, ("heavy", "unknown fog preset")),
     Case("levels-duplicate", _flags("--levels", "0.1,0.1"), 2, ("duplicate",)),
     Case("levels-and-visibility", _flags("--visibility", "50"), 2, ("--levels", "--visibility")),
-    Case("visibility-zero", lambda t: fog(good_folder(t), t / "out")[:-4] + ["--visibility", "0", "--out",
+    Case("visibility-zero", lambda t: fog(good_folder(t), t / "out")[:-5] + ["--visibility", "0", "--out",
                                                                               str(t / "out")], 2, ("visibility",)),
     Case("airlight-out-of-range", _flags("--airlight", "300"), 2, ("--airlight",)),
     Case("airlight-two-values", _flags("--airlight", "1,2"), 2, ("--airlight",)),

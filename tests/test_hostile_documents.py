@@ -24,7 +24,8 @@ import pytest
 from cityscapes_tree import make_tree
 from conftest import tree_digest
 from fogsim.cli import main
-from fogsim.fileio import PART_SUFFIX, write_depth
+from fogsim.io.depth_files import write_depth
+from fogsim.io.parts import PART_SUFFIX
 
 
 # ----------------------------------------------------------------------------- inputs

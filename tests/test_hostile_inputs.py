@@ -26,7 +26,8 @@ import waymo_fixtures as wfx
 import waymo_lidar_fixtures as lfx
 from conftest import run_hostile_case, tree_digest
 from fogsim.cli import main
-from fogsim.fileio import encode_image, write_depth, write_image
+from fogsim.io.depth_files import write_depth
+from fogsim.io.images import encode_image, write_image
 from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.waymo.tfrecord import write_tfrecord
 from test_hostile import Case, fog, good_cityscapes, good_folder

@@ -1,7 +1,7 @@
 """Hostile paths and documents before any schema sees them (issue 31, class 1: U1, U6).
 
-One guard where every path enters (:func:`fogsim.fileio.check_path_arguments`, run by the front
-doors before any command) and one where every JSON text enters (:func:`fogsim.fileio.parse_json`,
+One guard where every path enters (:func:`fogsim.io.paths.check_path_arguments`, run by the front
+doors before any command) and one where every JSON text enters (:func:`fogsim.io.documents.parse_json`,
 behind ``read_json``, the schema's ``load_json`` and both ``--class-map`` readers): a symlink loop
 given to any flag, a document nested 100,000 deep or one larger than the bound is one line naming
 the path, exit 2, no traceback, nothing written, the inputs untouched (:func:`conftest.run_hostile_case`).
@@ -167,7 +167,7 @@ def test_hostile_path_or_document(case: Case, tmp_path, capsys, monkeypatch):
 
 
 def test_json_depth_counts_brackets_outside_strings_only():
-    from fogsim.fileio import MAX_JSON_DEPTH, json_depth, parse_json
+    from fogsim.io.documents import MAX_JSON_DEPTH, json_depth, parse_json
 
     doc = [["a\\", ['"[', [[]]], {"k": "]]]}}}"}]] * 60  # escaped quotes and backslashes, brackets in strings
     assert json_depth(json.dumps(doc)) == 5
@@ -183,7 +183,7 @@ def test_json_depth_counts_brackets_outside_strings_only():
 
 
 def test_read_bounds_the_bytes_it_reads(tmp_path):
-    from fogsim.fileio import read_json, read_text_bounded
+    from fogsim.io.documents import read_json, read_text_bounded
 
     (tmp_path / "big.json").write_text("[" + "0," * 600 + "0]")
     assert len(read_json(tmp_path / "big.json")) == 601
@@ -194,7 +194,7 @@ def test_read_bounds_the_bytes_it_reads(tmp_path):
 
 
 def test_resolve_path_names_a_loop(tmp_path):
-    from fogsim.fileio import resolve_path
+    from fogsim.io.paths import resolve_path
 
     os.symlink("b", tmp_path / "a")
     os.symlink("a", tmp_path / "b")

@@ -34,7 +34,8 @@ import lidar_fixtures as lf
 from conftest import HANG_S, run_hostile_case, signal_mid_run
 from fogsim.cli import main
 from fogsim.errors import InputError
-from fogsim.fileio import encode_image, write_depth
+from fogsim.io.depth_files import write_depth
+from fogsim.io.images import encode_image
 from test_hostile import Case, fog, good_folder
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -848,7 +849,7 @@ def test_a_16g_radar_pcd_and_image_are_refused_in_bounded_memory(tmp_path):
     sparse(tmp_path / "RADAR_FRONT__1.pcd", HUGE, radar_header(HUGE // RADAR_RECORD))
     sparse(tmp_path / "big.png", HUGE, _png_claiming(64, 64))
     code = ("import sys\nfrom fogsim.errors import InputError\nfrom fogsim.lidar.pcd import read_pcd\n"
-            "from fogsim.fileio import read_image\n"
+            "from fogsim.io.images import read_image\n"
             "for read, path in ((read_pcd, 'RADAR_FRONT__1.pcd'), (read_image, 'big.png')):\n"
             "    try:\n        read(path)\n"
             "    except InputError as exc:\n        print('error:', exc, file=sys.stderr)\n")

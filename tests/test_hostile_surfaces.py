@@ -159,7 +159,7 @@ def _exr(rel: str, value: float):
     def prepare(tmp: Path) -> None:
         import numpy as np
 
-        from fogsim.fileio import write_rgb_exr
+        from fogsim.io.exr import write_rgb_exr
 
         rgb = np.ones((8, 16, 3), np.float32)
         rgb[2:5, 3:9] = value

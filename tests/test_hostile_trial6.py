@@ -321,7 +321,7 @@ def test_d19_running_out_of_memory_is_said_in_words():
     """D19: a sample that ends in a MemoryError without text (the trial's ``…: MemoryError:``) is reported as
     memory running out."""
     from fogsim.fog.batch import _worker
-    from fogsim.fog.points import PointFile
+    from fogsim.fog.point_files import PointFile
 
     class Hungry:
         def fog_one(self, item):

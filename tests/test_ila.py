@@ -69,7 +69,7 @@ def test_cli_train_predict_and_fog_with_predicted_depth(cityscapes_root, folder_
     import json
 
     from fogsim.cli import main
-    from fogsim.fileio import read_depth_file
+    from fogsim.io.depth_files import read_depth_file
 
     ck = tmp_path / "ila"
     assert main(["ila", "train", "--data", str(cityscapes_root), "--split", "val", "--out", str(ck), "--rounds", "1",
@@ -100,7 +100,7 @@ def test_log_l1_loss_is_relative_and_masked():
 def test_ila_fill_cli_changes_only_holes(cityscapes_root, tmp_path):
     from fogsim.camera import decode_disparity_png
     from fogsim.cli import main
-    from fogsim.fileio import read_uint16_map
+    from fogsim.io.depth_files import read_uint16_map
 
     ck = tmp_path / "ila"
     assert main(["ila", "train", "--data", str(cityscapes_root), "--split", "val", "--out", str(ck), "--rounds", "1",

@@ -19,7 +19,7 @@ torch = pytest.importorskip("torch")
 
 from fogsim.camera import depth_to_disparity, encode_disparity_png  # noqa: E402
 from fogsim.cli import main  # noqa: E402
-from fogsim.fileio import write_image  # noqa: E402
+from fogsim.io.images import write_image  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 TRAIN = ["--rounds", "1", "--epochs", "1", "--width", "2", "--size", "64x32", "--quiet"]

@@ -64,11 +64,9 @@ LAYERS = (
     ("camera model after the fog", {"fogsim.sensor"}),
     ("document schemas", {"fogsim.schema"}),
     ("run bookkeeping", {"fogsim.runs"}),
-    ("files, dependencies, camera, pictures", {"fogsim.fileio", "fogsim.deps", "fogsim.camera", "fogsim.viz"}),
-    ("what a file declares before it is read", {"fogsim.headers"}),
-    ("basics", {"fogsim.errors", "fogsim._version", "fogsim.colour", "fogsim.boxes", "fogsim.rle",
-                "fogsim.integrity"}),
-    ("terminal output", {"fogsim.console"}),  # below integrity: its output capture is the one there is
+    ("file I/O, dependencies, camera, pictures", {"fogsim.io", "fogsim.deps", "fogsim.camera", "fogsim.viz"}),
+    ("basics", {"fogsim.errors", "fogsim._version", "fogsim.colour", "fogsim.boxes", "fogsim.rle"}),
+    ("terminal output", {"fogsim.console"}),  # below io: its output capture (fogsim.io.integrity) is the one there is
 )
 
 #: Rules inside one package: its modules outside the inner package may not import it (the inner
@@ -505,8 +503,8 @@ def test_the_layer_and_circle_checks_catch_what_they_forbid():
     assert "layer 7 (dataset format)" in bad[0] and "layer 4 (renderer and detector study)" in bad[0]
     assert "sibling" in bad[1]
     loop = {"fogsim.camera": [("fogsim.errors", edge("fogsim.camera", "fogsim.errors", 3))],
-            "fogsim.errors": [("fogsim.fileio", edge("fogsim.errors", "fogsim.fileio", 5))],
-            "fogsim.fileio": [("fogsim.camera", edge("fogsim.fileio", "fogsim.camera", 7))],
+            "fogsim.errors": [("fogsim.io", edge("fogsim.errors", "fogsim.io", 5))],
+            "fogsim.io": [("fogsim.camera", edge("fogsim.io", "fogsim.camera", 7))],
             "fogsim.colour": [("fogsim.errors", edge("fogsim.colour", "fogsim.errors"))]}
     # a lazy import of render.blender from render/ (outside it), and an upward import_module literal
     lazy = scan("fogsim.render.frame", MODULES["fogsim.render.frame"].read_text()
@@ -521,8 +519,8 @@ def test_the_layer_and_circle_checks_catch_what_they_forbid():
     assert not layer_violations({"fogsim.render.blender.job": [("fogsim.render.blender.build",
                                                                 edge("fogsim.render.blender.job", "x"))]})
     circles = import_circles(loop)
-    assert len(circles) == 1 and sorted(m for m, _ in circles[0]) == ["fogsim.camera", "fogsim.errors", "fogsim.fileio"]
-    assert import_circles({k: v for k, v in loop.items() if k != "fogsim.fileio"}) == []
+    assert len(circles) == 1 and sorted(m for m, _ in circles[0]) == ["fogsim.camera", "fogsim.errors", "fogsim.io"]
+    assert import_circles({k: v for k, v in loop.items() if k != "fogsim.io"}) == []
 
 
 def test_only_render_blender_imports_blender_modules():

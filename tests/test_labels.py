@@ -11,10 +11,12 @@ from fogsim.camera import Intrinsics
 from fogsim.dataset.coco import coco_annotation, coco_categories
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import contact_sheet, finalize, split_frames, write_frame_labels
-from fogsim.fileio import read_image, write_image, write_json
 from fogsim.fog.levels import FogLevel
+from fogsim.io.documents import write_json
+from fogsim.io.images import read_image, write_image
 from fogsim.render.labels import object_records
 from fogsim.render.silhouette import NEAR, clip_near, covered_pixels, project_points, silhouette_areas
+from fogsim.rle import box_rle
 from fogsim.scene.classes import CLASS_ID, LABELLED
 
 
@@ -283,7 +285,11 @@ def test_finalize_writes_coco_yaml_splits_manifest(tiny_dataset):
             assert ann["category_id"] == rec["class_id"] + 1 == [c["id"] for c in coco["categories"]
                                                                  if c["name"] == rec["class"]][0]
             assert ann == coco_annotation(rec, ann["id"], ann["image_id"], ann.get("segmentation"))
-            assert ("segmentation" in ann) == (not rec["kept"])  # no mask here: ignore regions get their box
+            # no mask here: ignore regions get their box's RLE, kept objects their box as a polygon
+            size = [metas[frame]["height"], metas[frame]["width"]]
+            assert ann["segmentation"] == ([[x0, y0, x1, y0, x1, y1, x0, y1]] if rec["kept"] else
+                                           box_rle(rec["bbox"], *size))
+            assert ann.get("segmentation_is_box", False) == rec["kept"]
     for name in ["clear", "beta0.06", "all"]:
         data = read_yaml(root / "data" / f"{name}.yaml")
         assert data["path"] == str(root.resolve())
@@ -300,8 +306,8 @@ def test_finalize_writes_coco_yaml_splits_manifest(tiny_dataset):
     assert manifest["levels"] == [lv.to_dict() for lv in LEVELS] and manifest["classes"] == list(LABELLED)
     assert manifest["counts"]["car"] == 1 and manifest["counts"]["bus"] == 1 and manifest["counts"]["van"] == 0
     assert manifest["filtered"] == {"too few pixels": 2}
-    # 640×426 tiles at 384 px
-    assert read_image(root / "contact_sheet.png").shape == (2 * (28 + 256) + 4, 2 * 384 + 4, 3)
+    # 640×426 tiles at 384 px, and the legend line (22 px) below a 4 px gap
+    assert read_image(root / "contact_sheet.png").shape == (2 * (28 + 256) + 4 + 4 + 22, 2 * 384 + 4, 3)
 
 
 def test_split_deterministic_and_stable():
@@ -320,10 +326,11 @@ def test_split_deterministic_and_stable():
 
 def test_contact_sheet_shape(tiny_dataset):
     sheet = contact_sheet(tiny_dataset, LEVELS, tiny_dataset.done_frames(), tile_width=160)
-    assert sheet.dtype == np.uint8 and sheet.shape == (2 * (28 + 107) + 4, 2 * 160 + 4, 3)
+    legend = 4 + 22  # a gap, then the line that says how to read the boxes
+    assert sheet.dtype == np.uint8 and sheet.shape == (2 * (28 + 107) + 4 + legend, 2 * 160 + 4, 3)
     one = contact_sheet(tiny_dataset, LEVELS[:1], ["000000"], tile_width=96)
-    assert one.shape == (28 + 64, 96, 3)
-    assert (one[28:] != read_image(tiny_dataset.image("clear", "000000"))).any()   # boxes drawn
+    assert one.shape == (28 + 64 + legend, 96, 3)
+    assert (one[28:28 + 64] != read_image(tiny_dataset.image("clear", "000000"))).any()   # boxes drawn
 
 
 def test_finalize_refuses_empty_and_reserved(tmp_path):

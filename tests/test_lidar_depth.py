@@ -12,7 +12,9 @@ from fogsim.depth.complete import complete, holdout_split, sky_mask, sparse_imag
 from fogsim.depth.lidar_source import LidarDepth, parse_lidar, read_holdout, write_holdout
 from fogsim.depth.score import BINS, binned_metrics, pool
 from fogsim.errors import InputError
-from fogsim.fileio import read_depth_file, read_image, write_depth, write_json
+from fogsim.io.depth_files import read_depth_file, write_depth
+from fogsim.io.documents import write_json
+from fogsim.io.images import read_image
 
 W, H = 320, 240
 K = Intrinsics(300.0, 300.0, 159.5, 119.5, W, H)
@@ -345,7 +347,7 @@ def _waymo_file(tmp_path):
     """Two v1 frames of the LiDAR fixture scene (a wall at x = 20 m, one camera, uniform grey
     image): the first with its range images, the second without LiDAR."""
     import waymo_lidar_fixtures as fx
-    from fogsim.fileio import encode_image
+    from fogsim.io.images import encode_image
     from fogsim.readers.waymo.tfrecord import write_tfrecord
 
     scene = fx.wall_scene()

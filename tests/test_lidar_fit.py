@@ -167,6 +167,30 @@ def test_fit_never_worsens_its_distance(data):
     assert one.evaluations == 1 and one.distance == start and one.values == one.start_values
 
 
+def test_fit_recovers_the_stf2020_constants(data):
+    """stf2020's per-sensor noise level and gain (the two numbers its authors fitted in their chamber): scans
+    fogged with n 0.08, g 0.2 are fitted back from the HDL-64 S2's (0.05, 0.35) within 10 % in 60 evaluations;
+    hahner2021 has no calibration key to fit (its released constants are not the sensor's): its fit is the
+    visibility alone."""
+    _, clear, _ = data
+    truth = {"stf_noise_level": 0.08, "stf_gain": 0.2}
+    sensor = load_sensor(sensor_dict())
+    block = {"name": "truth", **truth, "sources": dict.fromkeys(truth, "test")}
+    real = [LidarFogger(s, sensor, {"model": "stf2020", "calibration": block})(BETA, np.random.default_rng(300 + i))
+            .cloud for i, s in enumerate(clear)]
+    p = FitProblem(clear, real, sensor_dict(), {"model": "stf2020"}, BETA)
+    assert p.parameters == ("stf_noise_level", "stf_gain") and p.start == {"stf_noise_level": 0.05, "stf_gain": 0.35}
+    r = fit(p, 60)
+    for k, v in truth.items():
+        assert r.values[k] == pytest.approx(v, rel=0.10), (k, r.values)
+    assert r.distance < 0.05 * r.start_distance
+    hahner = FitProblem(clear, real, sensor_dict(), {"model": "hahner2021"}, None)
+    assert hahner.parameters == () and fit(hahner, 8).beta_fitted
+    with pytest.raises(ValueError, match="stf_noise_level"):  # no published n, g and no start given
+        FitProblem(clear, real, {**sensor_dict(), "stf_noise_level": None, "stf_gain": None}, {"model": "stf2020"},
+                   BETA)
+
+
 @pytest.mark.slow
 def test_fit_recovers_three_parameters(data, tmp_path):
     """Echo scale, pulse width and threshold margin together (250 evaluations): each within 15 %."""
@@ -287,6 +311,7 @@ def test_nuscenes_format_compare(tmp_path):
     (["--parameters", "fog_echo_scale,warp"], "cannot fit warp"),
     (["--weights", "range=2,colour=1"], "unknown distance term 'colour'"),
     (["--evaluations", "0"], "--evaluations must be ≥ 1"),
+    (["--lidar-model", "hahner2021", "--visibility", "100"], "hahner2021 has no calibration key to fit"),
 ])
 def test_bad_flags_one_line(data, tmp_path, capsys, argv, says):
     root, _, _ = data

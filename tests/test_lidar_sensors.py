@@ -20,7 +20,8 @@ def test_the_four_presets_are_bundled_and_read():
     assert sensor_names() == ["hdl32e", "hdl64-s3d", "hdl64e", "waymo-top"]
     kitti = LidarSensor.preset("hdl64e")
     assert kitti.beams == 64 and len(kitti.inclinations_deg) == 64
-    assert kitti.inclinations_deg[0] == pytest.approx(2.0) and kitti.inclinations_deg[-1] == pytest.approx(-24.9)
+    assert kitti.inclinations_deg[0] == pytest.approx(1.9367)
+    assert kitti.inclinations_deg[-1] == pytest.approx(-24.999201)
     assert kitti.steps_per_sweep == 2000 and kitti.intensity_scale == "0-1"
     assert kitti.mount_pose[2, 3] == pytest.approx(1.73)
     assert kitti.pulse_length_m == pytest.approx(LIGHT_SPEED * 10e-9)
@@ -34,6 +35,24 @@ def test_the_four_presets_are_bundled_and_read():
     np.testing.assert_allclose(waymo.with_inclinations(given).inclinations_rad, given)
     with pytest.raises(ValueError, match="64 beams"):
         waymo.with_inclinations(given[:10])
+
+
+def test_the_hdl64e_lasers_are_kittis_two_blocks():
+    """KITTI's HDL-64E S2 factory calibration: 32 upper lasers ≈ 1/3° apart above −8.8°, 32 lower ones ≈ 1/2°
+    apart below, each laser's line 0.10–0.21 m off the origin (upper block ≈ 0.2 m, lower ≈ 0.11 m)."""
+    s = LidarSensor.preset("hdl64e")
+    incl, h = np.asarray(s.inclinations_deg), np.asarray(s.vertical_offsets_m)
+    assert np.all(np.diff(incl) < 0) and len(h) == 64  # listed highest first
+    upper, lower = incl > -8.8, incl < -8.8
+    assert upper.sum() == lower.sum() == 32
+    assert np.mean(-np.diff(incl[upper])) == pytest.approx(1 / 3, abs=0.02)
+    assert np.mean(-np.diff(incl[lower])) == pytest.approx(1 / 2, abs=0.02)
+    assert np.all((h[upper] > 0.19) & (h[upper] < 0.21)) and np.all((h[lower] > 0.10) & (h[lower] < 0.13))
+    assert "KITTI" in s.sources["inclinations_deg"] and "vertOffsetCorrection" in s.sources["vertical_offsets_m"]
+    assert s.to_dict()["vertical_offsets_m"] == list(h)
+    assert LidarSensor.preset("waymo-top").with_inclinations(np.zeros(64)).vertical_offsets_m is None
+    with pytest.raises(ValueError, match="vertical_offsets_m"):
+        LidarSensor.from_dict({**CUSTOM, "vertical_offsets_m": [0.1, 0.2]})
 
 
 def test_defaults_come_from_the_schema_alone():

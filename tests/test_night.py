@@ -213,7 +213,7 @@ def test_lights_light_the_scene_and_leave_the_passes(kind, tmp_path):
 def test_night_dataset_has_the_day_labels_masks_and_depth(kind, tmp_path):
     """render_batch with --preset night and with default, same seed: identical labels/, masks/ and
     depth/; a much darker image; the frame's scene lists the lights."""
-    from fogsim.fileio import read_image
+    from fogsim.io.images import read_image
     from test_blender import dataset_digest, render_dataset
 
     out = {p: tmp_path / p for p in ("default", "night")}
@@ -238,7 +238,7 @@ def test_night_in_volumetric_fog_stays_night(tmp_path):
     import subprocess
     import sys
 
-    from fogsim.fileio import read_image
+    from fogsim.io.images import read_image
     from test_blender import dataset_digest, runner
 
     runner("bpy")  # skips without the bpy module

@@ -156,7 +156,7 @@ def test_leftovers_of_a_killed_render_are_removed(tmp_path):
     import subprocess
     import sys
 
-    from fogsim.fileio import _HOST, remove_stale_parts
+    from fogsim.io.parts import _HOST, remove_stale_parts
     from fogsim.render.leftovers import TMP_DIR, remove_render_tmp
 
     dead = subprocess.Popen([sys.executable, "-c", "pass"])

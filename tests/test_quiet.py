@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 from fogsim.console import captured_fds, last_segment
-from fogsim.fileio import write_depth, write_json
+from fogsim.io.depth_files import write_depth
+from fogsim.io.documents import write_json
 from fogsim.render.blender.output import blender_output, classify
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -41,7 +41,8 @@ def street(rng: np.random.Generator) -> Geometry:
 
 
 def lidar(**kw) -> LidarSensor:
-    return LidarSensor.from_dict({"name": "t", "beams": 24, "vertical_fov_deg": [-20, 3],
+    grid = {} if "inclinations_deg" in kw else {"vertical_fov_deg": [-20, 3]}
+    return LidarSensor.from_dict({"name": "t", "beams": 24, **grid,
                                   "horizontal_resolution_deg": 0.5, "max_range_m": 90.0, "intensity_scale": "0-1",
                                   "reflectivity_per_intensity": 1.0, "reference_reflectivity": 0.001, **kw})
 
@@ -54,17 +55,23 @@ def same_scan(a, b) -> None:
     np.testing.assert_array_equal(a.cloud.raw_intensity, b.cloud.raw_intensity)
 
 
-@pytest.mark.parametrize("fov", [360.0, 120.0])
-def test_the_culled_scene_gives_the_sweep_of_the_whole_one(fov):
+#: lasers off the sensor's axis (a KITTI HDL-64E's 0.1–0.2 m vertical offsets, larger here): rays from their lasers
+OFFSETS = {"inclinations_deg": np.linspace(3, -20, 24).tolist(),
+           "vertical_offsets_m": np.linspace(0.6, 0.05, 24).tolist()}
+
+
+@pytest.mark.parametrize("fov, extra", [(360.0, {}), (120.0, {}), (360.0, OFFSETS), (120.0, OFFSETS)])
+def test_the_culled_scene_gives_the_sweep_of_the_whole_one(fov, extra):
     """A sensor 1.8 m up, turned and tilted: the sweep over its culled scene (top and bottom beams' cones,
-    its field of view, its range) is the sweep over the whole scene, point for point; and the cut is real."""
+    raised by the lasers' offsets where they have them, its field of view, its range) is the sweep over the
+    whole scene, point for point; and the cut is real."""
     geo = street(np.random.default_rng(4))
     pose = np.eye(4)
     yaw, pitch = math.radians(25), math.radians(4)
     rz = np.array([[math.cos(yaw), -math.sin(yaw), 0], [math.sin(yaw), math.cos(yaw), 0], [0, 0, 1]])
     ry = np.array([[math.cos(pitch), 0, math.sin(pitch)], [0, 1, 0], [-math.sin(pitch), 0, math.cos(pitch)]])
     pose[:3, :3], pose[:3, 3] = rz @ ry, [3.0, -2.0, 1.8]
-    s = lidar(horizontal_fov_deg=fov)
+    s = lidar(horizontal_fov_deg=fov, **extra)
     culled = sensor_caster(geo, pose, s)
     assert len(culled.geometry.faces) < 0.8 * len(geo.faces)
     assert 101 in culled.geometry.face_id and 102 not in culled.geometry.face_id

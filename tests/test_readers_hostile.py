@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 
 from conftest import tree_digest
-from fogsim import fileio
 from fogsim.camera import Intrinsics
 from fogsim.cli import main
 from fogsim.errors import InputError
-from fogsim.fileio import decode_image, encode_image, read_depth_file, read_image, write_depth, write_image
+from fogsim.io import integrity
+from fogsim.io.depth_files import read_depth_file, write_depth
+from fogsim.io.images import decode_image, encode_image, read_image, write_image
 from fogsim.readers.folder import find_depth, folder_samples
 
 
@@ -57,7 +58,7 @@ def test_jpeg_with_corrupt_entropy_data_is_refused(capfd):
     data = bytearray(encode_image(_smooth(480, 640), ".jpg"))
     start = len(data) // 3
     data[start:start + 2000] = bytes(2000)
-    assert fileio.encoded_image_damage(bytes(data)) is None  # structure intact: the decoder must tell
+    assert integrity.encoded_image_damage(bytes(data)) is None  # structure intact: the decoder must tell
     with pytest.raises(InputError, match="corrupt image data .*Corrupt JPEG data"):
         decode_image(bytes(data), "z.jpg")
     captured = capfd.readouterr()

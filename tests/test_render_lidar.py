@@ -161,8 +161,10 @@ def test_painted_cars_at_10_to_100_m_follow_the_lidar_equation_with_the_table():
     pose[2, 3] = 1.73
     caster = RayCaster(geo)
     scan = sweep(caster, pose, s, "street")
-    d, _, _ = sweep_directions(s)
-    t, prim, normal = caster.cast(np.broadcast_to(pose[:3, 3], d.shape), d, s.max_range_m)
+    d, beam, az = sweep_directions(s)
+    origins = s.beam_origins(beam, az) + pose[:3, 3]  # each ray from its laser (KITTI's vertical offsets)
+    assert np.abs(origins[:, 2] - 1.73).max() > 0.1
+    t, prim, normal = caster.cast(origins, d, s.max_range_m)
     hit = np.flatnonzero(np.isfinite(t) & (t >= s.min_range_m))
     cos_t = np.abs(np.einsum("ij,ij->i", normal[hit], d[hit]))
     rho = geo.face_rho[prim[hit]].astype(np.float64)
@@ -203,7 +205,7 @@ def check_points_on_depth(out: Path, frame: str, caster=None, min_points: int = 
     with ``caster`` (the frame's geometry, rebuilt here) — the ray from the camera to the point meets nothing
     before it (an object can hide its own far side); ``convex`` (every object is a box, as the user scene of
     these tests): the surface the point lies on faces the camera. Returns counts."""
-    from fogsim.fileio import read_depth_file, read_uint16_map
+    from fogsim.io.depth_files import read_depth_file, read_uint16_map
     from fogsim.lidar.formats import read_points
 
     meta = json.loads((out / "meta" / f"{frame}.json").read_text())
@@ -509,7 +511,7 @@ def test_the_render_exports_as_nuscenes_samples_with_the_sweeps_beams(lidar_rend
 def test_the_renders_coco_masks_are_its_instance_masks(lidar_render):
     """Every COCO file a render writes, read with pycocotools: annToMask of every annotation is the object's
     pixels in masks/<frame>.png, and COCOeval ``segm`` gives AP 1.0 for the ground truth fed back."""
-    from fogsim.fileio import read_uint16_map
+    from fogsim.io.depth_files import read_uint16_map
     from test_coco_masks import check_coco_masks
 
     masks = {f: read_uint16_map(lidar_render / "masks" / f"{f}.png") for f in ("000000", "000001")}

@@ -310,7 +310,7 @@ def test_scene_mode_sees_an_unoccluded_car_at_30_m(tmp_path):
 
 @pytest.mark.blender
 @pytest.mark.slow
-def test_the_nuscenes_export_carries_the_radar_sweeps(radar_render, tmp_path):
+def test_the_nuscenes_export_carries_the_radar_sweeps(radar_render, tmp_path, capsys):
     """``fogsim export nuscenes`` on a render with ``--radar ars408-lr``: each level's sweep lands in
     ``samples/RADAR_FRONT/<frame>.pcd`` (the ARS 408 faces forward) as the render wrote it, readable by the
     spec's reader; beside it the LiDAR's samples."""
@@ -331,3 +331,7 @@ def test_the_nuscenes_export_carries_the_radar_sweeps(radar_render, tmp_path):
             assert got.read_bytes() == (out / entry["file"]).read_bytes()
             assert len(spec_read_nuscenes_radar(got)) == max(entry["detections_out"], 1)  # empty: one NaN row
             assert (nusc / level / "samples" / "LIDAR_TOP" / f"{f}.pcd.bin").is_file()
+    capsys.readouterr()
+    assert main(["export", "nuscenes", str(out), "--out", str(tmp_path / "said")]) == 0
+    said = capsys.readouterr().out  # every channel written is named, with its samples per level
+    assert said.startswith("exported LIDAR_TOP (clear 2, beta0.06 2) and RADAR_FRONT (clear 2, beta0.06 2) samples")

@@ -17,10 +17,12 @@ from conftest import HANG_S, signal_mid_run, tree_digest, wait_until
 from fogsim.camera import Intrinsics
 from fogsim.cli import main
 from fogsim.errors import InputError
-from fogsim.fileio import PART_SUFFIX, write_depth, write_image
 from fogsim.fog.batch import FogJob, check_run_file
 from fogsim.fog.engine import FogSettings
 from fogsim.fog.levels import parse_levels
+from fogsim.io.depth_files import write_depth
+from fogsim.io.images import write_image
+from fogsim.io.parts import PART_SUFFIX
 
 
 def fog_cli(images, depth, out, *extra):
@@ -142,7 +144,7 @@ def test_run_wide_errors_exit_2_before_the_folder_is_claimed(folder_dataset, tmp
 
 # ----------------------------------------------------------------------------- #18: leftovers
 def test_stale_temporary_files_are_removed_on_resume(folder_dataset, tmp_path):
-    from fogsim.fileio import _HOST
+    from fogsim.io.parts import _HOST
 
     out = tmp_path / "o"
     args = fog_cli(folder_dataset / "images", folder_dataset / "depth", out)

@@ -299,7 +299,7 @@ def test_scatter_function_keeps_the_dtype_and_brightens_the_far_field_above_the_
 
 def test_fog_cli_with_the_scatter_model(folder_dataset, tmp_path, capsys):
     from fogsim.cli import main
-    from fogsim.fileio import read_image
+    from fogsim.io.images import read_image
 
     ds = folder_dataset
     base = ["fog", "--input", str(ds / "images"), "--depth", str(ds / "depth"), "--intrinsics", str(ds / "K.json"),

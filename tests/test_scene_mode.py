@@ -22,7 +22,8 @@ import pytest
 
 from fogsim.cli import main
 from fogsim.errors import InputError
-from fogsim.fileio import read_image, read_uint16_map
+from fogsim.io.depth_files import read_uint16_map
+from fogsim.io.images import read_image
 from fogsim.render.scene_classes import ClassMap, load_class_map
 from fogsim.scene.pose import blender_intrinsics, blender_lens
 
@@ -291,6 +292,13 @@ def test_scene_mode_shards_finalize_and_resume(tmp_path):
     assert res.returncode == 0 and (out / "contact_sheet.png").is_file(), res.stderr[-3000:]
     coco = json.loads((out / "coco" / "clear.json").read_text())
     assert len(coco["images"]) == 2
+    # --out alone finalizes it too (the scene's parameters come from render_run.json; no .blend opened)
+    res = subprocess.run([sys.executable, "-m", "fogsim", "render", "--out", str(out), "--finalize-only"],
+                         capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert res.returncode == 0 and "finalize: 2 frames found of the run's 2" in res.stdout, res.stderr[-2000:]
+    assert json.loads((out / "coco" / "clear.json").read_text())["annotations"] == coco["annotations"]
+    res = _render("bpy", blend, out, "--finalize-only", "--frame-range", "1:4")
+    assert res.returncode == 2 and "style.scene_mode.frame_range: [1, 3, 2] recorded, [1, 4, 1]" in res.stderr
     res = _render("bpy", blend, out, *TINY[:-1])
     assert res.returncode == 0 and "rendered 0 frames (2 already done, 0 failed)" in res.stdout, res.stdout[-2000:]
     res = _render("bpy", blend, out, *TINY, "--class-map", '{"Ground": "road"}')

@@ -133,7 +133,8 @@ def test_commit_frame_with_a_sensor(tmp_path):
 
     from conftest import expected_yolo_lines
     from fogsim.dataset.layout import DatasetLayout
-    from fogsim.fileio import read_depth_file, read_image, read_uint16_map
+    from fogsim.io.depth_files import read_depth_file, read_uint16_map
+    from fogsim.io.images import read_image
     from fogsim.render.frame import DescribedFrame, FramePasses, commit_frame, describe_frame, scene_meshes
     from fogsim.render.preset import load_render_preset
     from fogsim.render.silhouette import silhouette_areas
@@ -224,7 +225,7 @@ def test_motion_blur_blurs_the_image_not_the_labels(kind, tmp_path):
     depth (the sharp render's), a different image; meta records the velocities."""
     import json
 
-    from fogsim.fileio import read_image
+    from fogsim.io.images import read_image
     from fogsim.presets import presets_dir
     from test_blender import dataset_digest, render_dataset
 

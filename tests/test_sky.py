@@ -115,7 +115,7 @@ def test_world_hdris_ship_with_the_bpy_module():
 def test_hdri_and_overcast_presets_render(kind, tmp_path):
     """Tiny renders of default, hdri and overcast, same seed: identical labels, masks, depth;
     the sky pixels differ (procedural blue vs HDRI vs grey-white overcast); meta names the sky."""
-    from fogsim.fileio import read_image
+    from fogsim.io.images import read_image
     from test_blender import dataset_digest, render_dataset
 
     out = {p: tmp_path / p for p in ("default", "hdri", "overcast")}
@@ -166,7 +166,7 @@ def test_volumetric_fog_is_lit_by_the_frame_sky(tmp_path):
     import subprocess
     import sys
 
-    from fogsim.fileio import read_image
+    from fogsim.io.images import read_image
     from test_blender import runner
 
     runner("bpy")  # skips without the bpy module

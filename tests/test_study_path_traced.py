@@ -17,7 +17,7 @@ from fogsim.detection.fog_models import ROWS, SCATTER_MODEL
 from fogsim.detection.study import Study
 from fogsim.detection.yolo import MIXED_MODEL, TrainConfig
 from fogsim.errors import InputError
-from fogsim.fileio import read_image, write_image
+from fogsim.io.images import read_image, write_image
 from study_driver import LEVELS, TINY, driver, need_detect_extra, study_dataset
 
 PRESET = {"name": "default", "style": "urban", "camera": "waymo-front", "resolution": [96, 64], "exposure": 0.0,

@@ -156,7 +156,7 @@ def test_render_commit_puts_visibility_in_meta_and_coco(tmp_path):
     """commit_frame (no Blender: fabricated passes for a real scene) → per-object visibility at every
     level in meta, recomputed here from the written images and mask; COCO gets the per-level fields."""
     from fogsim.camera import Intrinsics
-    from fogsim.fileio import read_image
+    from fogsim.io.images import read_image
     from fogsim.render.frame import DescribedFrame, FramePasses, commit_frame, describe_frame, frame_name, scene_meshes
     from fogsim.render.preset import load_render_preset
     from fogsim.render.silhouette import silhouette_areas

@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsim.fileio import read_image, read_uint16_map
+from fogsim.io.depth_files import read_uint16_map
+from fogsim.io.images import read_image
 
 pytestmark = pytest.mark.blender
 ROOT = Path(__file__).resolve().parents[1]

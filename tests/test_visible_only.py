@@ -77,9 +77,10 @@ def test_study_report_recall_both_ways_on_a_dataset_with_visibility(tmp_path):
     from fogsim.dataset.writer import finalize
     from fogsim.detection.study import Study
     from fogsim.detection.yolo import MIXED_MODEL, TrainConfig
-    from fogsim.fileio import read_image, write_json
     from fogsim.fog.levels import parse_levels
     from fogsim.fog.visibility import attach_visibility
+    from fogsim.io.documents import write_json
+    from fogsim.io.images import read_image
     from synthetic_dataset import make_dataset
 
     root = make_dataset(tmp_path / "ds", frames=6, train_fraction=0.5)

@@ -17,9 +17,11 @@ from fogsim.camera import Intrinsics, planar_to_ray
 from fogsim.colour import linear_to_srgb8
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.errors import InputError
-from fogsim.fileio import read_depth_file, read_image, read_rgb_exr, read_uint16_map
 from fogsim.fog.model import koschmieder
 from fogsim.fog.physics import far_luminance, interior_mask
+from fogsim.io.depth_files import read_depth_file, read_uint16_map
+from fogsim.io.exr import read_rgb_exr
+from fogsim.io.images import read_image
 from fogsim.render.fog_settings import frame_volumetric, volumetric_settings
 from fogsim.render.preset import load_render_preset
 from fogsim.render.volumetric import auto_exposure

@@ -9,7 +9,8 @@ import pytest
 import waymo_lidar_fixtures as lfx
 from fogsim.cli import main
 from fogsim.dataset.layout import DatasetLayout, frame_from_key
-from fogsim.fileio import encode_image, write_depth
+from fogsim.io.depth_files import write_depth
+from fogsim.io.images import encode_image
 from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.waymo.labels import WAYMO_CLASSES
 from fogsim.readers.waymo.tfrecord import write_tfrecord

@@ -376,7 +376,7 @@ def test_v1_box_without_laser_label_gets_its_distance_from_the_frames_lidar(tmp_
     """The wiring of the two decoders: a camera box with no laser label takes the near cluster
     of the frame's own LiDAR points (the wall fixture: a plane at x = 20 m)."""
     import waymo_lidar_fixtures as lfx
-    from fogsim.fileio import encode_image
+    from fogsim.io.images import encode_image
     from fogsim.readers.waymo import waymo_samples
     from fogsim.readers.waymo.lidar_geometry import camera_points
     from fogsim.readers.waymo.lidar_v1 import parse_v1_lidar

@@ -305,7 +305,7 @@ def test_v1_file_points_provider_is_picklable_and_matches(tmp_path):
 
 
 def test_lidar_points_for_v1_sample(tmp_path):
-    from fogsim.fileio import encode_image
+    from fogsim.io.images import encode_image
     from fogsim.readers.waymo import waymo_v1_samples
 
     scene = fx.wall_scene()
@@ -420,7 +420,7 @@ def test_lidar_points_for_v2_sample(tmp_path):
     pa = pytest.importorskip("pyarrow")
     import pyarrow.parquet as pq
 
-    from fogsim.fileio import encode_image
+    from fogsim.io.images import encode_image
     from fogsim.readers.waymo import waymo_v2_samples
 
     scene = _posed_scene()

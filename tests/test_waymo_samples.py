@@ -10,7 +10,7 @@ import pytest
 
 from fogsim.camera import Intrinsics
 from fogsim.errors import InputError, MissingDependency, exit_code
-from fogsim.fileio import encode_image
+from fogsim.io.images import encode_image
 from fogsim.readers.base import DepthSpec
 from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.waymo import waymo_v1_samples, waymo_v2_samples
@@ -226,7 +226,8 @@ def test_v2_without_pyarrow_exits_2_through_the_cli(tmp_path, monkeypatch, capsy
 def test_cli_fogs_waymo_with_depth_dir(v1_file, tmp_path, capsys):
     from fogsim.camera import Intrinsics, planar_to_ray
     from fogsim.cli import main
-    from fogsim.fileio import read_image, write_depth
+    from fogsim.io.depth_files import write_depth
+    from fogsim.io.images import read_image
 
     depth = np.random.default_rng(4).uniform(2, 80, (H, W)).astype(np.float32)
     for t in (0, 1):
@@ -248,7 +249,7 @@ def test_cli_fogs_waymo_with_depth_dir(v1_file, tmp_path, capsys):
 
 # ----------------------------------------------------------------------------- damaged / empty inputs
 def _depth_for(tmp_path, keys):
-    from fogsim.fileio import write_depth
+    from fogsim.io.depth_files import write_depth
 
     for key in keys:
         write_depth(tmp_path / "depth" / f"{key}.exr", np.full((H, W), 20.0, np.float32))
@@ -307,7 +308,7 @@ def test_damaged_jpeg_in_a_frame_fails_that_image(tmp_path, capfd, damage, messa
     assert err.value.source == f"{path}#record 1 FRONT"
     capfd.readouterr()
     depth = tmp_path / "depth"
-    from fogsim.fileio import write_depth
+    from fogsim.io.depth_files import write_depth
 
     for t in (0, 1):
         write_depth(depth / f"{_key(t, 'FRONT')}.exr", np.full((240, 320), 20.0, np.float32))

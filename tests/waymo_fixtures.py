@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsim.fileio import encode_image
+from fogsim.io.images import encode_image
 from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.waymo.tfrecord import write_tfrecord
 

@@ -31,8 +31,10 @@ from fogsim.augment import FogSpec, random_fog
 from fogsim.bench.timing import median_ms
 from fogsim.camera import planar_to_ray
 from fogsim.dataset.reader import read_distance
-from fogsim.fileio import write_depth, write_image, write_json
 from fogsim.fog.synthetic import demo_scene
+from fogsim.io.depth_files import write_depth
+from fogsim.io.documents import write_json
+from fogsim.io.images import write_image
 
 SIZES = ((640, 640), (1920, 1280))
 BATCH = 8

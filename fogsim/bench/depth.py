@@ -146,8 +146,10 @@ def run_benchmark(out, frames: int = 12, resolution: str = "512x256", samples: i
     of SGBM's holes on the held-out frames against the exact depth, and write ``OUT/report.{json,md}``
     and ``OUT/panel_<frame>.png``. ``ila_config`` (an ``ILAConfig``) also trains ILA rounds on the
     train split and scores each round."""
-    from fogsim.fileio import atomic_write_bytes, write_image, write_json
     from fogsim.fog.levels import load_preset
+    from fogsim.io.atomic import atomic_write_bytes
+    from fogsim.io.documents import write_json
+    from fogsim.io.images import write_image
 
     out = Path(out)
     data = out / "dataset"

@@ -296,8 +296,8 @@ def fit_glow_only(folders: list[Path], start: dict, log=print) -> dict:
 
 def run(args) -> int:
     """``fogsim fit-fog``: fit, check the document against the schema, write it atomically."""
-    from fogsim.fileio import write_json
     from fogsim.fog.scatter import load_params, load_params_file
+    from fogsim.io.documents import write_json
     from fogsim.runs import check_output
     from fogsim.schema.base import check
     from fogsim.schema.scatter import ScatterParamsFile

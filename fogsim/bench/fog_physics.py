@@ -40,16 +40,12 @@ from fogsim.colour import srgb_to_linear
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.reader import read_meta
 from fogsim.errors import InputError
-from fogsim.fileio import (
-    atomic_write_bytes,
-    read_depth_file,
-    read_exr_channels,
-    read_image,
-    read_json,
-    read_uint16_map,
-    write_json,
-)
 from fogsim.fog.physics import Comparison, default_models
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.depth_files import read_depth_file, read_uint16_map
+from fogsim.io.documents import read_json, write_json
+from fogsim.io.exr import read_exr_channels
+from fogsim.io.images import read_image
 from fogsim.presets import preset_path
 from fogsim.schema.base import load_json
 from fogsim.schema.documents import RenderRunFile

@@ -138,7 +138,9 @@ def glow_lines(result: dict, names: tuple[str, ...]) -> list[str]:
 
 def write_report(comparison: Comparison, out: str | Path) -> dict:
     """``fog_physics.json``, ``fog_physics.md`` and ``panels_<frame>.png`` under ``out``; returns the result."""
-    from fogsim.fileio import atomic_write_bytes, write_image, write_json
+    from fogsim.io.atomic import atomic_write_bytes
+    from fogsim.io.documents import write_json
+    from fogsim.io.images import write_image
 
     out = Path(out)
     result = comparison.result()

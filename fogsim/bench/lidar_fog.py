@@ -2,8 +2,8 @@
 literal per-point transcription of the same model (:mod:`fogsim.lidar.reference`) in the same run, with the
 two published models (``hahner2021``, ``stf2020``) timed beside the default.
 
-The scan is built from geometry (:func:`synthetic_scan`): the ``hdl64e`` preset's 64 beams (−24.9° …
-+2.0°) × 1875 azimuth steps = 120 000 rays from 1.73 m above a flat road, each cast against the road,
+The scan is built from geometry (:func:`synthetic_scan`): the ``hdl64e`` preset's 64 lasers (−25.0° …
++1.9°) × 1875 azimuth steps = 120 000 rays from 1.73 m above a flat road, each cast against the road,
 two building rows 12 m either side, the street's ends 80 m ahead and behind, and parked and driving
 cars (boxes) of dark to bright paint, so every ray returns. Intensities are KITTI-like (0–1) from each
 surface's reflectivity (ρ / 2.55) with a ±10 % texture.
@@ -12,8 +12,10 @@ Timed, interleaved, medians (:func:`fogsim.bench.timing.median_ms`): the four le
 :class:`~fogsim.lidar.fog.LidarFogger` with the default model (the set-up that does not depend on β
 included), the same by ``hahner2021`` (its soft-target tables included: their cache is cleared each run) and
 ``stf2020``, and the loop on a ``--loop-points`` subsample, scaled to the whole scan (its cost per point is
-constant: it is a loop). Targets: ≤ 60 ms for the default's four levels together, ≥ 25× the loop; the
-published models' times are reported with their ratio to the default's (no target). Peak memory per point:
+constant: it is a loop). Each is timed by the wall clock and by its thread's CPU time (``time.thread_time``: on a
+shared machine the wall clock counts the time other work holds the core). Targets: ≤ 60 ms of one core (thread
+CPU time) for the default's four levels together, ≥ 25× the loop; the published models' times are reported with
+their ratio to the default's (no target). Peak memory per point:
 tracemalloc over one level (numpy's allocations are traced).
 
     fogsim bench lidar-fog [--repeat 5] [--loop-points 4000] [--bev FILE.png]
@@ -24,7 +26,7 @@ import tracemalloc
 
 import numpy as np
 
-from fogsim.bench.timing import median_ms
+from fogsim.bench.timing import median_wall_and_cpu_ms
 from fogsim.lidar.fog import LidarFogger
 from fogsim.lidar.hahner import clear_cache
 from fogsim.lidar.outcomes import OUTCOMES
@@ -129,7 +131,8 @@ def run(repeat: int = 5, loop_points: int = 4000, seed: int = 0, bev: str | None
         return levels
 
     levels = vectorised()
-    med = median_ms({"vectorised": vectorised, "loop": loop} | {m: published(m) for m in PUBLISHED}, repeat)
+    med, cpu = median_wall_and_cpu_ms({"vectorised": vectorised, "loop": loop} | {m: published(m) for m in PUBLISHED},
+                                      repeat)
     loop_full = med["loop"] * n / len(sub)
     ratio = loop_full / med["vectorised"]
     fogger = LidarFogger(scan, sensor)
@@ -137,10 +140,11 @@ def run(repeat: int = 5, loop_points: int = 4000, seed: int = 0, bev: str | None
     print(f"LiDAR fog benchmark: {n} points (synthetic HDL-64 sweep, {sensor.beams} beams × {n // sensor.beams} "
           f"steps), β = {', '.join(f'{b:g}' for b in PAPER_BETAS)} 1/m, model soft-target, one core, medians of "
           f"{repeat} interleaved repeats")
-    print(f"  {'vectorised (LidarFogger), 4 levels':<44}{med['vectorised']:9.1f} ms  "
-          f"[{'ok' if med['vectorised'] <= TARGET_MS else 'MISSED'}: ≤ {TARGET_MS:g} ms]")
+    print(f"  {'vectorised (LidarFogger), 4 levels':<44}{med['vectorised']:9.1f} ms wall, {cpu['vectorised']:.1f} ms "
+          f"thread CPU  [{'ok' if cpu['vectorised'] <= TARGET_MS else 'MISSED'}: ≤ {TARGET_MS:g} ms of one core]")
     for m in PUBLISHED:
-        print(f"  {f'{m}, 4 levels':<44}{med[m]:9.1f} ms  ({med[m] / med['vectorised']:.2f}× the default)")
+        print(f"  {f'{m}, 4 levels':<44}{med[m]:9.1f} ms wall, {cpu[m]:.1f} ms thread CPU  "
+              f"({med[m] / med['vectorised']:.2f}× / {cpu[m] / cpu['vectorised']:.2f}× the default)")
     print(f"  {f'per-point loop, {len(sub)} points × {n / len(sub):.1f}':<44}{loop_full:9.1f} ms  "
           f"(measured {med['loop']:.1f} ms on the subsample)")
     print(f"  {'ratio loop / vectorised':<44}{ratio:9.1f} ×  [{'ok' if ratio >= 25 else 'MISSED'}: ≥ 25×]")
@@ -156,7 +160,7 @@ def run(repeat: int = 5, loop_points: int = 4000, seed: int = 0, bev: str | None
         views = {"clear": None} | {f"b={b:g}": lv for b, lv in zip(PAPER_BETAS, levels)}
         write_png(bev, bev_levels(scan, views, width=360, extent_m=40.0, px_per_m=6.0))
         print(f"  bird's-eye views: {bev}")
-    print(f"bench lidar-fog: 4 levels of {n} points in {med['vectorised']:.0f} ms, {ratio:.0f}× the per-point loop, "
-          f"{peak / n:.0f} B/point; "
+    print(f"bench lidar-fog: 4 levels of {n} points in {med['vectorised']:.0f} ms ({cpu['vectorised']:.0f} ms thread "
+          f"CPU), {ratio:.0f}× the per-point loop, {peak / n:.0f} B/point; "
           + ", ".join(f"{m} {med[m]:.0f} ms ({med[m] / med['vectorised']:.1f}×)" for m in PUBLISHED))  # --quiet
     return 0

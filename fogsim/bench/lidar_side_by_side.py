@@ -140,7 +140,7 @@ def _bin_label(lo: float, hi: float) -> str:
 
 
 def _four(d: dict[str, float]) -> str:
-    return " / ".join(f"{d[name]:.1f}" for name in OUTCOMES)
+    return " / ".join(f"{d[name]:.1f}" for name in ("kept", "attenuated", "lost", "clutter"))  # (no no-return rows)
 
 
 def _spread(v) -> str:

@@ -17,6 +17,7 @@ from fogsim.errors import run_command
 
 def build_parser() -> argparse.ArgumentParser:
     from fogsim.cli import bench, demo, depth, export, fit_fog, fog, ila, lidar_fit, render, schema, study
+    from fogsim.cli.help import use_everywhere
 
     parser = argparse.ArgumentParser(prog="fogsim", description="Labeled images in fog: render street scenes, "
                                      "fog rendered and real datasets, train and evaluate detectors per fog level.")
@@ -33,27 +34,29 @@ def build_parser() -> argparse.ArgumentParser:
     lidar_fit.add_parsers(sub)
     schema.add_parsers(sub)
     export.add_parsers(sub)
-    return parser
+    return use_everywhere(parser)
 
 
-def positional_names(parser: argparse.ArgumentParser) -> frozenset[str]:
-    """The names of every argument given without a flag, in any subcommand (``dataset`` of ``export``)."""
+def positional_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> frozenset[str]:
+    """The names of the arguments given without a flag in the command ``args`` ran (``dataset`` of ``export
+    nuscenes``; ``study --dataset`` is a flag): the chosen subcommand at each level, by its ``dest``."""
     names = set()
     for action in parser._actions:  # argparse keeps its actions there; no public accessor
         if isinstance(action, argparse._SubParsersAction):
-            for sub in action.choices.values():
-                names |= positional_names(sub)
+            chosen = action.choices.get(getattr(args, action.dest, None))
+            if chosen is not None:
+                names |= positional_names(chosen, args)
         elif not action.option_strings:
             names.add(action.dest)
     return frozenset(names)
 
 
 def main(argv: list[str] | None = None) -> int:
-    from fogsim.fileio import with_checked_paths
+    from fogsim.io.paths import with_checked_paths
 
     parser = build_parser()
     args = parser.parse_args(argv)
-    return run_command(with_checked_paths(args.run, positional_names(parser)), args)
+    return run_command(with_checked_paths(args.run, positional_names(parser, args)), args)
 
 
 if __name__ == "__main__":

@@ -6,9 +6,7 @@ these machines are noisy); none of them is a test, and CI times nothing.
 """
 from __future__ import annotations
 
-import argparse
-
-from fogsim.fileio import MAX_PIXELS, pixel_limit_problem
+from fogsim.io.pixel_bound import MAX_PIXELS, pixel_limit_problem
 from fogsim.schema.vocabulary import FOG_MEDIA
 
 
@@ -55,8 +53,7 @@ def add_parsers(sub) -> None:
 
     rfog = bsub.add_parser("render-fog", help="a volumetric-fog frame (full + OIDN, hybrid, cheap hybrid) against a "
                            "Koschmieder frame of the same scenes, ratio in the same run, and the cheap "
-                           "variant's error against the full-resolution hybrid (needs bpy)",
-                           formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                           "variant's error against the full-resolution hybrid (needs bpy)")
     rfog.add_argument("--preset", default="default")
     rfog.add_argument("--resolution", default="160x107", help="small by default to keep the run short; "
                       "640x426 is the default preset's own")
@@ -73,8 +70,7 @@ def add_parsers(sub) -> None:
     rfog.set_defaults(run=lambda args: _render_fog(args))
 
     ila = bsub.add_parser("ila", help="depth completion (classical fills, ILA) scored against exact rendered "
-                          "depth; renders a stereo dataset first (needs bpy; torch for ILA)",
-                          formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                          "depth; renders a stereo dataset first (needs bpy; torch for ILA)")
     ila.add_argument("--out", default="bench/ila", help="benchmark folder (dataset, ILA checkpoints, report)")
     ila.add_argument("--frames", type=int, default=12)
     ila.add_argument("--resolution", default="512x256")
@@ -115,8 +111,7 @@ def add_parsers(sub) -> None:
 
     fp = bsub.add_parser("fog-physics", help="Koschmieder against Cycles path-traced fog on the same frames: "
                          "per-pixel error per distance bin, per-object contrast (renders with fogsim render "
-                         "--fog volumetric, twice, and once clear)",
-                         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                         "--fog volumetric, twice, and once clear)")
     fp.add_argument("--out", default="bench/fog-physics", help="benchmark folder (three datasets and report/)")
     fp.add_argument("--frames", type=int, default=1)
     fp.add_argument("--preset", default="default")

@@ -27,10 +27,11 @@ def cmd_demo(args) -> int:
     import numpy as np
 
     from fogsim.deps import package_versions
-    from fogsim.fileio import read_image, write_depth, write_image
     from fogsim.fog.batch import FogJob, check_run_file, run
     from fogsim.fog.levels import parse_levels
     from fogsim.fog.synthetic import demo_scene
+    from fogsim.io.depth_files import write_depth
+    from fogsim.io.images import read_image, write_image
     from fogsim.readers.base import DepthSpec
     from fogsim.readers.folder import folder_samples
     from fogsim.runs import check_output
@@ -63,7 +64,7 @@ def cmd_demo(args) -> int:
 
 
 def depth_of(out: Path, key: str):
-    from fogsim.fileio import read_depth_file
+    from fogsim.io.depth_files import read_depth_file
 
     return read_depth_file(out / "input" / "depth" / f"{key}.exr")
 

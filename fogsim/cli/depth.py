@@ -1,15 +1,13 @@
 """``fogsim depth score``: score any depth folder against held-out LiDAR points or exact rendered depth."""
 from __future__ import annotations
 
-import argparse
-
 from fogsim.errors import EXIT_OK
 
 
 def add_parsers(sub) -> None:
     depth = sub.add_parser("depth", help="depth tools: score predictions against LiDAR or exact depth")
     dsub = depth.add_subparsers(dest="depth_command", required=True, metavar="DEPTH")
-    sc = dsub.add_parser("score", formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    sc = dsub.add_parser("score",
                          help="AbsRel, RMSE, δ<1.25 per distance bin (0-10, 10-20, 20-40, 40-80, 80+ m) of a "
                               "depth folder against held-out LiDAR points or a rendered dataset's exact depth")
     sc.add_argument("--pred", required=True, help="folder of depth maps named by key: <key><suffix>.exr|.npy|.png "
@@ -36,7 +34,7 @@ def cmd_score(args) -> int:
     from fogsim.camera import Intrinsics
     from fogsim.depth.score import score_dataset, score_holdout, table, write_report
     from fogsim.errors import InputError
-    from fogsim.fileio import read_json
+    from fogsim.io.documents import read_json
     from fogsim.runs import check_output
 
     # the report may go inside the fog output or dataset it scores (e.g. OUT/score), not over it

@@ -15,7 +15,8 @@ def add_parsers(sub) -> None:
     p = sub.add_parser("export", help="write a fogsim dataset's files in another dataset's layout (nuscenes)")
     targets = p.add_subparsers(dest="target", required=True, metavar="TARGET")
     n = targets.add_parser("nuscenes", help="each fog level's LiDAR scans as nuScenes samples/LIDAR_TOP/*.pcd.bin "
-                                            "(5 float32: x y z intensity 0-255 ring), one data root per level")
+                                            "(5 float32: x y z intensity 0-255 ring) and radar sweeps as "
+                                            "samples/RADAR_*/*.pcd, one data root per level")
     n.add_argument("dataset", help="a fogsim dataset with LiDAR levels (render --lidar, or fog … --lidar)")
     n.add_argument("--out", required=True, help="output folder: OUT/<level>/samples/LIDAR_TOP/<frame>.pcd.bin "
                                                 "and OUT/fogsim_nuscenes.json")
@@ -30,7 +31,20 @@ def cmd_nuscenes(args) -> int:
     levels = None if args.levels is None else [k.strip() for k in args.levels.split(",") if k.strip()]
     summary = export_nuscenes(args.dataset, args.out, levels)
     if not args.quiet:
-        counts = ", ".join(f"{k} {n}" for k, n in summary["samples_per_level"].items())
-        print(f"exported LIDAR_TOP samples ({counts}) → {args.out}; nuScenes' JSON tables are not written "
+        print(f"exported {channels_line(summary)} samples → {args.out}; nuScenes' JSON tables are not written "
               "(see fogsim_nuscenes.json)")
     return EXIT_OK
+
+
+def channels_line(summary: dict) -> str:
+    """Every channel the export wrote with its samples per level: ``LIDAR_TOP (clear 2, beta0.06 2) and
+    RADAR_FRONT (clear 2, beta0.06 2)``."""
+    from fogsim.dataset.nuscenes import CHANNEL
+
+    per_channel = {CHANNEL: summary["samples_per_level"]} if summary["samples_per_level"] else {}
+    radar = summary.get("radar")
+    if isinstance(radar, dict):
+        per_channel |= radar["samples_per_channel_and_level"]
+    parts = [f"{channel} ({', '.join(f'{k} {n}' for k, n in levels.items())})"
+             for channel, levels in per_channel.items()]
+    return ", ".join(parts[:-1]) + (" and " if len(parts) > 1 else "") + parts[-1]

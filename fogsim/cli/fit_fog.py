@@ -1,13 +1,10 @@
 """``fogsim fit-fog``: fit the scatter fog model on path-traced renders (:mod:`fogsim.bench.fit_fog`)."""
 from __future__ import annotations
 
-import argparse
-
 
 def add_parsers(sub) -> None:
     p = sub.add_parser("fit-fog", help="fit the scatter fog model's parameters on path-traced renders "
-                       "(fogsim bench fog-physics folders) and write its parameter JSON",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                       "(fogsim bench fog-physics folders) and write its parameter JSON")
     p.add_argument("runs", nargs="+", metavar="RUN_DIR",
                    help="fogsim bench fog-physics --out folders (clear + two volumetric runs each)")
     p.add_argument("--out", default="scatter_params.json",

@@ -9,9 +9,9 @@ from pathlib import Path
 from fogsim.cli import fog_lidar
 from fogsim.dataset.writer import check_train_fraction
 from fogsim.errors import EXIT_FAILED, EXIT_OK, InputError
-from fogsim.fileio import MAX_PIXELS, pixel_bound
 from fogsim.fog.labelled import SPLIT_BY
 from fogsim.fog.model import airlight_rgb, check_heterogeneity
+from fogsim.io.pixel_bound import MAX_PIXELS, pixel_bound
 from fogsim.readers.base import DEPTH_ENCODINGS
 from fogsim.schema.presets import TRAIN_FRACTION
 from fogsim.schema.vocabulary import KERNELS, POST_PROCESS_KINDS, SPACES
@@ -19,9 +19,9 @@ from fogsim.schema.vocabulary import KERNELS, POST_PROCESS_KINDS, SPACES
 
 def _add_fog_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("fog")
-    g.add_argument("--levels", help="preset name (paper, foggy-cityscapes) or comma-separated β in 1/m "
-                                     "(default: paper)")
-    g.add_argument("--visibility", help="comma-separated visibilities in metres instead of β (β = ln20/V)")
+    g.add_argument("--levels", metavar="LEVELS", help="preset name (paper, foggy-cityscapes) or comma-separated β "
+                                                     "in 1/m (default: paper)")
+    g.add_argument("--visibility", metavar="METRES", help="comma-separated visibilities V instead of β (β = ln20/V)")
     g.add_argument("--model", choices=POST_PROCESS_KINDS, default="koschmieder",
                    help="koschmieder (the paper's law) or scatter: forward scattering, airlight by elevation "
                    "and glow, fitted on path-traced fog (docs: Fog physics)")
@@ -30,36 +30,34 @@ def _add_fog_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--extended", action="store_true", help="extended (smoothed-transmission) form")
     g.add_argument("--kernel", choices=KERNELS, default="box",
                    help="weights of the extended form (default box, as the paper's reference run)")
-    g.add_argument("--kernel-size", type=int, default=19, help="kernel size k in pixels, odd (default 19)")
-    g.add_argument("--sigma", type=float, default=5.0, help="Gaussian std in pixels (default 5)")
-    g.add_argument("--eps", type=float, default=1e-3, help="guided-filter regularisation (default 1e-3)")
-    g.add_argument("--airlight", default="255",
+    g.add_argument("--kernel-size", type=int, metavar="K", default=19, help="kernel size in pixels, odd")
+    g.add_argument("--sigma", type=float, default=5.0, help="Gaussian std in pixels")
+    g.add_argument("--eps", type=float, default=1e-3, help="guided-filter regularisation")
+    g.add_argument("--airlight", metavar="A", default="255",
                    help="airlight in 8-bit units: one value, R,G,B, or 'estimate' (dark channel)")
     g.add_argument("--space", choices=SPACES, default=None,
                    help="blend gamma-encoded values (srgb, the paper's) or linear light (default: srgb for "
                    "koschmieder, linear for scatter)")
-    g.add_argument("--fill", default=None,
+    g.add_argument("--fill", metavar="FILL", default=None,
                    help="hole fill for depth: none, inpaint, ipbasic (default: none; inpaint for Cityscapes)")
-    g.add_argument("--heterogeneity", type=float, default=0.0,
-                   help="patchy fog: amplitude a in [0,1) of a mean-1 density field (default 0 = off)")
-    g.add_argument("--heterogeneity-scale", type=float, default=64.0, help="patch size in pixels")
+    g.add_argument("--heterogeneity", type=float, metavar="A", default=0.0,
+                   help="patchy fog: amplitude in [0,1) of a mean-1 density field (0 = off)")
+    g.add_argument("--heterogeneity-scale", type=float, metavar="PX", default=64.0, help="patch size in pixels")
     g.add_argument("--seed", type=int, default=0, help="run seed (per-sample seeds derive from it)")
 
 
 def _add_batch_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("batch")
-    g.add_argument("--out", required=True, help="output folder: a labelled dataset (images/<level>/<frame>.png, "
-                                                "labels/, meta/, coco/, …) when the input has labels, else "
-                                                "OUT/<level>/<input tree>")
+    g.add_argument("--out", required=True, help="output folder: a labelled dataset (images/<level>/, labels/, "
+                                                "meta/, coco/, …) when the input has labels, else OUT/<level>/<input "
+                                                "tree>")
     g.add_argument("--format", dest="image_format", choices=("png", "jpg"), default="png",
-                   help="png keeps the input's bit depth (8 or 16); jpg is 8-bit only: 16-bit input is "
-                        "scaled to 8 bit, v8 = round(v16·255/65535), and the sidecar records it")
-    g.add_argument("--max-pixels", type=int, default=MAX_PIXELS,
-                   help=f"an image of more pixels than this, width × height, fails (default {MAX_PIXELS:,}, "
-                        "about 8192×4883, as fogsim render's)")
-    g.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
-    g.add_argument("--shard", help="i/N: process every N-th sample starting at i (0-based), "
-                                   "e.g. $SLURM_ARRAY_TASK_ID/N")
+                   help="png keeps the input's bit depth (8 or 16); jpg is 8-bit (16-bit input scaled, recorded)")
+    g.add_argument("--max-pixels", type=int, metavar="N", default=MAX_PIXELS,
+                   help=f"an image of more pixels than this fails (default {MAX_PIXELS:,} ≈ 8192×4883)")
+    g.add_argument("--workers", type=int, metavar="N", default=1, help="worker processes")
+    g.add_argument("--shard", metavar="i/N", help="process every N-th sample starting at i (0-based), "
+                                                  "e.g. $SLURM_ARRAY_TASK_ID/N")
     g.add_argument("--no-resume", action="store_true", help="redo samples whose outputs exist")
     g.add_argument("--quiet", action="store_true", help="print only errors and the summary line (no progress bar)")
 
@@ -67,60 +65,59 @@ def _add_batch_options(p: argparse.ArgumentParser) -> None:
 def _add_label_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("labels (datasets with annotations: Cityscapes gtFine, Waymo camera labels)")
     g.add_argument("--no-labels", action="store_true",
-                   help="fog the images alone (OUT/<level>/<key>.png + sidecar JSON) even when the dataset has "
-                        "labels; by default a labelled dataset is written in the render's layout (images/, "
-                        "labels/ YOLO, meta/, coco/, splits/, data/*.yaml, dataset.json with its own classes)")
-    g.add_argument("--min-pixels", type=int, default=0,
-                   help="annotations with fewer pixels become ignore regions (default 0: kept as annotated)")
-    g.add_argument("--train-fraction", type=float, default=None,
+                   help="fog the images alone (OUT/<level>/<key>.png + sidecar JSON), not a labelled dataset in "
+                        "the render's layout")
+    g.add_argument("--min-pixels", type=int, metavar="N", default=0,
+                   help="annotations with fewer pixels become ignore regions (0: every one kept)")
+    g.add_argument("--train-fraction", type=float, metavar="F", default=None,
                    help=f"share of frames in the train split (hash of the frame name; default {TRAIN_FRACTION}, "
                         "or the run's with --finalize-only)")
     g.add_argument("--split-by", choices=SPLIT_BY, default=None,
-                   help="train/val split by hash of each frame's name, or of its input folder so one sequence "
-                        "never sits on both sides (Waymo: the segment; Cityscapes: the city); default frame, or "
-                        "the run's with --finalize-only")
+                   help="train/val split by hash of each frame's name, or of its input folder (a Waymo segment, "
+                        "a Cityscapes city: never on both sides); default frame, or the run's with --finalize-only")
     g.add_argument("--finalize-only", action="store_true",
-                   help="only write the dataset-wide files (COCO, splits, data YAMLs, dataset.json, contact "
-                        "sheet) of OUT, e.g. after the shards of an array job (--shard runs do not)")
+                   help="only write the dataset-wide files of OUT (COCO, splits, data YAMLs, dataset.json, contact "
+                        "sheet), after the shards of an array job")
 
 
 def add_parsers(sub) -> None:
     fog = sub.add_parser("fog", help="fog a dataset at several densities",
-                         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    src = fog.add_argument_group("input (one of; none with --finalize-only)").add_mutually_exclusive_group()
-    src.add_argument("--input", help="folder of images (paired with --depth by name)")
-    src.add_argument("--cityscapes", help="Cityscapes root (leftImg8bit/, disparity/, camera/)")
-    src.add_argument("--waymo", help="Waymo v1 .tfrecord file or folder, or a Waymo v2 parquet root")
+                         description="Fog images (and LiDAR scans, radar sweeps) at several densities β.\n"
+                                     "Docs: Fog on real data, LiDAR in fog, Radar in fog (docs/, or the site).")
+    inputs = fog.add_argument_group("input (one of; none with --finalize-only)")
+    src = inputs.add_mutually_exclusive_group()
+    src.add_argument("--input", metavar="DIR", help="folder of images (paired with --depth by name)")
+    src.add_argument("--cityscapes", metavar="ROOT", help="Cityscapes root (leftImg8bit/, disparity/, camera/)")
+    src.add_argument("--waymo", metavar="PATH", help="Waymo v1 .tfrecord file or folder, or a Waymo v2 parquet root")
     fog_lidar.add_inputs(src)
+    inputs.add_argument("--split", default=None, help="Cityscapes split(s), comma-separated (default val); --kitti: "
+                                                      "an ImageSets name or split file (default: every image); "
+                                                      "--stf: a split file (date,frame lines)")
+    inputs.add_argument("--cameras", default="FRONT", help="Waymo cameras, comma-separated (FRONT, FRONT_LEFT, …)")
+    inputs.add_argument("--no-verify", action="store_true",
+                        help="Waymo v1: skip the TFRecord data CRCs (a damaged record then goes unnoticed)")
     d = fog.add_argument_group("depth")
-    d.add_argument("--depth", help="folder of depth maps for --input, matched by relative name")
-    d.add_argument("--depth-dir", help="folder of depth maps for --waymo (<segment>/<time>_<CAMERA>.*)")
-    d.add_argument("--depth-suffix", default="", help="depth name = image stem + this + extension")
+    d.add_argument("--depth", metavar="DIR", help="folder of depth maps for --input, matched by relative name")
+    d.add_argument("--depth-dir", metavar="DIR", help="folder of depth maps for --waymo (<segment>/<time>_<CAMERA>.*)")
+    d.add_argument("--depth-suffix", metavar="TEXT", default="", help="depth name = image stem + this + extension")
     d.add_argument("--depth-encoding", choices=DEPTH_ENCODINGS, default="metric",
                    help="metric: metres (EXR/.npy/16-bit PNG × --depth-scale); paper-8bit: the paper's "
                         "8-bit ILA maps decoded with its constant; disparity: Cityscapes 16-bit disparity, "
                         "which needs each image's camera JSON: only with --cityscapes (its default)")
-    d.add_argument("--depth-scale", type=float, help="metres per unit of 16-bit PNG depth (e.g. 0.001)")
+    d.add_argument("--depth-scale", type=float, metavar="M", help="metres per unit of 16-bit PNG depth (e.g. 0.001)")
     d.add_argument("--depth-kind", choices=("planar", "ray"), default="planar",
                    help="planar Z (converted to ray distance with the intrinsics) or ray distance")
-    d.add_argument("--intrinsics", help="JSON with fx, fy, cx, cy, width, height (or K, width, height)")
-    d.add_argument("--hfov", type=float, help="horizontal field of view in degrees (centred, square pixels)")
-    d.add_argument("--depth-from", help="ila:CHECKPOINT — predict depth for every image with an ILA model "
-                                        "(for datasets without depth, e.g. Waymo); lidar[:METHOD] (--waymo, "
-                                        "--kitti, --stf; the default of the last two) — complete each frame's "
-                                        "LiDAR points into dense ray distance, METHOD ipbasic (default), linear "
-                                        "(beam-aware interpolation) or ila:CHECKPOINT (ILA aligned to the points)")
+    d.add_argument("--intrinsics", metavar="JSON", help="JSON with fx, fy, cx, cy, width, height (or K, width, height)")
+    d.add_argument("--hfov", type=float, metavar="DEG", help="horizontal field of view in degrees (centred, square "
+                                                            "pixels)")
+    d.add_argument("--depth-from", metavar="SOURCE",
+                   help="ila:CHECKPOINT: depth predicted by an ILA model (datasets without depth, e.g. Waymo); "
+                        "lidar[:METHOD] (--waymo; the default of --kitti, --stf): each frame's LiDAR points completed "
+                        "into dense ray distance, METHOD ipbasic (default), linear (beam-aware) or ila:CHECKPOINT")
     d.add_argument("--lidar-holdout", type=float, metavar="FRACTION",
                    help="with --depth-from lidar: hold this fraction of each image's points out of the "
                         "completion and save them (OUT/lidar_holdout/<key>.npz, with the completion in "
-                        "OUT/lidar_depth/<key>.exr) for `fogsim depth score` (default 0: none)")
-    fog.add_argument("--split", default=None, help="Cityscapes split(s), comma-separated (default val); --kitti: "
-                                                   "an ImageSets name (train, val, test, trainval) or a split file "
-                                                   "(default: every image); --stf: a split file (date,frame lines)")
-    fog.add_argument("--cameras", default="FRONT", help="Waymo cameras, comma-separated (FRONT, FRONT_LEFT, …)")
-    fog.add_argument("--no-verify", action="store_true",
-                     help="Waymo v1: do not check the TFRecord data CRCs (a damaged record then goes unnoticed; "
-                          "the check runs at ≈ 100-200 MB/s without a compiled CRC32C module, GB/s with google-crc32c)")
+                        "OUT/lidar_depth/<key>.exr) for `fogsim depth score` (default: none)")
     _add_fog_options(fog)
     fog_lidar.add_options(fog)
     _add_batch_options(fog)
@@ -133,7 +130,7 @@ def _samples(args):
     from dataclasses import replace
 
     from fogsim.camera import Intrinsics
-    from fogsim.fileio import read_json
+    from fogsim.io.documents import read_json
     from fogsim.readers.base import DepthSpec
 
     if args.depth_encoding == "disparity" and not args.cityscapes:
@@ -306,7 +303,7 @@ def _inputs(args) -> dict:
         if k in out:
             out[k] = str(Path(out[k]).resolve())
     if getattr(args, "intrinsics", None):
-        from fogsim.fileio import read_json
+        from fogsim.io.documents import read_json
 
         out["intrinsics_values"] = read_json(args.intrinsics)
     if getattr(args, "kitti", None) or getattr(args, "stf", None):
@@ -386,6 +383,7 @@ def _finalize(out: str, train_fraction: float | None = None, split_by: str | Non
     """Write the dataset files (None: the run's own train fraction / split rule); returns the
     summary line and the meta files skipped (each named on stderr: a per-frame problem). A frame in
     both splits (a one-frame dataset) is one warning line on stderr (``quiet``: said in the summary line)."""
+    from fogsim.dataset.visible import visible_line
     from fogsim.dataset.writer import split_note
     from fogsim.fog.batch import finalize_dataset
 
@@ -396,6 +394,8 @@ def _finalize(out: str, train_fraction: float | None = None, split_by: str | Non
     skipped = summary.get("skipped_frames", [])
     for line in skipped:
         print(f"  skipped: {line}", file=sys.stderr)
+    if not quiet and (visible := visible_line(summary)):  # what labels/ holds that the fog hides
+        print(visible)
     counts = ", ".join(f"{c} {n}" for c, n in summary["counts"].items())
     extra = f", {len(skipped)} meta files skipped" if skipped else ""
     if summary.get("absent_frames"):

@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 from fogsim.errors import EXIT_FAILED, EXIT_OK
 from fogsim.lidar.formats import FORMATS
@@ -33,10 +35,12 @@ OTHER_INPUTS_FLAGS = ("depth", "depth_dir", "depth_scale", "intrinsics", "hfov",
 
 def add_inputs(src) -> None:
     """The LiDAR-bearing inputs in the mutually exclusive input group."""
-    src.add_argument("--kitti", help="KITTI object-detection root (training/{image_2,velodyne,calib,label_2}, "
-                                     "ImageSets/): camera fog with depth from the projected scan")
-    src.add_argument("--stf", help="Seeing Through Fog root (cam_stereo_left_lut/, lidar_hdl64_strongest|last/, "
-                                   "gt_labels/cam_left_labels_TMP/); needs --stf-calib")
+    src.add_argument("--kitti", metavar="ROOT",
+                     help="KITTI object-detection root (training/{image_2,velodyne,calib,label_2}, "
+                          "ImageSets/): camera fog with depth from the projected scan")
+    src.add_argument("--stf", metavar="ROOT",
+                     help="Seeing Through Fog root (cam_stereo_left_lut/, lidar_hdl64_strongest|last/, "
+                          "gt_labels/cam_left_labels_TMP/); needs --stf-calib")
     src.add_argument("--points", nargs="+", metavar="FILE_OR_DIR",
                      help="LiDAR scans or radar sweeps without a dataset: files, or folders searched for "
                           "--point-format's files; writes OUT/<level>/<name>.<ext> + outcomes + a sidecar JSON per "
@@ -59,26 +63,18 @@ def add_options(fog: argparse.ArgumentParser) -> None:
                         "in the source's format, + per-point outcomes), count each object's points per level, "
                         "and (KITTI, STF) each level as a KITTI tree OUT/kitti/<level>/")
     g.add_argument("--lidar-model", choices=LIDAR_FOG_MODELS, default=None,
-                   help="soft-target (attenuation + the fog's own echo + threshold; default), attenuation "
-                        "(attenuation + threshold only), hahner2021 (Hahner et al. 2021's released code as it fogs "
-                        "datasets) or stf2020 (the Seeing Through Fog authors' chamber-fitted rule; needs the "
-                        "sensor's noise level and gain: hdl64e, hdl64-s3d, or a calibration file)")
+                   help="soft-target (fogsim's, default), attenuation (no fog echo), hahner2021 (Hahner et al.'s "
+                        "released code) or stf2020 (the STF authors' chamber-fitted rule: hdl64e, hdl64-s3d)")
     g.add_argument("--hahner-variant", choices=HAHNER_VARIANTS, default=None,
-                   help="--lidar-model hahner2021: batch (the released batch path, backscatter frozen at α 0.06; "
-                        "default) or viewer (the backscatter at each β, as its viewer)")
+                   help="hahner2021: its batch path (default) or its viewer's backscatter")
     g.add_argument("--stf-beta-field", choices=STF_BETA_FIELDS, default=None,
-                   help="--lidar-model stf2020: homogeneous (one β, the camera's; default) or random (the STF "
-                        "authors' random β field added to it, a new one per scan)")
+                   help="stf2020: one β (default) or the STF authors' random β field")
     g.add_argument("--lidar-sensor", "--sensor", dest="lidar_sensor", metavar="NAME|FILE",
-                   help="a bundled sensor (hdl64e, hdl64-s3d, hdl32e, waymo-top) or a custom sensor JSON "
-                        "(default: the format's usual one: KITTI hdl64e, STF hdl64-s3d, nuScenes hdl32e, Waymo "
-                        "waymo-top with the frame's beams); with --point-format nuscenes-radar a radar (ars408-lr, "
-                        "srr-corner, or a JSON; default ars408-lr)")
+                   help="hdl64e, hdl64-s3d, hdl32e, waymo-top or a sensor JSON (default: the format's usual "
+                        "one); radar sweeps: ars408-lr (default), srr-corner or a JSON")
     g.add_argument("--lidar-calibration", default=None, metavar="datasheet|hahner-constants|FILE",
-                   help="the sensor's parameters: datasheet (the preset's values, each with its source; default), "
-                        "hahner-constants (Hahner et al. 2021's pulse and overlap in fogsim's model: 20 ns pulse, "
-                        "full overlap from 1 m; 'reference' is its deprecated name) or a calibration JSON (any of "
-                        "the sensor's radiometric keys, with 'name' and 'sources')")
+                   help="datasheet (default), hahner-constants (Hahner et al.'s pulse and overlap in fogsim's "
+                        "model) or a calibration JSON (its keys with 'name' and 'sources')")
     g.add_argument("--lidar-extinction-ratio", type=float, default=None, metavar="K",
                    help="β at 905 nm / the camera's β (default 1: fog droplets much larger than both wavelengths)")
     g.add_argument("--lidar-min-points", type=int, default=None, metavar="N",
@@ -147,21 +143,27 @@ def _not_empty(flag: str, given: str) -> None:
                          "the default")
 
 
-def sensor_choice(given: str | None):
-    """``--lidar-sensor``: None, a bundled name (checked), or a custom block read from its file (checked,
-    one line naming it) — what the run records and the workers load."""
+def sensor_choice(given: str | None, radar: bool = False):
+    """``--sensor`` (``--lidar-sensor``): None, a bundled name (checked), or a custom block read from its file
+    (checked, one line naming it) — a LiDAR's, or with ``radar`` a radar's: what the run records and the workers
+    load."""
     if given is None:
         return None
     _not_empty("--sensor", given)
-    from fogsim.lidar.sensors import LidarSensor, load_sensor
+    if radar:
+        from fogsim.radar.sensors import RadarSensor as Sensor
+        from fogsim.radar.sensors import load_radar_sensor as load
+    else:
+        from fogsim.lidar.sensors import LidarSensor as Sensor
+        from fogsim.lidar.sensors import load_sensor as load
 
     path = Path(given)
     if path.suffix == ".json" or path.is_file():
-        from fogsim.fileio import MAX_DOCUMENT_BYTES, read_json
+        from fogsim.io.documents import MAX_DOCUMENT_BYTES, read_json
 
-        load_sensor(path)  # the file's problems, one line naming it
+        load(path)  # the file's problems, one line naming it
         return read_json(path, MAX_DOCUMENT_BYTES)
-    LidarSensor.preset(given)  # an unknown name: a ValueError listing the bundled ones
+    Sensor.preset(given)  # an unknown name: a ValueError listing the bundled ones
     return given
 
 
@@ -330,13 +332,34 @@ def with_waymo_scans(samples_, args):
 
 
 # ----------------------------------------------------------------------------- --points
+@dataclass(frozen=True)
+class PointsKind:
+    """What one kind of sensor brings to ``fogsim fog --points``; the rest is :func:`cmd_points`, one path for
+    every sensor. Each part is a function of the parsed flags (``args``):
+
+    * ``check``: refuses the flags that are not this sensor's (a ValueError: exit 2);
+    * ``sensor``: the sensor fogged for (a bundled name or a custom block read from its file);
+    * ``fog``: the fog record (:class:`~fogsim.fog.engine.FogSettings`) with this sensor's part, from the flags;
+    * ``job``: ``job(args, **fields)``, the job (a :class:`~fogsim.fog.point_files.PointFilesJob`) of the
+      fields every sensor's job has (levels, out, fog, sensor, fmt, inputs) and this sensor's own;
+    * ``counted``: what the outcome totals count ("points", "detections")."""
+
+    check: Callable[[argparse.Namespace], None]
+    sensor: Callable[[argparse.Namespace], str | dict]
+    fog: Callable[[argparse.Namespace], object]
+    job: Callable[..., object]
+    counted: str
+
+
 def cmd_points(args) -> int:
-    """``fogsim fog --points …`` (:mod:`fogsim.fog.points`)."""
+    """``fogsim fog --points …``: LiDAR scans (:mod:`fogsim.fog.points`) and radar sweeps
+    (:mod:`fogsim.fog.radar_points`, ``--point-format nuscenes-radar``) — sensor, levels, output check, the input
+    files, shard, run, failures and each level's outcome totals, with what differs taken from the sensor's
+    :class:`PointsKind`."""
     from fogsim.deps import package_versions
     from fogsim.fog.batch import run
-    from fogsim.fog.engine import FogSettings
     from fogsim.fog.levels import parse_levels
-    from fogsim.fog.points import DEFAULT_SENSOR, PointsJob, point_files
+    from fogsim.fog.point_files import point_files
     from fogsim.runs import check_output, parse_shard, select_shard
 
     fmt = args.point_format
@@ -346,81 +369,94 @@ def cmd_points(args) -> int:
         if getattr(args, key, None) is not None:
             raise ValueError(f"--{key.replace('_', '-')} goes with another input (--input, --kitti, --stf, --waymo, "
                              "--cityscapes), not --points")
-    if fmt in RADAR_POINT_FORMATS:
-        return cmd_radar_points(args)
+    if args.heterogeneity:
+        raise ValueError("--heterogeneity needs a camera image (its density field): --points fogs homogeneous fog")
+    kind = RADAR_POINTS if fmt in RADAR_POINT_FORMATS else LIDAR_POINTS
+    kind.check(args)
+    sensor = kind.sensor(args)
+    levels = tuple(parse_levels(args.levels, args.visibility))
+    fog = kind.fog(args)
+    check_output(args.out, [("--points", given) for given in args.points])
+    items = point_files(args.points, fmt)
+    recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
+    job = kind.job(args, levels=levels, out=args.out, fog=fog, sensor=sensor, fmt=fmt, inputs=recorded)
+    mine = select_shard(items, parse_shard(args.shard))
+    summary = run(mine, job, args.workers, not args.no_resume, not args.quiet,
+                  package_versions() | {"samples": len(items)})
+    for source, error in summary.failed:
+        print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
+    _print_totals(job, mine, kind.counted, args.quiet)
+    print(summary.line(job))
+    return EXIT_FAILED if summary.failed else EXIT_OK
+
+
+def _print_totals(job, items, what: str, quiet: bool) -> None:
+    """Each level's outcome totals (:mod:`fogsim.fog.outcome_totals`), unless quiet."""
+    from fogsim.fog.outcome_totals import outcome_totals, totals_lines
+
+    if not quiet:
+        print("\n".join(totals_lines(outcome_totals(job, items), what, job.unit)))
+
+
+def _check_lidar_points(args) -> None:
+    fmt = args.point_format
     if args.radar_temperature is not None:
         raise ValueError("--radar-temperature goes with --point-format nuscenes-radar")
     if args.point_scale and fmt not in ("ply", "npy"):
         raise ValueError(f"--point-scale is for ply and npy scans; {fmt} scans have their own scale")
-    if args.heterogeneity:
-        raise ValueError("--heterogeneity needs a camera image (its density field): --points fogs homogeneous fog")
     for flag in ("lidar", "no_kitti_trees", "lidar_min_points"):
         if getattr(args, flag, None):
             raise ValueError(f"--{flag.replace('_', '-')} goes with a dataset (--kitti, --stf, --waymo), not --points")
-    sensor = sensor_choice(args.lidar_sensor) or DEFAULT_SENSOR.get(fmt)
+
+
+def _lidar_points_sensor(args):
+    from fogsim.fog.points import DEFAULT_SENSOR
+
+    sensor = sensor_choice(args.lidar_sensor) or DEFAULT_SENSOR.get(args.point_format)
     if sensor is None:
-        raise ValueError(f"--point-format {fmt} has no usual sensor: give --sensor NAME|FILE")
-    levels = tuple(parse_levels(args.levels, args.visibility))
-    spec = fog_spec(args)
-    check_output(args.out, [("--points", given) for given in args.points])
-    items = point_files(args.points, fmt)
-    recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
-    job = PointsJob(levels, args.out, FogSettings(lidar=spec), sensor, fmt, args.point_scale, args.seed, recorded)
-    shard = parse_shard(args.shard)
-    summary = run(select_shard(items, shard), job, args.workers, not args.no_resume, not args.quiet,
-                  package_versions() | {"samples": len(items)})
-    for source, error in summary.failed:
-        print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
-    print(summary.line(job))
-    return EXIT_FAILED if summary.failed else EXIT_OK
+        raise ValueError(f"--point-format {args.point_format} has no usual sensor: give --sensor NAME|FILE")
+    return sensor
 
 
-def cmd_radar_points(args) -> int:
-    """``fogsim fog --points … --point-format nuscenes-radar`` (:mod:`fogsim.fog.radar_points`)."""
-    from fogsim.deps import package_versions
-    from fogsim.fog.batch import run
+def _lidar_points_fog(args):
     from fogsim.fog.engine import FogSettings
-    from fogsim.fog.levels import parse_levels
-    from fogsim.fog.points import point_files
-    from fogsim.fog.radar_points import DEFAULT_RADAR_SENSOR, RadarPointsJob
-    from fogsim.radar.fog import radar_fog_spec
-    from fogsim.runs import check_output, parse_shard, select_shard
 
-    fmt = args.point_format
-    if args.heterogeneity:
-        raise ValueError("--heterogeneity needs a camera image (its density field): --points fogs homogeneous fog")
+    return FogSettings(lidar=fog_spec(args))
+
+
+def _lidar_points_job(args, **fields):
+    from fogsim.fog.points import PointsJob
+
+    return PointsJob(**fields, scale=args.point_scale, seed=args.seed)
+
+
+def _check_radar_points(args) -> None:
     for flag in ("lidar", "no_kitti_trees", "lidar_min_points", "lidar_model", "lidar_extinction_ratio",
                  "point_scale", "lidar_calibration"):
         if getattr(args, flag, None) is not None and getattr(args, flag) is not False:
-            raise ValueError(f"--{flag.replace('_', '-')} is for LiDAR scans, not --point-format {fmt}")
-    sensor = radar_sensor_choice(args.lidar_sensor) or DEFAULT_RADAR_SENSOR[fmt]
-    spec = radar_fog_spec({} if args.radar_temperature is None else {"temperature_c": args.radar_temperature})
-    levels = tuple(parse_levels(args.levels, args.visibility))
-    check_output(args.out, [("--points", given) for given in args.points])
-    items = point_files(args.points, fmt)
-    recorded = {"points": [str(Path(p).resolve()) for p in args.points], "point_format": fmt}
-    job = RadarPointsJob(levels, args.out, FogSettings(radar=spec), sensor, fmt, recorded)
-    summary = run(select_shard(items, parse_shard(args.shard)), job, args.workers, not args.no_resume,
-                  not args.quiet, package_versions() | {"samples": len(items)})
-    for source, error in summary.failed:
-        print(f"  failed: {error if error.startswith(source) else f'{source}: {error}'}", file=sys.stderr)
-    print(summary.line(job))
-    return EXIT_FAILED if summary.failed else EXIT_OK
+            raise ValueError(f"--{flag.replace('_', '-')} is for LiDAR scans, not --point-format {args.point_format}")
 
 
-def radar_sensor_choice(given: str | None):
-    """``--sensor`` for radar sweeps: None, a bundled radar's name (checked), or a custom block read from its
-    file (checked, one line naming it)."""
-    if given is None:
-        return None
-    _not_empty("--sensor", given)
-    from fogsim.radar.sensors import RadarSensor, load_radar_sensor
+def _radar_points_sensor(args):
+    from fogsim.fog.radar_points import DEFAULT_RADAR_SENSOR
 
-    path = Path(given)
-    if path.suffix == ".json" or path.is_file():
-        from fogsim.fileio import MAX_DOCUMENT_BYTES, read_json
+    return sensor_choice(args.lidar_sensor, radar=True) or DEFAULT_RADAR_SENSOR[args.point_format]
 
-        load_radar_sensor(path)
-        return read_json(path, MAX_DOCUMENT_BYTES)
-    RadarSensor.preset(given)  # an unknown name: a ValueError listing the bundled ones
-    return given
+
+def _radar_points_fog(args):
+    from fogsim.fog.engine import FogSettings
+    from fogsim.radar.fog import radar_fog_spec
+
+    return FogSettings(radar=radar_fog_spec({} if args.radar_temperature is None
+                                            else {"temperature_c": args.radar_temperature}))
+
+
+def _radar_points_job(args, **fields):
+    from fogsim.fog.radar_points import RadarPointsJob
+
+    return RadarPointsJob(**fields)
+
+
+LIDAR_POINTS = PointsKind(_check_lidar_points, _lidar_points_sensor, _lidar_points_fog, _lidar_points_job, "points")
+RADAR_POINTS = PointsKind(_check_radar_points, _radar_points_sensor, _radar_points_fog, _radar_points_job,
+                          "detections")

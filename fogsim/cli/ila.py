@@ -84,7 +84,7 @@ def cmd_ila(args) -> int:
     import json
 
     from fogsim.depth import ila
-    from fogsim.fileio import atomic_write_bytes
+    from fogsim.io.atomic import atomic_write_bytes
     from fogsim.runs import check_output
 
     inputs = {"--data": getattr(args, "data", None), "--input": getattr(args, "input", None),
@@ -115,7 +115,8 @@ def _ila_predict(args) -> int:
     """Planar depth for every image; an unreadable image is named and skipped (exit 1 at the end)."""
 
     from fogsim.depth.ila import load_model, predict_depth
-    from fogsim.fileio import read_image, write_depth
+    from fogsim.io.depth_files import write_depth
+    from fogsim.io.images import read_image
     from fogsim.readers.folder import folder_samples
 
     model, config, camera = load_model(args.checkpoint)  # checked before anything is written
@@ -135,8 +136,8 @@ def _ila_fill(args) -> int:
 
     from fogsim.camera import depth_to_disparity, encode_disparity_png
     from fogsim.depth.ila import ila_fill
-    from fogsim.fileio import read_image, write_image
     from fogsim.fog.fill import fill_holes, register_fill
+    from fogsim.io.images import read_image, write_image
     from fogsim.readers.cityscapes import cityscapes_samples
     from fogsim.readers.cityscapes_files import read_cityscapes_depth
 

@@ -43,7 +43,7 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="the fog model (default soft-target)")
     p.add_argument("--lidar-calibration", default=None, metavar="NAME|FILE",
                    help="the calibration scored (lidar-compare) or the fit's start (lidar-fit): datasheet (default), "
-                        "reference or a calibration JSON")
+                        "hahner-constants or a calibration JSON")
     p.add_argument("--lidar-extinction-ratio", type=float, default=None, metavar="K",
                    help="β at 905 nm / the camera's β (default 1)")
     p.add_argument("--weights", metavar="TERM=W,…", help="the distance's weights (terms: range, near_share, "
@@ -61,7 +61,9 @@ def add_parsers(sub) -> None:
     f.add_argument("--visibility", type=float, metavar="METRES",
                    help="the real fog's meteorological visibility, when known (default: fitted, 10-2000 m)")
     f.add_argument("--parameters", metavar="KEY,…", help="the calibration keys to fit (default: the model's: "
-                   "soft-target fog_echo_scale, pulse_half_power_ns, overlap_full_m, fluctuation_sigma, max_range_m)")
+                   "soft-target fog_echo_scale, pulse_half_power_ns, overlap_full_m, fluctuation_sigma, max_range_m; "
+                   "attenuation fluctuation_sigma, max_range_m; stf2020 stf_noise_level, stf_gain; hahner2021 none: "
+                   "the visibility alone)")
     f.add_argument("--evaluations", type=int, default=200, metavar="N",
                    help="the most fogs of the clear set the fit may run (default 200)")
     f.add_argument("--name", help="the calibration's name (default fit-<sensor>-<model>)")
@@ -76,7 +78,7 @@ def add_parsers(sub) -> None:
 
 # ----------------------------------------------------------------------------- shared
 def _scans(paths: list[str], fmt: str, scale: str | None):
-    from fogsim.fog.points import point_files
+    from fogsim.fog.point_files import point_files
     from fogsim.lidar.formats import read_points
 
     files = point_files(paths, fmt)
@@ -121,7 +123,8 @@ def _problem(args, parameters):
 
 
 def _write(out: Path, record: dict, sets: dict, clear, trace) -> None:
-    from fogsim.fileio import atomic_write_bytes, write_json
+    from fogsim.io.atomic import atomic_write_bytes
+    from fogsim.io.documents import write_json
     from fogsim.lidar.fit_report import SIMULATED, distance_figure, histogram_figure, markdown
     from fogsim.lidar.pictures import write_png
 
@@ -145,7 +148,7 @@ def _parameters(text: str | None):
 # ----------------------------------------------------------------------------- the commands
 def cmd_fit(args) -> int:
     from fogsim.console import progress_bar
-    from fogsim.fileio import write_json
+    from fogsim.io.documents import write_json
     from fogsim.lidar.fit import fit, fitted_calibration
     from fogsim.lidar.fit_report import report_record
 
@@ -153,6 +156,9 @@ def cmd_fit(args) -> int:
         raise ValueError(f"--evaluations must be ≥ 1, got {args.evaluations}")
     t0 = time.perf_counter()
     problem, inputs = _problem(args, _parameters(args.parameters))
+    if not problem.parameters and problem.beta is not None:
+        raise ValueError(f"{problem.spec.model} has no calibration key to fit (fogsim.lidar.fit.MODEL_PARAMETERS) and "
+                         "--visibility is given: nothing to fit; score it with fogsim lidar-compare")
     bar = progress_bar(args.evaluations, "lidar-fit", "fogs", args.quiet)
 
     def progress(done, best):

@@ -9,9 +9,10 @@ the preset — by Koschmieder's law on the clear render (default), or with ``--f
 by one more Cycles render per level with a participating medium around camera and scene
 (labels, depth and masks still come from the clear render). A frame is committed atomically
 (``meta/<frame>.json`` last); a restarted run skips committed frames, and ``--shard i/N``
-renders frames i, i+N, … for a Slurm array or a Kubernetes indexed job (run
-``--finalize-only`` once after all shards to rebuild COCO, YAMLs and the contact sheet over
-every frame). Needs bpy (the ``blender`` extra) or Blender itself.
+renders frames i, i+N, … for a Slurm array or a Kubernetes indexed job (then
+``fogsim render --out OUT --finalize-only`` once, after all shards: COCO, YAMLs and the contact
+sheet over every frame, with the parameters render_run.json records). Needs bpy (the ``blender``
+extra) or Blender itself; --finalize-only needs neither.
 """
 from __future__ import annotations
 
@@ -21,8 +22,8 @@ import time
 from pathlib import Path
 
 from fogsim.camera import CITYSCAPES_BASELINE_M
-from fogsim.errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE, InputError, MissingDependency, run_command
-from fogsim.fileio import MAX_PIXELS
+from fogsim.errors import EXIT_FAILED, EXIT_OK, EXIT_USAGE, MissingDependency, run_command
+from fogsim.io.pixel_bound import MAX_PIXELS
 from fogsim.schema.presets import TRAIN_FRACTION
 from fogsim.schema.vocabulary import FOG_KINDS, FOG_MEDIA
 
@@ -77,7 +78,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--shard", help="i/N: render frames i, i+N, … (0-based), e.g. $SLURM_ARRAY_TASK_ID/N")
     p.add_argument("--no-resume", action="store_true", help="re-render committed frames")
     p.add_argument("--gpu", action="store_true", help="render on the GPU when one is available")
-    p.add_argument("--finalize-only", action="store_true", help="only rebuild COCO/YAML/manifest/contact sheet")
+    p.add_argument("--finalize-only", action="store_true",
+                   help="only write the dataset-wide files (COCO, splits, data YAMLs, dataset.json, contact sheet) "
+                        "over the committed frames, once every shard has finished: the render's parameters are read "
+                        "from OUT/render_run.json, so --out is all it needs (no Blender either); other flags given "
+                        "must match the record (--train-fraction re-splits)")
     g = p.add_argument_group("scene mode (your own Blender scene; docs/own-scenes.md)")
     g.add_argument("--scene", help="render this .blend file's active scene instead of a preset ('current': the "
                                    "scene Blender has open, blender -b FILE.blend -P …); the file is never written")
@@ -92,7 +97,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def add_parsers(sub) -> None:
     p = sub.add_parser("render", help="render a labeled foggy dataset of street scenes (needs Blender / bpy)",
-                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+                       description=__doc__)
     add_arguments(p)
     p.set_defaults(run=cmd_render)
 
@@ -114,6 +119,8 @@ def cmd_render(args) -> int:
     from fogsim.render.preset import load_render_preset
     from fogsim.runs import check_output, parse_shard
 
+    if args.finalize_only:
+        return _finalize_only(args)
     if args.scene:
         return _cmd_scene(args)
     if args.camera or args.frame_range or args.class_map:
@@ -127,11 +134,9 @@ def cmd_render(args) -> int:
                                 lidar=args.lidar, radar=args.radar)
     shard = parse_shard(args.shard)
     require_bpy()
-    from fogsim.render.blender.job import RUN_FILE, RenderJob
+    from fogsim.render.blender.job import RenderJob
     from fogsim.render.job_options import RunOptions
 
-    if args.finalize_only and not (Path(args.out) / RUN_FILE).is_file():
-        raise InputError(args.out, f"no {RUN_FILE} here: not a dataset to finalize")
     job = RenderJob(config, args.out, RunOptions(shard, not args.no_resume, args.gpu, args.quiet))
     try:
         return _render(job, args, shard)
@@ -160,12 +165,9 @@ def _cmd_scene(args) -> int:
                            radar=args.radar).check()  # a usage error before Blender
     shard = parse_shard(args.shard)
     require_bpy()
-    from fogsim.render.blender.job import RUN_FILE
     from fogsim.render.blender.scene_mode import open_scene, scene_job
 
     scene = open_scene(args.scene, args.quiet)
-    if args.finalize_only and not (Path(args.out) / RUN_FILE).is_file():
-        raise InputError(args.out, f"no {RUN_FILE} here: not a dataset to finalize")
     job = scene_job(scene, args.out, options, RunOptions(shard, not args.no_resume, args.gpu, args.quiet))
     if not args.quiet:
         print(job.summary)
@@ -179,43 +181,117 @@ def _cmd_scene(args) -> int:
 
 def _render(job, args, shard) -> int:
     from fogsim.console import progress_bar
-    from fogsim.dataset.writer import split_note
     from fogsim.render.loop import FrameLoop, frame_log
     from fogsim.runs import is_sharded
 
     loop = FrameLoop(job)
     t0 = time.perf_counter()
-    if not args.finalize_only:
-        with progress_bar(loop.total, "render", "frame", args.quiet) as bar:
-            def on_frame(index, meta, error):
-                if error is not None:
-                    bar.write(f"error: frame {index}: {error}")
-                elif not args.quiet:  # the per-frame timing log (also kept in meta/<frame>.json)
-                    bar.write(frame_log(meta))
-                bar.update(1)
+    with progress_bar(loop.total, "render", "frame", args.quiet) as bar:
+        def on_frame(index, meta, error):
+            if error is not None:
+                bar.write(f"error: frame {index}: {error}")
+            elif not args.quiet:  # the per-frame timing log (also kept in meta/<frame>.json)
+                bar.write(frame_log(meta))
+            bar.update(1)
 
-            loop.run(on_frame)
-    if args.finalize_only and not job.layout.done_frames():
-        print(f"fogsim: error: {args.out}: no committed frames to finalize", file=sys.stderr)
-        return EXIT_USAGE
+        loop.run(on_frame)
     try:
-        loop.finish(sharded=is_sharded(shard) and not args.finalize_only)
+        loop.finish(sharded=is_sharded(shard))
     except (OSError, ValueError) as exc:
         print(f"fogsim: error: writing the dataset files of {args.out} failed: {exc}", file=sys.stderr)
         return EXIT_FAILED
-    note = split_note(loop.summary) if loop.summary is not None else None  # a one-frame dataset
-    if note and not args.quiet:
-        print(f"fogsim: warning: {note}", file=sys.stderr)
-    print(f"rendered {loop.done} frames ({job.skipped} already done, {len(loop.failed)} failed) "
-          f"in {time.perf_counter() - t0:.1f} s → {args.out}" + (f"; warning: {note}" if note and args.quiet else ""))
+    note = _summary_warning(loop.summary, args.quiet)
+    lines = [f"rendered {loop.done} frames ({job.skipped} already done, {len(loop.failed)} failed) "
+             f"in {time.perf_counter() - t0:.1f} s → {args.out}"]
+    if note and args.quiet:
+        lines.append(f"warning: {note}")
+    if is_sharded(shard):  # the dataset-wide files wait for one finalize after every shard
+        lines.append(f"fogsim: shard {shard[0]}/{shard[1]} done; when every shard has finished, write the dataset "
+                     f"files with: {finalize_command(args)}")
+    print("; ".join(lines) if args.quiet else "\n".join(lines))  # --quiet: one summary line
+    _visible(loop.summary, args.quiet)
     for index, error in loop.failed:
         print(f"  failed: frame {index}: {error}", file=sys.stderr)
-    skipped = (loop.summary or {}).get("skipped_frames", [])
+    skipped = _skipped(loop.summary)
+    return EXIT_FAILED if loop.failed or skipped else EXIT_OK
+
+
+def finalize_command(args) -> str:
+    """The finalize command of this run's output, for the entry the user ran (``fogsim render`` or the batch
+    script under Blender); it needs nothing but ``--out``."""
+    import shlex
+
+    out = shlex.quote(str(args.out))
+    entry = getattr(args, "entry", "fogsim render")
+    if entry == "fogsim render":
+        return f"fogsim render --out {out} --finalize-only"
+    return (f"blender -b -P scripts/{entry} -- --out {out} --finalize-only "
+            f"(or fogsim render --out {out} --finalize-only)")
+
+
+def _summary_warning(summary: dict | None, quiet: bool) -> str | None:
+    """The one-frame dataset's warning, printed unless ``quiet`` (then the summary line says it); returned."""
+    from fogsim.dataset.writer import split_note
+
+    note = split_note(summary) if summary is not None else None  # a one-frame dataset
+    if note and not quiet:
+        print(f"fogsim: warning: {note}", file=sys.stderr)
+    return note
+
+
+def _visible(summary: dict | None, quiet: bool) -> None:
+    """Each level's visible boxes (the visible-only label sets, :mod:`fogsim.dataset.visible`), unless quiet."""
+    from fogsim.dataset.visible import visible_line
+
+    line = visible_line(summary) if summary is not None and not quiet else None
+    if line:
+        print(line)
+
+
+def _skipped(summary: dict | None) -> list[str]:
+    skipped = (summary or {}).get("skipped_frames", [])
     for line in skipped:
         print(f"  skipped: {line}", file=sys.stderr)
-    if args.finalize_only and loop.summary is not None:
-        print(finalize_line(loop.summary, job.config.frames, shard))
-    return EXIT_FAILED if loop.failed or skipped else EXIT_OK
+    return skipped
+
+
+def _finalize_only(args) -> int:
+    """``--finalize-only``: the dataset files over the committed frames, with the configuration
+    ``render_run.json`` records (:mod:`fogsim.render.finalize`); flags given too must match it."""
+    from dataclasses import replace
+
+    from fogsim.dataset.layout import DatasetLayout
+    from fogsim.render.finalize import RUN_FILE, check_flags, finalize_render, recorded_config
+    from fogsim.render.preset import check_overrides
+    from fogsim.runs import parse_shard
+
+    shard = parse_shard(args.shard)
+    check_overrides(frames=args.frames, train_fraction=args.train_fraction)  # a usage error first
+    config, blender = recorded_config(args.out)
+    flags = {"--preset": args.preset, "--seed": args.seed, "--resolution": args.resolution,
+             "--samples": args.samples, "--levels": args.levels, "--fog": args.fog, "--fog-medium": args.fog_medium,
+             "--fog-scale": args.fog_scale, "--stereo": args.stereo, "--assets": args.assets, "--lidar": args.lidar,
+             "--radar": args.radar, "--scene": args.scene, "--camera": args.camera,
+             "--frame-range": args.frame_range, "--class-map": args.class_map}
+    check_flags(config, flags, Path(args.out) / RUN_FILE)
+    if args.train_fraction is not None:  # a re-split: the one parameter finalize may change
+        config = replace(config, train_fraction=args.train_fraction)
+    layout = DatasetLayout(args.out)
+    if not layout.done_frames():
+        print(f"fogsim: error: {args.out}: no committed frames to finalize", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        summary = finalize_render(layout, config, blender)
+    except (OSError, ValueError) as exc:
+        print(f"fogsim: error: writing the dataset files of {args.out} failed: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    note = _summary_warning(summary, args.quiet)
+    skipped = _skipped(summary)
+    frames = args.frames if args.frames is not None else summary["preset"]["frames"]
+    print(finalize_line(summary, frames, shard) + f" → {args.out}" + (f"; warning: {note}" if note and args.quiet
+                                                                      else ""))
+    _visible(summary, args.quiet)
+    return EXIT_FAILED if skipped else EXIT_OK
 
 
 def finalize_line(summary: dict, frames: int, shard: tuple[int, int]) -> str:
@@ -234,10 +310,12 @@ def finalize_line(summary: dict, frames: int, shard: tuple[int, int]) -> str:
 
 def main(argv: list[str] | None = None, prog: str = "fogsim render") -> int:
     """Entry of ``scripts/render_batch.py`` (``blender -b -P``): the same command, its own prog name."""
-    p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    from fogsim.fileio import with_checked_paths
+    from fogsim.cli.help import HelpFormatter
+    from fogsim.io.paths import with_checked_paths
 
+    p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=HelpFormatter)
     add_arguments(p)
+    p.set_defaults(entry=prog)
     interrupt_as_python()
     return run_command(with_checked_paths(cmd_render), p.parse_args(argv), prog="fogsim")
 

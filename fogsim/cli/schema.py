@@ -29,7 +29,7 @@ def schema_text() -> str:
 def cmd_schema(args) -> int:
     text = schema_text()
     if args.out:
-        from fogsim.fileio import atomic_write_bytes
+        from fogsim.io.atomic import atomic_write_bytes
 
         atomic_write_bytes(args.out, text.encode())
         if not args.quiet:

@@ -17,8 +17,11 @@ Conventions (boxes: :mod:`fogsim.boxes`):
 * ``segmentation`` (COCO's compressed RLE, :mod:`fogsim.rle`; :func:`frame_segmentations`): the
   object's visible instance mask where the dataset has one — a render's ``masks/<frame>.png``, a
   record's own ``segmentation`` (Cityscapes' gtFine instances); an ignore region without a mask: the
-  RLE of its box (so every ``iscrowd`` annotation carries one); a box-only object (Waymo, KITTI): none,
-  as a box is no outline — those files serve box evaluation, not ``COCOeval(iouType="segm")``.
+  RLE of its box (so every ``iscrowd`` annotation carries one); a box-only object (Waymo, KITTI): its box
+  as a polygon ``[[x0, y0, x1, y0, x1, y1, x0, y1]]``, as KITTI→COCO converters write it, marked
+  ``segmentation_is_box: true`` — so every annotation has one and ``pycocotools.COCO.annToMask`` works on
+  any fogsim COCO file, but a box is no outline: such files serve box evaluation, not
+  ``COCOeval(iouType="segm")``.
 * ``distance_m`` is always present (None = unknown); :data:`COCO_EXTRA_FIELDS` are copied when the
   record has them (``box3d``: the object's oriented 3D box, :mod:`fogsim.render.boxes3d`); with a LiDAR,
   ``lidar_points`` is the points in that box at the file's level; the per-level
@@ -34,7 +37,7 @@ import copy
 
 from fogsim.boxes import coco_category, xyxy_to_xywh
 from fogsim.dataset.layout import DatasetLayout
-from fogsim.fileio import read_uint16_map
+from fogsim.io.depth_files import read_uint16_map
 from fogsim.rle import box_rle, rle_encode, rle_encode_box
 from fogsim.scene.classes import LABELLED
 
@@ -73,6 +76,8 @@ def coco_annotation(record: dict, ann_id: int, image_id: int, segmentation: dict
            "distance_m": record.get("distance_m")}
     if segmentation is not None:
         ann["segmentation"] = segmentation
+        if isinstance(segmentation, list):  # a box-only label's box as a polygon (the module docstring)
+            ann["segmentation_is_box"] = True
     ann |= {k: record[k] for k in COCO_EXTRA_FIELDS if k in record}
     if every_class_id is not None:
         ann["every_class"] = True
@@ -101,7 +106,7 @@ def frame_segmentations(layout: DatasetLayout, meta: dict) -> list[dict | None]:
     """The COCO ``segmentation`` (RLE) of each record of a frame, or None (the module docstring): the
     record's own ``segmentation``; else, when the frame has an instance mask (``masks/<frame>.png``, a
     render's, of the frame's size), the mask pixels of the record's integer ``id``; else, for an ignore
-    region, its box."""
+    region, its box's RLE, and for a kept box-only record its box as a polygon (:func:`box_polygon`)."""
     records, h, w = meta["objects"], meta["height"], meta["width"]
     mask = None
     path = layout.mask(meta["frame"])
@@ -117,8 +122,16 @@ def frame_segmentations(layout: DatasetLayout, meta: dict) -> list[dict | None]:
             seg = _mask_rle(mask, rid, rec)
         if seg is None and not rec["kept"]:
             seg = box_rle(rec["bbox"], h, w)
+        if seg is None:  # a box-only label (no mask): its box as a polygon
+            seg = box_polygon(rec["bbox"])
         out.append(seg)
     return out
+
+
+def box_polygon(bbox) -> list[list[float]]:
+    """A box ``[x0, y0, x1, y1)`` (pixel edges) as a COCO polygon: its four corners, clockwise from the top left."""
+    x0, y0, x1, y1 = (float(v) for v in bbox)
+    return [[x0, y0, x1, y0, x1, y1, x0, y1]]
 
 
 def _mask_rle(mask, rid: int, record: dict) -> dict | None:
@@ -194,6 +207,7 @@ def coco_dataset(metas: list[dict], level, layout: DatasetLayout, classes=LABELL
                      "area": "visible (instance mask) pixel count",
                      "category_id": "YOLO class id + 1",
                      "segmentation": "COCO compressed RLE of the visible instance mask (ignore regions without "
-                                     "one: their box); absent for box-only labels"},
+                                     "one: their box); box-only labels: the box as a polygon "
+                                     "(segmentation_is_box)"},
             "licenses": [], "images": images, "annotations": annotations,
             "categories": coco_categories(classes) + ([every] if any_every else [])}

@@ -14,7 +14,7 @@ no half-written frame; a frame is complete when its four files exist (:func:`fra
 
 ``image_2`` and ``velodyne`` hold what the level folders already hold (``images/<level>/<frame>.png``, a
 KITTI-format ``lidar/<level>/<frame>.bin``): given those files, they are **hard links** to them where the
-file system allows, copies otherwise (:func:`fogsim.fileio.link_or_copy`; never a symbolic link), so a
+file system allows, copies otherwise (:func:`fogsim.io.links.link_or_copy`; never a symbolic link), so a
 dataset does not store its images and scans twice. Every writer replaces files instead of writing into
 them, so rewriting one name never changes its twin.
 """
@@ -25,7 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsim.fileio import atomic_write_bytes, encode_image, link_or_copy
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.images import encode_image
+from fogsim.io.links import link_or_copy
 from fogsim.lidar.formats import encode_points
 from fogsim.lidar.points import PointCloud
 from fogsim.readers.kitti.calib import KittiCalib, format_kitti_calib

@@ -4,6 +4,8 @@ Layout under the root::
 
     images/<level>/<frame>.png   fogged RGB per fog level
     labels/<level>/<frame>.txt   YOLO lines, identical across levels (empty = background)
+    visible/labels/<level>/<frame>.txt   YOLO lines of the objects still visible at that level (finalize;
+                                 fogsim.dataset.visible), visible/images/<level>/<frame>.png hard links to the images
     depth/<frame>.exr            planar depth, metres        masks/<frame>.png  uint16 ids
     meta/<frame>.json            the frame record, written last: its presence marks the frame done
     linear/<level>/<frame>.exr   scene-linear RGB renders (volumetric fog, ``keep_linear``; R, G, B float)
@@ -19,6 +21,7 @@ Layout under the root::
     coco/<level>.json            COCO detection annotations (objects the filters dropped: iscrowd = 1)
     splits/<level>_{train,val}.txt, splits/all_{train,val}.txt   image lists (absolute paths)
     data/<level>.yaml, data/all.yaml                              Ultralytics data files
+    splits/<level>.visible_{train,val}.txt, data/<level>.visible.yaml (and all.visible)   the visible-only sets
     dataset.json                 manifest, counts, levels;       contact_sheet.png
     cross_sensor.md, lidar_bev.png, lidar_points_vs_distance.png, radar_bev.png   what fog does to each object,
                                  per sensor
@@ -43,11 +46,17 @@ from fogsim.errors import InputError
 
 MIXED_SPLIT = "all"     # split lists and data file mixing every level (a dataset path)
 MIXED_MODEL = "mixed"   # the detector trained on every level at once (a study name, not a dataset path)
+VISIBLE = "visible"     # the visible-only label sets: visible/{images,labels}/<level>/, data/<level>.visible.yaml
 PARTS = ("train", "val")
 
 
 #: how a sample key (a relative POSIX path, e.g. Waymo ``ctx/ts_CAM``) becomes a flat frame name
 FRAME_SEPARATOR = "__"
+
+
+def visible_set(level_key: str) -> str:
+    """The name of a level's visible-only set in ``splits/`` and ``data/`` (``beta0.12`` → ``beta0.12.visible``)."""
+    return f"{level_key}.{VISIBLE}"
 
 
 def frame_from_key(key: str) -> str:
@@ -95,6 +104,14 @@ class DatasetLayout:
 
     def label(self, level_key: str, frame: str) -> Path:
         return self.labels_dir(level_key) / f"{frame}.txt"
+
+    def visible_image(self, level_key: str, frame: str) -> Path:
+        """The level's image under the visible-only set (a hard link: Ultralytics finds a label by its image's path)."""
+        return self.root / VISIBLE / "images" / level_key / f"{frame}.png"
+
+    def visible_label(self, level_key: str, frame: str) -> Path:
+        """YOLO lines of the objects visible at that level (:mod:`fogsim.dataset.visible`)."""
+        return self.root / VISIBLE / "labels" / level_key / f"{frame}.txt"
 
     def depth(self, frame: str) -> Path:
         return self.root / "depth" / f"{frame}.exr"
@@ -156,7 +173,7 @@ class DatasetLayout:
         return self.root / "coco" / f"{level_key}.json"
 
     def data_yaml(self, level_key: str) -> Path:
-        """Ultralytics data file of one level (or of MIXED_SPLIT)."""
+        """Ultralytics data file of one level (or of MIXED_SPLIT, or a :func:`visible_set` name)."""
         return self.root / "data" / f"{level_key}.yaml"
 
     def manifest(self) -> Path:

@@ -34,7 +34,8 @@ import numpy as np
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.semantic_kitti import write_sequences
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_write_bytes, write_json
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.documents import write_json
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.formats import read_points
@@ -194,8 +195,8 @@ def lidar_summary(layout: DatasetLayout, levels, frames: list[str], metas: list[
           f"{model_rule}, {radar_rule}the camera with a contrast ≥ 5 % (n = objects in the bin).", "",
           table_markdown(rows)]
     if totals:
-        md += ["", "## LiDAR outcomes per level", "", "| level | points | kept | attenuated | lost | clutter |",
-               "|---|---|---|---|---|---|"]
+        md += ["", "## LiDAR outcomes per level", "", "| level | points | " + " | ".join(OUTCOMES) + " |",
+               "|---|---|" + "---|" * len(OUTCOMES)]
         md += [f"| {k} | {t['points']} | " + " | ".join(f"{100 * t['shares'][o]:.1f} %" for o in OUTCOMES) + " |"
                for k, t in totals.items()]
     pictures = [layout.relative(layout.lidar_points_plot())] if lidar else []

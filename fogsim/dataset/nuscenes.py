@@ -13,8 +13,8 @@ a render with ``--lidar``, a ``fogsim fog --kitti/--stf/--waymo … --lidar`` ru
   the points either);
 * intensity on nuScenes' 0–255 scale (a 0–1 scan: 255 × its normalised intensity, :mod:`fogsim.lidar.formats`);
 * ring: the scan's own where it has one (renders, nuScenes, STF, Waymo), else the nearest beam by elevation
-  among the recorded sensor's inclinations (``lidar.sensor.inclinations_deg``,
-  :meth:`~fogsim.lidar.points.PointCloud.estimated_rings`; KITTI's
+  among the recorded sensor's inclinations (``lidar.sensor.inclinations_deg``, with its lasers'
+  ``vertical_offsets_m`` where recorded: :meth:`~fogsim.lidar.points.PointCloud.estimated_rings`; KITTI's
   ``.bin`` holds none).
 
 Not written — nuScenes' 13 JSON tables (``attribute``, ``calibrated_sensor``, ``category``, ``ego_pose``,
@@ -42,22 +42,20 @@ gives a radar facing that way (:func:`radar_channel`: the sensor mount's yaw —
 from __future__ import annotations
 
 import os
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from fogsim.dataset.reader import read_metas
 from fogsim.errors import InputError
-from fogsim.fileio import (
-    PART_SUFFIX,
-    atomic_folder,
-    atomic_write_bytes,
-    link_or_copy,
-    remove_stale_folders,
-    resolve_path,
-    write_json,
-)
+from fogsim.io.atomic import atomic_folder, atomic_write_bytes
+from fogsim.io.documents import write_json
+from fogsim.io.links import link_or_copy
+from fogsim.io.parts import PART_SUFFIX, remove_stale_folders
+from fogsim.io.paths import resolve_path
 from fogsim.lidar.formats import FORMATS, encode_points, read_points
 from fogsim.radar.formats import read_radar
 from fogsim.radar.sensors import load_radar_sensor
@@ -71,9 +69,21 @@ TABLES_NOT_WRITTEN = ("attribute", "calibrated_sensor", "category", "ego_pose", 
                       "sample_annotation", "sample_data", "scene", "sensor", "visibility")
 
 
-def sample_path(out: str | os.PathLike, level: str, frame: str) -> Path:
-    """``NUSC/<level>/samples/LIDAR_TOP/<frame>.pcd.bin``."""
-    return Path(out) / level / "samples" / CHANNEL / f"{frame}.pcd.bin"
+def sample_path(out: str | os.PathLike, level: str, frame: str, channel: str = CHANNEL,
+                suffix: str = ".pcd.bin") -> Path:
+    """``NUSC/<level>/samples/<channel>/<frame><suffix>`` (default: a LiDAR sample, ``LIDAR_TOP/<frame>.pcd.bin``)."""
+    return Path(out) / level / "samples" / channel / f"{frame}{suffix}"
+
+
+@dataclass(frozen=True)
+class ChannelFiles:
+    """One sensor's level files of one frame (``files``: level key → file), exported as ``channel``'s samples
+    ``<level>/samples/<channel>/<frame><suffix>``, each by ``write(level file, sample path)``."""
+
+    channel: str
+    suffix: str
+    files: dict[str, Path]
+    write: Callable[[Path, Path], None]
 
 
 def radar_channel(yaw_deg: float) -> str:
@@ -116,9 +126,11 @@ def _levels(block: dict, where: Path, what: str, levels: list[str] | None) -> di
     return out
 
 
-def _radar_plan(root: Path, meta: dict, where: Path, levels: list[str] | None) -> tuple[str, dict[str, Path]]:
-    """(channel, {level: sweep file}) of a frame's radar block, checked before anything is written."""
-    radar = meta["radar"]
+def _radar_plan(root: Path, meta: dict, where: Path, levels: list[str] | None) -> ChannelFiles | None:
+    """A frame's radar sweeps to export, checked before anything is written; None without radar."""
+    radar = meta.get("radar")
+    if not radar:
+        return None
     entries = radar.get("levels") if isinstance(radar, dict) else None
     if not isinstance(entries, dict) or radar.get("format") != "nuscenes-radar":
         raise InputError(where, "radar: needs per-level nuScenes radar sweeps (written by fogsim render --radar)")
@@ -127,8 +139,39 @@ def _radar_plan(root: Path, meta: dict, where: Path, levels: list[str] | None) -
     except (ValueError, TypeError) as exc:
         raise InputError(where, f"radar.sensor: {exc}") from None
     chosen = _levels(radar, where, "radar", levels)
-    return radar_channel(sensor.mount_rpy_deg[2]), {k: _level_file(root, e, where, f"radar.levels.{k}")
-                                                   for k, e in chosen.items()}
+    return ChannelFiles(radar_channel(sensor.mount_rpy_deg[2]), ".pcd",
+                        {k: _level_file(root, e, where, f"radar.levels.{k}") for k, e in chosen.items()}, _radar_sample)
+
+
+def _radar_sample(path: Path, sample: Path) -> None:
+    """A level's sweep as it is (nuScenes' radar PCD already): read (a damaged sweep is named, never exported),
+    then hard-linked, else copied."""
+    read_radar(path, "nuscenes-radar")
+    link_or_copy(path, sample)
+
+
+def _lidar_plan(root: Path, meta: dict, where: Path, levels: list[str] | None) -> ChannelFiles | None:
+    """A frame's LiDAR scans to export, checked before anything is written; None without per-level scans."""
+    block = _lidar_block(meta, where)
+    if block is None:
+        return None
+    fmt, _, sensor = block
+    chosen = _levels(meta["lidar"], where, "lidar", levels)
+    return ChannelFiles(CHANNEL, ".pcd.bin", {k: _level_file(root, e, where, f"lidar.levels.{k}")
+                                              for k, e in chosen.items()},
+                        partial(_lidar_sample, fmt=fmt, sensor=sensor, where=where))
+
+
+def _lidar_sample(path: Path, sample: Path, fmt: str, sensor: dict, where: Path) -> None:
+    """A level's scan as a nuScenes sample (5 float32 a point), its rings estimated from the recorded sensor's
+    inclinations when the scan has none."""
+    cloud = read_points(path, fmt, allow_empty=True)  # fogsim's own: a sweep that saw nothing
+    if cloud.ring is None:
+        inclinations = _inclinations_rad(sensor, where)
+        offsets = sensor.get("vertical_offsets_m")  # the lasers' offsets, where recorded
+        offsets = offsets if isinstance(offsets, list) and len(offsets) == len(inclinations) else None
+        cloud = replace(cloud, ring=cloud.estimated_rings(inclinations, offsets))
+    atomic_write_bytes(sample, encode_points(cloud, "nuscenes"))
 
 
 def _lidar_block(meta: dict, where: Path) -> tuple[str, dict, dict] | None:
@@ -222,26 +265,19 @@ def export_nuscenes(dataset: str | os.PathLike, out: str | os.PathLike, levels: 
             level_key(key)
     target = _check_out(root, Path(out))
     metas = read_metas(root)
-    plan = []  # (frame, lidar (format, {level: file}, sensor) or None, radar (channel, {level: file}) or None)
+    plan = []  # (frame, the ChannelFiles of its radar and LiDAR)
     for meta in metas:
         where = root / "meta" / f"{meta['frame']}.json"
-        block = _lidar_block(meta, where)
-        lidar = None
-        if block is not None:
-            fmt, _, sensor = block
-            chosen = _levels(meta["lidar"], where, "lidar", levels)
-            lidar = fmt, {k: _level_file(root, e, where, f"lidar.levels.{k}") for k, e in chosen.items()}, sensor
-        radar = _radar_plan(root, meta, where, levels) if meta.get("radar") else None
-        plan.append((meta["frame"], where, lidar, radar))
-    written: dict[str, int] = {}
-    radar_written: dict[str, dict[str, int]] = {}
-    for _, _, lidar, radar in plan:
-        for key in (lidar[1] if lidar else {}):
-            written[key] = written.get(key, 0) + 1
-        if radar:
-            for key in radar[1]:
-                per = radar_written.setdefault(radar[0], {})
-                per[key] = per.get(key, 0) + 1
+        lidar = _lidar_plan(root, meta, where, levels)
+        radar = _radar_plan(root, meta, where, levels)
+        plan.append((meta["frame"], [c for c in (radar, lidar) if c is not None]))
+    per_channel: dict[str, dict[str, int]] = {}  # channel → level → samples
+    for _, channels in plan:
+        for c in channels:
+            for key in c.files:
+                per_level = per_channel.setdefault(c.channel, {})
+                per_level[key] = per_level.get(key, 0) + 1
+    written, radar_written = per_channel.pop(CHANNEL, {}), per_channel
     exported = set(written) | {key for per_level in radar_written.values() for key in per_level}
     if levels is not None and (unknown := sorted(set(levels) - exported)):
         raise InputError(root, f"no frame has LiDAR or radar level(s) {', '.join(unknown)}")
@@ -250,32 +286,21 @@ def export_nuscenes(dataset: str | os.PathLike, out: str | os.PathLike, levels: 
                                "or --radar, or fogsim fog --kitti/--stf/--waymo … --lidar)")
     remove_stale_folders(target)  # a killed export's hidden folder
     with atomic_folder(target) as stage:
-        for frame, where, lidar, radar in plan:
-            if radar:
-                channel, files = radar
-                for key, path in files.items():
-                    read_radar(path, "nuscenes-radar")  # a damaged sweep is named, never exported
-                    link_or_copy(path, stage / key / "samples" / channel / f"{frame}.pcd")
-            if lidar:
-                fmt, files, sensor_block = lidar
-                inclinations = None
-                for key, path in files.items():
-                    cloud = read_points(path, fmt, allow_empty=True)  # fogsim's own: a sweep that saw nothing
-                    if cloud.ring is None:
-                        if inclinations is None:
-                            inclinations = _inclinations_rad(sensor_block, where)
-                        cloud = replace(cloud, ring=cloud.estimated_rings(inclinations))
-                    atomic_write_bytes(sample_path(stage, key, frame), encode_points(cloud, "nuscenes"))
+        for frame, channels in plan:
+            for c in channels:
+                for key, path in c.files.items():
+                    c.write(path, sample_path(stage, key, frame, c.channel, c.suffix))
         summary = _summary(root, plan, written, radar_written)
         write_json(stage / SUMMARY_NAME, summary)
     return summary
 
 
 def _summary(root: Path, plan: list, written: dict, radar: dict) -> dict:
+    lidar = {frame for frame, channels in plan if any(c.channel == CHANNEL for c in channels)}
     return {"dataset": str(root.resolve()), "layout": f"<level>/samples/{CHANNEL}/<frame>.pcd.bin",
             "point_record": "5 × float32 little-endian: x, y, z (m, the sensor frame), intensity 0-255, ring",
-            "frames": [frame for frame, _, lidar, _ in plan if lidar],
-            "samples_per_level": written, "frames_without_lidar": [frame for frame, _, lidar, _ in plan if not lidar],
+            "frames": [frame for frame, _ in plan if frame in lidar],
+            "samples_per_level": written, "frames_without_lidar": [frame for frame, _ in plan if frame not in lidar],
             "tables_not_written": list(TABLES_NOT_WRITTEN),
             "why_no_tables": "nuScenes' tables describe a timed drive in a mapped world (tokens, ego poses, "
                              "timestamps, maps, global boxes); fogsim's frames are none, so only the sample "

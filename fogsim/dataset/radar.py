@@ -14,8 +14,11 @@ The frame record (``meta/<frame>.json``) — what this module reads:
   sweep, so a level's lost detections are the sweep's rows it lacks.
 
 Conventions of the pictures: the view is the LiDAR's frame when the frame has one (else the radar's), x
-forward up, y left to the left, metres; radar detections are discs coloured by kind (:data:`KIND_COLOURS`),
-a detection the fog removed a hollow grey ring where it was in clear air.
+forward up, y left to the left, metres, range rings every 10 m with their distances; radar detections are
+discs coloured by kind (:data:`KIND_COLOURS`), a detection the fog removed a hollow grey ring where it was in
+clear air; a legend (:data:`BEV_LEGEND`) and a line saying what the densest level's fog costs the radar
+against light (:func:`fog_note`: at 77 GHz the panels look alike because fog barely attenuates radar, not
+because it was left out) make ``radar_bev.png`` read alone.
 """
 from __future__ import annotations
 
@@ -29,20 +32,34 @@ from fogsim.camera import Intrinsics
 from fogsim.colour import to_uint8
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.errors import InputError
-from fogsim.fileio import read_image
+from fogsim.io.images import read_image
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.pictures import write_png
 from fogsim.radar.detections import KINDS
 from fogsim.schema.base import load_npz
 from fogsim.schema.radar_labels import LABEL_COLUMNS, RadarLabels
-from fogsim.viz import strip
+from fogsim.viz import legend_row, ring_labels, strip, text_row
 
-__all__ = ["KIND_COLOURS", "has_radar", "radar_bev_image", "radar_rows", "radar_summary", "read_labels"]
+__all__ = ["BEV_LEGEND", "KIND_COLOURS", "SHEET_LEGEND", "fog_note", "has_radar", "radar_bev_image", "radar_rows",
+           "radar_summary", "read_labels"]
 
 #: detection colours by kind (RGB): object red, ghost purple, ground clutter brown, false alarm black; a
 #: detection on scenery (an object the table does not count: buildings, poles, trees) slate blue
 KIND_COLOURS = {0: (214, 39, 40), 1: (148, 103, 189), 2: (140, 86, 75), 3: (0, 0, 0)}
 SCENERY_COLOUR, LOST_COLOUR, LIDAR_COLOUR = (70, 110, 160), (150, 150, 150), (150, 165, 185)
+BOX_COLOUR = (90, 90, 90)
+#: the legend of ``radar_bev.png`` (:func:`fogsim.viz.legend_row`)
+BEV_LEGEND = [("disc", KIND_COLOURS[0], "radar: on an object"), ("disc", SCENERY_COLOUR, "on scenery"),
+              ("disc", KIND_COLOURS[1], "ghost (via the road)"), ("disc", KIND_COLOURS[2], "ground clutter"),
+              ("disc", KIND_COLOURS[3], "false alarm"), ("ring", LOST_COLOUR, "removed by the fog"),
+              ("dot", LIDAR_COLOUR, "that level's LiDAR points"), ("box", BOX_COLOUR, "object's 3D box"),
+              ("sensor", (0, 0, 0), "origin; x forward up, rings every 10 m")]
+#: the legend of the contact sheet's radar rows (detections marked on the images)
+SHEET_LEGEND = [("disc", KIND_COLOURS[0], "radar: on an object"), ("disc", SCENERY_COLOUR, "on scenery"),
+                ("ring", KIND_COLOURS[1], "ghost"), ("ring", KIND_COLOURS[2], "ground clutter"),
+                ("ring", KIND_COLOURS[3], "false alarm")]
+#: the distance of :func:`fog_note`'s comparison (m)
+NOTE_RANGE_M = 100.0
 
 
 def has_radar(metas: list[dict]) -> bool:
@@ -90,7 +107,8 @@ def radar_bev_image(sweep_xyz: np.ndarray, kinds: np.ndarray, kept: np.ndarray |
         xyz = np.asarray(xyz, np.float64).reshape(-1, 3)
         return np.floor((side_m - xyz[:, 1]) * px_per_m).astype(np.int64), \
             np.floor((forward_m - xyz[:, 0]) * px_per_m).astype(np.int64)
-    for r in range(10, int(forward_m) + 1, 10):
+    rings = list(range(10, int(forward_m) + 1, 10))
+    for r in rings:
         cv2.circle(img, origin, int(r * px_per_m), (232, 232, 232), 1, cv2.LINE_AA)
     if lidar_xyz is not None and len(lidar_xyz):
         c, r = px(lidar_xyz)
@@ -99,7 +117,8 @@ def radar_bev_image(sweep_xyz: np.ndarray, kinds: np.ndarray, kept: np.ndarray |
     for box in boxes or []:
         corners = box.corners()[[0, 2, 6, 4]]
         c, r = px(corners)
-        cv2.polylines(img, [np.stack([c, r], 1).astype(np.int32)], True, (90, 90, 90), 1, cv2.LINE_AA)
+        cv2.polylines(img, [np.stack([c, r], 1).astype(np.int32)], True, BOX_COLOUR, 1, cv2.LINE_AA)
+    ring_labels(img, origin, rings, px_per_m, angle_deg=76.0)  # over the points, under the detections
     kept = np.ones(len(kinds), bool) if kept is None else kept
     scenery = np.zeros(len(kinds), bool) if scenery is None else scenery
     c, r = px(sweep_xyz)
@@ -139,8 +158,32 @@ def _frame_bev(layout: DatasetLayout, levels, meta: dict) -> np.ndarray:
             points = read_points(layout.root / lidar["levels"][lv.key]["file"], lidar["format"]).xyz
         panels.append(radar_bev_image(xyz, kinds, kept, points, boxes, scenery))
         lost = int((~kept).sum())
-        captions.append(f"{lv.key}: {int(kept.sum())} det., lost {100 * lost / max(1, len(kept)):.0f}%")
-    return strip(panels, captions, width=360)
+        gamma = entry.get("attenuation_db_per_km")
+        captions.append(f"{lv.key}: {int(kept.sum())} det., lost {100 * lost / max(1, len(kept)):.0f}%"
+                        + (f", {gamma:.2g} dB/km" if gamma else ""))
+    row = strip(panels, captions, width=360)
+    rows = [row, legend_row(BEV_LEGEND, row.shape[1])]
+    if note := fog_note(radar["levels"]):
+        rows.append(text_row(note, row.shape[1]))
+    return np.vstack(rows)
+
+
+def fog_note(levels: dict) -> str | None:
+    """What the densest level's fog costs the radar against light, in one line (None without a foggy level):
+    the two-way loss of a target :data:`NOTE_RANGE_M` away, 2·γ·R for the radar (γ: the level's ITU-R P.840
+    attenuation, dB/km) and 2·β·R·10/ln 10 for light (Koschmieder's β)."""
+    from fogsim.radar.attenuation import two_way_loss_db
+
+    foggy = [e for e in levels.values() if (e.get("beta") or 0) > 0 and e.get("attenuation_db_per_km") is not None]
+    if not foggy:
+        return None
+    e = max(foggy, key=lambda e: e["beta"])
+    radar_db = float(two_way_loss_db(e["attenuation_db_per_km"], NOTE_RANGE_M))
+    light_db = 2 * e["beta"] * NOTE_RANGE_M * 10 / np.log(10)
+    ghz = e.get("frequency_ghz")
+    return (f"{'' if ghz is None else f'{ghz:g} GHz '}radar in fog: at beta {e['beta']:g}/m a target "
+            f"{NOTE_RANGE_M:g} m away loses {radar_db:.1f} dB there and back (ITU-R P.840), light {light_db:.0f} dB "
+            "- the panels look alike because fog barely attenuates radar, not because it was left out")
 
 
 def _bev(layout: DatasetLayout, levels, frames: list[str], metas: list[dict]) -> tuple[str | None, str | None]:
@@ -228,6 +271,6 @@ def radar_rows(layout: DatasetLayout, meta: dict, levels, tile_width: int) -> li
                 if 0 <= u < tile.shape[1] and 0 <= v < tile.shape[0]:
                     cv2.circle(tile, (int(u), int(v)), radius, colour, fill, cv2.LINE_AA)
         tiles.append(tile)
-        on = int((kinds == 0).sum() - scenery.sum())
-        captions.append(f"radar {lv.key}: {on} on objects")
+        on, gamma = int((kinds == 0).sum() - scenery.sum()), entry.get("attenuation_db_per_km")
+        captions.append(f"radar {lv.key}: {on} on objects" + (f", {gamma:.2g} dB/km" if gamma else ""))
     return [strip(tiles, captions)] if tiles else []

@@ -15,7 +15,9 @@ from fogsim.camera import Intrinsics, StereoCamera, planar_to_ray
 from fogsim.dataset.coco import expand_every_class
 from fogsim.dataset.layout import PARTS, DatasetLayout
 from fogsim.errors import InputError
-from fogsim.fileio import read_depth_file, read_image, read_json
+from fogsim.io.depth_files import read_depth_file
+from fogsim.io.documents import read_json
+from fogsim.io.images import read_image
 from fogsim.readers.cityscapes_files import read_cityscapes_depth
 from fogsim.schema.base import check, load_json
 from fogsim.schema.documents import CocoFile, DatasetManifest, FrameMeta

@@ -31,7 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.dataset.layout import DatasetLayout
-from fogsim.fileio import atomic_write_bytes, link_or_copy
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.links import link_or_copy
 from fogsim.lidar.formats import encode_points
 from fogsim.lidar.points import PointCloud
 
@@ -123,7 +124,7 @@ class SemanticKittiTree:
     def write_frame(self, frame: str, cloud: PointCloud, labels: np.ndarray, scan_file: Path | None = None) -> None:
         """The frame's scan (KITTI's 4 × float32, intensities through the 0–1 scale) and its labels (one
         uint32 per point), each atomically; the labels first. ``scan_file``: the level's scan already written
-        in KITTI's format (the same bytes), linked instead of written again (:func:`fogsim.fileio.link_or_copy`)."""
+        in KITTI's format (the same bytes), linked instead of written again (:func:`fogsim.io.links.link_or_copy`)."""
         labels = np.asarray(labels, np.uint32)
         if labels.shape != (len(cloud),):
             raise ValueError(f"{labels.size} labels for {len(cloud)} points")

@@ -23,16 +23,21 @@ import numpy as np
 from fogsim.boxes import yolo_line
 from fogsim.colour import to_uint8
 from fogsim.dataset.coco import coco_dataset, coco_records, frame_segmentations
-from fogsim.dataset.layout import MIXED_SPLIT, PARTS, DatasetLayout
+from fogsim.dataset.layout import MIXED_SPLIT, PARTS, DatasetLayout, visible_set
 from fogsim.dataset.lidar import lidar_summary
+from fogsim.dataset.lidar_sheet import LEGEND as LIDAR_LEGEND
 from fogsim.dataset.lidar_sheet import lidar_rows
-from fogsim.dataset.radar import radar_rows, radar_summary
+from fogsim.dataset.radar import SHEET_LEGEND as RADAR_LEGEND
+from fogsim.dataset.radar import fog_note, radar_rows, radar_summary
 from fogsim.dataset.reader import FrameRecords, frame_records, read_checked_meta
-from fogsim.fileio import atomic_write_bytes, read_image, write_image, write_json
+from fogsim.dataset.visible import visible_at, visible_counts, write_visible_labels
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.documents import write_json
+from fogsim.io.images import read_image, write_image
 from fogsim.lidar.objects import MIN_POINTS
 from fogsim.runs import split_key
 from fogsim.scene.classes import LABELLED
-from fogsim.viz import strip
+from fogsim.viz import label, legend_row, strip, text_row
 
 __all__ = ["PALETTE", "TRAIN_FRACTION", "check_train_fraction", "contact_sheet", "draw_boxes", "data_yaml", "finalize",
            "frame_split", "split_frames", "split_note", "write_frame_labels"]
@@ -136,17 +141,24 @@ def finalize(layout: DatasetLayout, levels, manifest: dict, train_fraction: floa
                          + (f"; {records.skipped[0]}" if records.skipped else ""))
     groups = None if split_group is None else {f: split_group[1](m) for f, m in zip(frames, metas)}
     train, val = split_frames(frames, train_fraction, seed, groups)
-    mixed = {part: [] for part in PARTS}
+    mixed, mixed_visible = {part: [] for part in PARTS}, {part: [] for part in PARTS}
     segmentations = [frame_segmentations(layout, m) for m in metas]  # the masks are read once, for every level
+    write_visible_labels(layout, levels, frames, metas)
     for lv in levels:
         write_json(layout.coco(lv.key), coco_dataset(metas, lv, layout, classes, segmentations))
-        split = {"train": [layout.image(lv.key, f) for f in train],
-                 "val": [layout.image(lv.key, f) for f in val]}
-        _write_lists(layout, lv.key, split, f"fogsim dataset, fog level {lv.key}: beta = {lv.beta:g} 1/m", classes)
-        for part in mixed:
-            mixed[part] += split[part]
+        what = f"fogsim dataset, fog level {lv.key}: beta = {lv.beta:g} 1/m"
+        for name, image, lists, note in ((lv.key, layout.image, mixed, ""),
+                                         (visible_set(lv.key), layout.visible_image, mixed_visible,
+                                          ", the objects visible at that level only")):
+            split = {"train": [image(lv.key, f) for f in train], "val": [image(lv.key, f) for f in val]}
+            _write_lists(layout, name, split, what + note, classes)
+            for part in lists:
+                lists[part] += split[part]
     _write_lists(layout, MIXED_SPLIT, mixed, "fogsim dataset, every fog level mixed", classes)
+    _write_lists(layout, visible_set(MIXED_SPLIT), mixed_visible,
+                 "fogsim dataset, every fog level mixed, the objects visible at each level only", classes)
     summary = dict(manifest) | _summary(metas, levels, train, val, train_fraction, seed, classes)
+    summary["visible_labels"] = visible_counts(levels, metas)
     if groups is not None and len(set(groups.values())) > 1:
         cut = round(1000 * train_fraction)
         summary["split"]["rule"] = (f"crc32('{seed}/<group>') % 1000 < {cut} → train, group = "
@@ -199,38 +211,74 @@ def contact_sheet(layout: DatasetLayout, levels, frames: list[str], max_frames: 
                   tile_width: int = 384, metas: list[dict] | None = None) -> np.ndarray:
     """RGB uint8 overview: one row per frame, one column per level, kept boxes drawn, and for a frame
     with a LiDAR its scans (:mod:`fogsim.dataset.lidar_sheet`) (``metas``: the frames' records, if read already)."""
-    rows = []
+    rows, sensors = [], {}  # the sensors seen: their legends below (and the first frame's record of each)
     for n, frame in enumerate(frames[:max_frames]):
         meta = metas[n] if metas is not None else read_checked_meta(layout, frame)
         records = [r for r in meta["objects"] if r["kept"]]
-        tiles = [_tile(read_image(layout.image(lv.key, frame)), records, tile_width) for lv in levels]
-        captions = [(f"frame {frame}: " if i == 0 else "") + _caption(lv) for i, lv in enumerate(levels)]
+        tiles, captions = [], []
+        for i, lv in enumerate(levels):
+            hidden = [not visible_at(r, lv) for r in records]
+            tiles.append(_tile(read_image(layout.image(lv.key, frame)), records, tile_width, hidden))
+            captions.append((f"frame {frame}: " if i == 0 else "") + _caption(lv)
+                            + (f", {sum(hidden)} of {len(records)} hidden" if any(hidden) else ""))
         rows.append(strip(tiles, captions))
-        rows += lidar_rows(layout, meta, levels, tile_width)  # a frame with a LiDAR: its scans too
-        rows += radar_rows(layout, meta, levels, tile_width)  # and with a radar: its detections
+        for name, more in (("lidar", lidar_rows(layout, meta, levels, tile_width)),  # a LiDAR: its scans too
+                           ("radar", radar_rows(layout, meta, levels, tile_width))):  # a radar: its detections
+            rows += more
+            if more and name not in sensors:
+                sensors[name] = meta
     width = max(r.shape[1] for r in rows)
+    rows.append(label(np.zeros((0, width, 3), np.uint8), SHEET_LEGEND, 22))  # how to read it, below it
+    if "lidar" in sensors:
+        rows.append(legend_row(LIDAR_LEGEND, width))
+    if "radar" in sensors:
+        rows.append(legend_row(RADAR_LEGEND, width))
+        if note := fog_note(sensors["radar"]["radar"].get("levels") or {}):
+            rows.append(text_row(note, width))
     gap = np.full((4, width, 3), 255, np.uint8)
     padded = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=255) for r in rows]
     return np.vstack([x for r in padded for x in (r, gap)][:-1])
 
 
-def _tile(image: np.ndarray, records: list[dict], width: int) -> np.ndarray:
-    """The image resized to ``width`` with class-coloured boxes and class names."""
+#: the contact sheet's last line: how to read its boxes
+SHEET_LEGEND = ("boxes: solid = visible at that level (contrast >= 5 %; in labels/ and visible/labels/); "
+                "dashed, no name = hidden by the fog (contrast < 5 %; in labels/ only)")
+
+
+def _tile(image: np.ndarray, records: list[dict], width: int, hidden: list[bool] | None = None) -> np.ndarray:
+    """The image resized to ``width`` with class-coloured boxes and class names (``hidden``: dashed)."""
     s = width / image.shape[1]
     tile = cv2.resize(to_uint8(image), (width, round(image.shape[0] * s)), interpolation=cv2.INTER_AREA)
-    return draw_boxes(tile, records, s)
+    return draw_boxes(tile, records, s, hidden)
 
 
-def draw_boxes(image: np.ndarray, records: list[dict], scale: float = 1.0) -> np.ndarray:
+def draw_boxes(image: np.ndarray, records: list[dict], scale: float = 1.0,
+               hidden: list[bool] | None = None) -> np.ndarray:
     """``image`` (H×W×3 uint8, drawn in place and returned) with each record's box — its
     ``bbox`` [x0, y0, x1, y1) in pixels, times ``scale`` — outlined 1 px inside, in its class's
-    colour, and the class name above it (within 10 px above the box's top)."""
-    for r in records:
+    colour, and the class name above it (within 10 px above the box's top). A record whose ``hidden``
+    entry is True (an object the fog hides) is outlined dashed, without its name."""
+    for n, r in enumerate(records):
         x0, y0, x1, y1 = (round(v * scale) for v in r["bbox"])
         colour = PALETTE[r["class_id"] % len(PALETTE)]
-        cv2.rectangle(image, (x0, y0), (max(x0, x1 - 1), max(y0, y1 - 1)), colour, 1)
+        corners = (x0, y0), (max(x0, x1 - 1), max(y0, y1 - 1))
+        if hidden is not None and hidden[n]:
+            _dashed_rectangle(image, *corners, colour)
+            continue
+        cv2.rectangle(image, *corners, colour, 1)
         cv2.putText(image, r["class"], (x0, max(8, y0 - 2)), cv2.FONT_HERSHEY_SIMPLEX, 0.3, colour, 1, cv2.LINE_AA)
     return image
+
+
+def _dashed_rectangle(image: np.ndarray, p0: tuple[int, int], p1: tuple[int, int], colour, dash: int = 3) -> None:
+    """A 1-px rectangle outline from ``p0`` to ``p1`` (inclusive corners), ``dash`` pixels on, ``dash`` off."""
+    (x0, y0), (x1, y1) = p0, p1
+    h, w = image.shape[:2]
+    edge = [(x, y0) for x in range(x0, x1 + 1)] + [(x1, y) for y in range(y0 + 1, y1 + 1)]
+    edge += [(x, y1) for x in range(x1 - 1, x0 - 1, -1)] + [(x0, y) for y in range(y1 - 1, y0, -1)]
+    for i, (x, y) in enumerate(edge):
+        if (i // dash) % 2 == 0 and 0 <= x < w and 0 <= y < h:
+            image[y, x] = colour
 
 
 def _caption(level) -> str:

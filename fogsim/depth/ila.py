@@ -37,7 +37,8 @@ from fogsim._version import __version__
 from fogsim.camera import depth_to_disparity, disparity_to_depth
 from fogsim.colour import full_scale
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_path, read_image
+from fogsim.io.atomic import atomic_path
+from fogsim.io.images import read_image
 from fogsim.readers.cityscapes import cityscapes_samples
 from fogsim.readers.cityscapes_files import read_cityscapes_disparity
 

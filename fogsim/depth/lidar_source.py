@@ -130,7 +130,7 @@ class LidarDepth:
             write_holdout(self.holdout_path, uv[held], ray[held], w, h, self.camera)
             record["holdout_file"] = self.holdout_path
         if len(held) and self.depth_path:
-            from fogsim.fileio import write_depth
+            from fogsim.io.depth_files import write_depth
 
             write_depth(self.depth_path, done.ray)
             record["completion_file"] = self.depth_path
@@ -141,7 +141,7 @@ class LidarDepth:
 def write_holdout(path, uv: np.ndarray, ray: np.ndarray, width: int, height: int,
                   camera: Intrinsics | None = None) -> None:
     """Write held-out points (see the module doc for the fields), atomically."""
-    from fogsim.fileio import atomic_write_bytes
+    from fogsim.io.atomic import atomic_write_bytes
 
     fields = {"u": np.asarray(uv[:, 0], np.float32), "v": np.asarray(uv[:, 1], np.float32),
               "ray": np.asarray(ray, np.float32), "width": np.int64(width), "height": np.int64(height)}

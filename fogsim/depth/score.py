@@ -1,7 +1,7 @@
 """Scoring any depth against held-out LiDAR points or the exact depth of a rendered dataset.
 
 ``fogsim depth score``. The prediction is a folder of metric depth maps (EXR / ``.npy`` /
-16-bit PNG × ``png_scale``, :func:`fogsim.fileio.read_depth_file`; ≥ 1e9 = no hit = +inf), named
+16-bit PNG × ``png_scale``, :func:`fogsim.io.depth_files.read_depth_file`; ≥ 1e9 = no hit = +inf), named
 by the image's key (``<key><suffix><ext>``), **planar** Z (e.g. ``fogsim ila predict``) or
 **ray** distance (e.g. ``OUT/lidar_depth`` of ``fogsim fog --depth-from lidar``). Ground truth:
 
@@ -82,7 +82,7 @@ def read_prediction(pred_dir: Path, key: str, suffix: str = "", png_scale: float
                     listings: dict | None = None) -> tuple[np.ndarray, Path]:
     """The prediction for ``key`` (metres, ≥ 1e9 → +inf) and its file; InputError naming the
     expected file when there is none, or the file when it holds NaN / negative values."""
-    from fogsim.fileio import DEPTH_SUFFIXES, read_depth_file
+    from fogsim.io.depth_files import DEPTH_SUFFIXES, read_depth_file
     from fogsim.readers.folder import find_depth
 
     found = find_depth(pred_dir, key, suffix, listings)
@@ -152,7 +152,7 @@ def score_dataset(pred, dataset, pred_kind: str = "planar", suffix: str = "",
     """Score the prediction folder ``pred`` against the exact depth of every frame of the
     rendered dataset ``dataset`` (:class:`fogsim.dataset.layout.DatasetLayout`)."""
     from fogsim.dataset.layout import DatasetLayout
-    from fogsim.fileio import read_depth_file
+    from fogsim.io.depth_files import read_depth_file
     from fogsim.schema.base import load_json
     from fogsim.schema.documents import FrameCamera
 
@@ -247,7 +247,9 @@ def chart(overall: dict, width: int = 720, height: int = 320) -> np.ndarray:
 
 def write_report(result: dict, out) -> dict[str, Path]:
     """``out/score.json``, ``out/score.md`` and ``out/score.png`` (atomic); returns their paths."""
-    from fogsim.fileio import atomic_write_bytes, write_image, write_json
+    from fogsim.io.atomic import atomic_write_bytes
+    from fogsim.io.documents import write_json
+    from fogsim.io.images import write_image
 
     out = Path(out)
     paths = {"json": out / "score.json", "md": out / "score.md", "png": out / "score.png"}

@@ -30,7 +30,7 @@ from pathlib import Path
 
 from fogsim.boxes import coco_category
 from fogsim.errors import InputError
-from fogsim.fileio import MAX_DOCUMENT_BYTES, parse_json, read_text_bounded
+from fogsim.io.documents import MAX_DOCUMENT_BYTES, parse_json, read_text_bounded
 from fogsim.readers.cityscapes_labels import CITYSCAPES_CLASSES
 from fogsim.readers.waymo.labels import WAYMO_CLASSES
 from fogsim.scene.classes import LABELLED

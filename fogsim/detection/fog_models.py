@@ -21,7 +21,7 @@ from fogsim.dataset.layout import MIXED_MODEL, PARTS, DatasetLayout
 from fogsim.dataset.reader import dataset_classes, dataset_levels, read_split
 from fogsim.detection.yolo import SCATTER_MODEL
 from fogsim.errors import InputError
-from fogsim.fileio import read_json
+from fogsim.io.documents import read_json
 
 #: report row → the model whose detections on the path-traced levels it shows
 ROWS = {"trained on Koschmieder fog": MIXED_MODEL, "trained on scatter fog": SCATTER_MODEL}

@@ -73,8 +73,10 @@ from fogsim.detection.yolo import (
     training_view,
 )
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_write_bytes, read_image, read_json, write_image, write_json
 from fogsim.fog.visibility import INVISIBLE_RULE
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.documents import read_json, write_json
+from fogsim.io.images import read_image, write_image
 from fogsim.runs import claim_output
 from fogsim.schema.base import check, load_json
 from fogsim.schema.documents import DoneFile, Predictions, StudyFile

@@ -15,7 +15,9 @@ import cv2
 import numpy as np
 
 from fogsim.detection.coco_eval import evaluate
-from fogsim.fileio import atomic_write_bytes, write_image, write_json
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.documents import write_json
+from fogsim.io.images import write_image
 
 #: table metric → cell key. Recall is shown both ways: over every object within the distance
 #: limit, and over the visible ones only (invisible objects ignored, as ``visible_only``).

@@ -29,7 +29,8 @@ from fogsim.dataset.reader import dataset_classes, read_split
 from fogsim.dataset.writer import data_yaml
 from fogsim.detection.layout import DONE_FILE
 from fogsim.errors import FogsimError, InputError
-from fogsim.fileio import atomic_write_bytes, write_json
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.documents import write_json
 
 AUGMENTED_MODEL = "augmented"  # trained on clear images fogged on the fly (fogsim.detection.augmented)
 SCATTER_MODEL = "scatter"  # trained on every level of a scatter-fogged render (fogsim.detection.fog_models)

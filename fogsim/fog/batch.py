@@ -47,24 +47,17 @@ from fogsim.dataset.layout import DatasetLayout, frame_from_key
 from fogsim.dataset.reader import frame_records
 from fogsim.dataset.writer import check_train_fraction, finalize, write_frame_labels
 from fogsim.errors import InputError, unexpected
-from fogsim.fileio import (
-    MAX_PIXELS,
-    TO_8BIT,
-    atomic_write_bytes,
-    encode_image,
-    pixel_bound,
-    pixel_limit_problem,
-    read_json,
-    remove_stale_parts,
-    to_8bit,
-    write_json,
-)
 from fogsim.fog.depth_input import check_aspect, check_sample, sample_distance
 from fogsim.fog.engine import ESTIMATE, FogSettings
 from fogsim.fog.labelled import SPLIT_BY, check_labelled, checked_records, key_folder
 from fogsim.fog.levels import FogLevel
 from fogsim.fog.lidar_levels import FrameLidar, LidarOutput, scan_source
 from fogsim.fog.visibility import attach_visibility
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.documents import read_json, write_json
+from fogsim.io.images import TO_8BIT, encode_image, to_8bit
+from fogsim.io.parts import remove_stale_parts
+from fogsim.io.pixel_bound import MAX_PIXELS, pixel_bound, pixel_limit_problem
 from fogsim.lidar.bounds import max_scan_points
 from fogsim.lidar.objects import MIN_POINTS
 from fogsim.readers.base import Sample

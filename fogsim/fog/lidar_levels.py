@@ -7,7 +7,8 @@ and per level (β in 1/m, the camera level's β):
 * the fogger is the run's (:meth:`fogsim.fog.engine.FogSettings.lidar_fogger`: its ``lidar_fog`` spec,
   its calibration included), with the scan's empty rays when the sensor's grid is known
   (:func:`fogsim.lidar.rays.empty_rays`: each level's record then counts ``empty_rays`` and
-  ``empty_ray_clutter``, the fog-clutter points appended after the input's),
+  ``empty_ray_clutter``, the fog-clutter points appended after the input's; a scan cropped to the camera,
+  KITTI's and STF's, gets the empty rays inside the camera's view, :meth:`ScanSource.camera_view`),
   the sensor the run's ``--lidar-sensor`` or the source's usual one (completed from the data; a source
   that says its return mode — STF's ``lidar_hdl64_last`` — sets the sensor's);
 * β per point: :meth:`~fogsim.fog.engine.FogSettings.point_betas` — β × the camera's density field at
@@ -89,7 +90,7 @@ class FrameLidar:
         sensor = source.sensor(output.sensor)
         if source.return_mode is not None and source.return_mode != sensor.return_mode:
             sensor = replace(sensor, return_mode=source.return_mode)
-        self.fogger = fog.lidar_fogger(self.cloud, sensor, empty_rays(self.cloud, sensor))
+        self.fogger = fog.lidar_fogger(self.cloud, sensor, empty_rays(self.cloud, sensor, source.camera_view()))
         self.sensor = self.fogger.sensor  # under the run's calibration
         self.uv = source.image_uv(self.cloud) if density is not None else None
         self.records = records

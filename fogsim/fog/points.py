@@ -14,7 +14,9 @@ format's suffix :data:`~fogsim.lidar.formats.FORMAT_SUFFIX`)::
                                      without a return, when the sensor's grid is known:
                                      :func:`fogsim.lidar.rays.empty_rays`; else 0) and
                                      ``empty_ray_clutter`` (how many gained a fog-clutter point, appended
-                                     to the scan after the input's points)
+                                     to the scan after the input's points), ``no_returns`` and
+                                     ``no_return_clutter`` (rows nearer than the sensor's minimum range,
+                                     fogged in place: fogsim.lidar.rays.no_returns)
     fogsim_run.json                  the run's parameters (resume refuses others)
 
 Seeds: the level's generator is ``default_rng(level_seed(run seed, <name>, level key))``
@@ -23,95 +25,42 @@ Seeds: the level's generator is ``default_rng(level_seed(run seed, <name>, level
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from fogsim._version import __version__
 from fogsim.errors import InputError
-from fogsim.fileio import write_json
-from fogsim.fog.depth_input import SetupError
-from fogsim.fog.engine import FogSettings
 from fogsim.fog.levels import FogLevel
-from fogsim.lidar.bounds import max_scan_points
+from fogsim.fog.point_files import PointFile, PointFilesJob
 from fogsim.lidar.formats import FORMAT_SUFFIX, read_points, write_points
 from fogsim.lidar.outcome_file import OUTCOME_SUFFIX, write_outcomes
 from fogsim.lidar.rays import empty_rays
 from fogsim.lidar.scan_pcd import PCD_SUFFIX, write_level_pcd
 from fogsim.lidar.sensors import load_sensor
-from fogsim.radar.formats import RADAR_SUFFIX
 from fogsim.runs import LEVEL_SEED_RULE, level_seed
 from fogsim.schema.lidar import LidarFogSpec
 
-__all__ = ["DEFAULT_SENSOR", "PointFile", "PointsJob", "point_files"]
+__all__ = ["DEFAULT_SENSOR", "PointsJob"]
 
 #: the sensor each format's data is usually recorded with (PLY and .npy have none: give --sensor)
 DEFAULT_SENSOR = {"kitti": "hdl64e", "stf": "hdl64-s3d", "nuscenes": "hdl32e"}
 
 
 @dataclass(frozen=True)
-class PointFile:
-    """One scan to fog: ``key`` its name in the output (POSIX, without the suffix), ``source`` the file."""
-
-    key: str
-    source: str
-
-
-def _key(path: Path, suffix: str) -> str:
-    name = path.as_posix()
-    return name[: -len(suffix)] if name.lower().endswith(suffix) else path.with_suffix("").as_posix()
-
-
-def point_files(paths: list[str | os.PathLike], fmt: str) -> list[PointFile]:
-    """The scans of ``paths`` (files, or folders searched recursively for the format's suffix — a LiDAR
-    format's, :data:`~fogsim.lidar.formats.FORMAT_SUFFIX`, or a radar one's,
-    :data:`~fogsim.radar.formats.RADAR_SUFFIX`), sorted by
-    name within each folder; a missing path, an empty folder or two scans with one output name is a
-    :class:`~fogsim.fog.depth_input.SetupError` (exit 2, before the output folder is claimed)."""
-    suffix = FORMAT_SUFFIX[fmt] if fmt in FORMAT_SUFFIX else RADAR_SUFFIX[fmt]
-    items: list[PointFile] = []
-    for given in paths:
-        path = Path(given)
-        if path.is_dir():
-            found = sorted(p for p in path.rglob("*") if p.is_file() and p.name.lower().endswith(suffix)
-                           and not (fmt in ("kitti", "stf") and p.name.lower().endswith(".pcd.bin")))
-            if not found:
-                raise SetupError(path, f"holds no {suffix} scans (--point-format {fmt})")
-            items += [PointFile(_key(p.relative_to(path), suffix), str(p)) for p in found]
-        elif path.is_file():
-            items.append(PointFile(_key(Path(path.name), suffix), str(path)))
-        elif path.exists():
-            raise SetupError(path, "is not a regular file or a folder (a FIFO, device or socket): fogsim reads scan "
-                                   "files")
-        else:
-            raise SetupError(path, "not found (no such file or folder)")
-    seen: dict[str, str] = {}
-    for item in items:
-        if item.key in seen:
-            raise SetupError(item.source, f"its output name {item.key!r} is also that of {seen[item.key]}: "
-                                          "their outputs would overwrite each other")
-        seen[item.key] = item.source
-    return items
-
-
-@dataclass(frozen=True)
-class PointsJob:
+class PointsJob(PointFilesJob):
     """Fog scans at ``levels`` (β in 1/m) with the fog record's LiDAR part (``fog.lidar``), the ``sensor``
     (a bundled name or a custom block as a dict), reading ``fmt`` files (intensity ``scale`` for PLY/.npy;
     None: the file's or the format's), into ``out``."""
 
-    levels: tuple[FogLevel, ...]
-    out: str
-    fog: FogSettings
-    sensor: str | dict = field(hash=False)
     fmt: str = "kitti"
     scale: str | None = None
     seed: int = 0
     inputs: dict = field(default_factory=dict, hash=False)
 
     unit = "scans"
+    suffixes = FORMAT_SUFFIX
+    outcome_suffix = OUTCOME_SUFFIX
 
     def parameters(self) -> dict:
         """What ``fogsim_run.json`` records (and a resumed run must repeat)."""
@@ -120,26 +69,15 @@ class PointsJob:
                 "sensor": self.sensor, "point_format": self.fmt, "point_scale": self.scale, "seed": self.seed,
                 "seed_rule": LEVEL_SEED_RULE, "inputs": self.inputs}
 
-    def paths(self, item: PointFile, level: FogLevel) -> tuple[Path, Path, Path]:
-        """(scan, outcomes, sidecar) of one scan and level."""
-        base = Path(self.out) / level.key / item.key
-        return (base.with_name(base.name + FORMAT_SUFFIX[self.fmt]), base.with_name(base.name + OUTCOME_SUFFIX),
-                base.with_name(base.name + ".json"))
-
     def pcd_path(self, item: PointFile, level: FogLevel) -> Path:
         """The level's scan as a PCD for viewers (:mod:`fogsim.lidar.scan_pcd`)."""
-        base = Path(self.out) / level.key / item.key
+        base = self.base(item, level)
         return base.with_name(base.name + PCD_SUFFIX)
 
-    def done(self, item: PointFile) -> bool:
-        """Every level's sidecar (written last) is there, and so are the scan, outcome and PCD files it
-        names: a sidecar whose files were deleted or moved does not claim the scan done."""
-        return all(p.is_file() for lv in self.levels for p in (*self.paths(item, lv), self.pcd_path(item, lv)))
-
-    def check(self, items: list[PointFile]) -> None:
-        """The scan-size bound in force (``FOGSIM_MAX_SCAN_POINTS``), before the folder is claimed; each
-        file is read (and bounded) in its turn."""
-        max_scan_points()
+    def outputs(self, item: PointFile, level: FogLevel) -> tuple[Path, ...]:
+        """(scan, outcomes, sidecar) and the PCD: a scan is done when its sidecars and every file they name are
+        there."""
+        return (*self.paths(item, level), self.pcd_path(item, level))
 
     def fog_one(self, item: PointFile) -> None:
         """Every level of one scan: scan, outcomes, then the sidecar."""
@@ -152,7 +90,7 @@ class PointsJob:
         for level in self.levels:
             seed = level_seed(self.seed, item.key, level.key)
             fogged = fogger(level.beta, np.random.default_rng(seed))
-            scan_path, outcome_path, sidecar = self.paths(item, level)
+            scan_path, outcome_path, _ = self.paths(item, level)
             try:
                 write_points(scan_path, fogged.cloud, self.fmt)
             except ValueError as exc:  # a 5-column format without rings (an .npy / PLY scan has none)
@@ -160,8 +98,6 @@ class PointsJob:
             write_outcomes(outcome_path, fogged)
             pcd = self.pcd_path(item, level)
             write_level_pcd(pcd, fogged)
-            write_json(sidecar, {"level": level.to_dict(), "source": item.source, "key": item.key,
-                                 "scan": scan_path.name, "outcome_file": outcome_path.name, "pcd": pcd.name,
-                                 "seed": seed,
-                                 "seed_rule": LEVEL_SEED_RULE, **fogged.record(), "sensor": fogger.sensor.to_dict(),
-                                 "fogsim_version": __version__})
+            self.write_sidecar(item, level, {"scan": scan_path.name, "outcome_file": outcome_path.name,
+                                             "pcd": pcd.name, "seed": seed, "seed_rule": LEVEL_SEED_RULE,
+                                             **fogged.record(), "sensor": fogger.sensor.to_dict()})

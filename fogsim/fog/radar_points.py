@@ -20,12 +20,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from fogsim._version import __version__
-from fogsim.fileio import atomic_write_bytes, write_json
-from fogsim.fog.engine import FogSettings
-from fogsim.fog.levels import FogLevel
-from fogsim.fog.points import PointFile
-from fogsim.lidar.bounds import max_scan_points
+from fogsim.fog.point_files import PointFile, PointFilesJob
+from fogsim.io.atomic import atomic_write_bytes
 from fogsim.radar.fog import KEPT
 from fogsim.radar.formats import (
     RADAR_SUFFIX,
@@ -46,39 +42,22 @@ DEFAULT_RADAR_SENSOR = {"nuscenes-radar": "ars408-lr"}
 
 
 @dataclass(frozen=True)
-class RadarPointsJob:
+class RadarPointsJob(PointFilesJob):
     """Fog radar sweeps at ``levels`` (β in 1/m) with the fog record's radar part (``fog.radar``), the
     ``sensor`` (a bundled name or a custom block as a dict), reading ``fmt`` files, into ``out``."""
 
-    levels: tuple[FogLevel, ...]
-    out: str
-    fog: FogSettings
-    sensor: str | dict = field(hash=False)
     fmt: str = "nuscenes-radar"
     inputs: dict = field(default_factory=dict, hash=False)
 
     unit = "sweeps"
+    suffixes = RADAR_SUFFIX
+    outcome_suffix = OUTCOME_SUFFIX
 
     def parameters(self) -> dict:
         """What ``fogsim_run.json`` records (and a resumed run must repeat)."""
         return {"points": True, "radar": True, "levels": [lv.to_dict() for lv in self.levels],
                 "radar_fog": (self.fog.radar or RadarFogSpec()).model_dump(), "sensor": self.sensor,
                 "point_format": self.fmt, "inputs": self.inputs}
-
-    def paths(self, item: PointFile, level: FogLevel) -> tuple[Path, Path, Path]:
-        """(sweep, outcomes, sidecar) of one sweep and level."""
-        base = Path(self.out) / level.key / item.key
-        return (base.with_name(base.name + RADAR_SUFFIX[self.fmt]), base.with_name(base.name + OUTCOME_SUFFIX),
-                base.with_name(base.name + ".json"))
-
-    def done(self, item: PointFile) -> bool:
-        """Every level's sidecar (written last) is there, and so are the sweep and outcome file it names."""
-        return all(p.is_file() for lv in self.levels for p in self.paths(item, lv))
-
-    def check(self, items: list[PointFile]) -> None:
-        """The scan-size bound in force (``FOGSIM_MAX_SCAN_POINTS``), before the folder is claimed; each sweep is
-        read (and bounded) in its turn."""
-        max_scan_points()
 
     def fog_one(self, item: PointFile) -> None:
         """Every level of one sweep: sweep, outcomes, then the sidecar. A nuScenes level is the input's kept
@@ -93,7 +72,7 @@ class RadarPointsJob:
             original = Path(item.source).read_bytes() if devkit_readable(item.source, head) else None
         for level in self.levels:
             fogged = fogger(level.beta)
-            sweep_path, outcome_path, sidecar = self.paths(item, level)
+            sweep_path, outcome_path, _ = self.paths(item, level)
             kept = fogged.outcome == KEPT
             if kept.all() and original is not None:
                 atomic_write_bytes(sweep_path, original)  # nothing lost: the input, byte for byte
@@ -102,6 +81,5 @@ class RadarPointsJob:
             else:
                 write_radar(sweep_path, fogged.scan, self.fmt)
             write_radar_outcomes(outcome_path, fogged)
-            write_json(sidecar, {"level": level.to_dict(), "source": item.source, "key": item.key,
-                                 "sweep": sweep_path.name, "outcome_file": outcome_path.name, **fogged.record(),
-                                 "sensor": sensor.to_dict(), "fogsim_version": __version__})
+            self.write_sidecar(item, level, {"sweep": sweep_path.name, "outcome_file": outcome_path.name,
+                                             **fogged.record(), "sensor": sensor.to_dict()})

@@ -96,13 +96,20 @@ PARAMETER_SPACE: dict[str, ParameterRange] = {
                                   meaning="threshold margin: the reference target's clear-air reach (m)"),
     "min_range_m": ParameterRange(0.0, 5.0, False, meaning="the nearest reported return (m)"),
     "range_noise_at_threshold_m": ParameterRange(0.01, 2.0, True, meaning="range noise at the threshold (m)"),
+    "stf_noise_level": ParameterRange(0.005, 0.5, True,
+                                      meaning="STF noise level n: d_max = ln((I + g)/n)/(2β), loss 1 − √(n/(I + g))"),
+    "stf_gain": ParameterRange(0.01, 2.0, True, meaning="STF gain g: the intensity offset in d_max and the loss"),
 }
 #: per model (LidarFogSpec ``model``), the calibration keys a fit varies by default (extended as models are added;
 #: a key must be in PARAMETER_SPACE and a calibration key — fogsim.schema.lidar.CALIBRATION_KEYS, a LidarSensor
-#: field that LidarSensor.calibrated replaces)
+#: field that LidarSensor.calibrated replaces). stf2020: its per-sensor noise level and gain, the two numbers the
+#: STF authors fitted in their chamber. hahner2021: none — it reproduces the released code, whose constants are
+#: not the sensor's calibration (it reads none of its keys); only the fog's visibility is fitted, when not given
 MODEL_PARAMETERS: dict[str, tuple[str, ...]] = {
     "soft-target": ("fog_echo_scale", "pulse_half_power_ns", "overlap_full_m", "fluctuation_sigma", "max_range_m"),
     "attenuation": ("fluctuation_sigma", "max_range_m"),
+    "stf2020": ("stf_noise_level", "stf_gain"),
+    "hahner2021": (),
 }
 
 
@@ -161,6 +168,10 @@ class FitProblem:
                              f"{', '.join(PARAMETER_SPACE)}")
         self.start_block = _start_calibration(self.spec.calibration)
         start_sensor = self.sensor.calibrated(self.spec.calibration)
+        unset = [p for p in self.parameters if getattr(start_sensor, p) is None]
+        if unset:
+            raise ValueError(f"{self.sensor.name} has no {', '.join(unset)} to start a fit from: give a start with "
+                             "--lidar-calibration FILE")
         self.start = {p: float(getattr(start_sensor, p)) for p in self.parameters}
         self.empty = [empty_rays(scan, self.sensor) for scan in self.clear]
         self.real_stats = statistics(self.real)

@@ -41,8 +41,8 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_write_bytes
-from fogsim.headers import read_npy
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.headers import read_npy
 from fogsim.lidar.bounds import check_point_count, check_record, file_size
 from fogsim.lidar.ply import read_ply_vertices
 from fogsim.lidar.points import PointCloud

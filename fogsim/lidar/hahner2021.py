@@ -27,16 +27,20 @@ range R₀ and fed intensity i:
 * otherwise it stays where it is with intensity i_h: ``kept`` when i_h = i (written bit for bit),
   ``attenuated`` otherwise. No point is ever lost and none is added; the sweep's empty rays are counted,
   never fogged.
+* a **no-return row** (nearer than the sensor's minimum range: :func:`fogsim.lidar.rays.no_returns`; a nuScenes
+  sweep's firing without an echo, stored at ≈ 0 m) is no point: the released code is run on returns (the
+  nuScenes devkit's ``remove_close`` drops such rows first), so it is neither fed nor scattered, and stays the
+  row it was, bit for bit — ``no-return``. Rows out = rows in.
 
 Differences from the released code, deliberate: the integral is computed at the level's own α — the
 released code reads tables for nine α and takes the nearest (0.09 runs as 0.10; ``scripts/
 check_hahner_released.py`` measures the effect) — and at the exact R₀ (its tables: every 0.1 m to 200 m).
 One β per scan (the released code fogs a scan at one α): a per-point β (patchy fog) is refused.
 
-Random draws from the caller's Generator, in this order: one ``integers(1, 20)`` (the released code draws it
-for a noise variant it does not use, and discards it), then one ``uniform(R₀ − 10, R₀ + 10)`` per scattered
-point, in input order — what the released code draws from its module-level Generator, in the same order, so
-the same Generator state gives the same clutter ranges.
+Random draws from the caller's Generator, in this order: one ``integers(1, 20)`` (the released code draws it for a
+noise variant it does not use, and discards it), then one ``uniform(R₀ − 10, R₀ + 10)`` per scattered point
+(no-return rows are never scattered), in input order — what the released code draws from its module-level
+Generator, in the same order, so the same Generator state gives the same clutter ranges.
 """
 from __future__ import annotations
 
@@ -45,7 +49,7 @@ import math
 import numpy as np
 
 from fogsim.lidar.hahner import HahnerParameters, fog_peak, open_fog_response
-from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT
+from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, NO_RETURN
 
 __all__ = ["BATCH_ALPHA", "FED_TOP", "Model", "backscatter", "fed_intensity"]
 
@@ -109,6 +113,8 @@ class Model:
         gain = backscatter(a, self.variant, p) / (p.target_reflectivity / math.pi)
         i_soft = np.minimum(i * (r0 * r0) * gain * imax, FED_TOP)
         scattered = i_soft > i_hard
+        if owner.blank_mask is not None:
+            scattered &= ~owner.blank_mask  # a no-return row is no point: never fed, never scattered
         sc = np.flatnonzero(scattered)
         rng.integers(1, 20)  # drawn and discarded, as the released code does
         u = rng.uniform(r0[sc] - p.scatter_noise_m, r0[sc] + p.scatter_noise_m)  # the draws: one per scattered point
@@ -119,6 +125,8 @@ class Model:
         if owner.scan.scale == "0-255":
             raw = fed_out.astype(np.float32)  # the fed values themselves (no round trip through /255)
         outcome = np.where(scattered, CLUTTER, np.where(i_hard == i, KEPT, ATTENUATED)).astype(np.int8)
+        if owner.blank_mask is not None:
+            outcome[owner.blank_mask] = NO_RETURN  # written as it was
         n = len(outcome)
         return owner._assemble(np.arange(n), slice(None), outcome, new_r, norm, raw, outcome.copy(),
                                owner.parameters(beta))

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_write_bytes
+from fogsim.io.atomic import atomic_write_bytes
 from fogsim.lidar.bounds import check_point_count, check_record, file_size
 
 __all__ = ["DATA_KINDS", "MAX_HEADER_BYTES", "PcdHeader", "encode_pcd", "read_pcd", "read_pcd_header", "write_pcd"]

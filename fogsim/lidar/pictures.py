@@ -1,10 +1,12 @@
 """Pictures of LiDAR fog (RGB uint8 arrays, :mod:`fogsim.viz` style; :func:`write_png` saves one atomically).
 
 * :func:`bev_image` — a bird's-eye view of one level: the sensor at the centre, x (forward) up, y (left)
-  to the left, rings every 10 m; each input point drawn where the sensor reports it, coloured by outcome
-  (:data:`OUTCOME_COLOURS`: kept green, attenuated blue, clutter orange — at its new range near the
-  sensor), a lost point faint grey where it was; optional 3D boxes as their footprints.
-* :func:`bev_levels` — one bird's-eye view per level side by side, captioned with β and the outcome shares.
+  to the left, rings every 10 m with their distances written on them; each input point drawn where the
+  sensor reports it, coloured by outcome (:data:`OUTCOME_COLOURS`: kept green, attenuated blue, clutter
+  orange — at its new range near the sensor), a lost point faint grey where it was (a no-return row too, at
+  the sensor); optional 3D boxes as their footprints.
+* :func:`bev_levels` — one bird's-eye view per level side by side, captioned with β and the outcome shares,
+  over the legend (:data:`BEV_LEGEND`), so the picture reads alone.
 * :func:`projected_image` — a level's reported points drawn on the camera image, coloured by outcome.
 * :func:`points_vs_distance` — points per object (log scale) against the object's distance, one colour
   per level, the ``min_points`` line drawn.
@@ -17,20 +19,28 @@ import os
 import cv2
 import numpy as np
 
-from fogsim.fileio import write_image
+from fogsim.io.images import write_image
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.objects import MIN_POINTS, distances_and_points
-from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, LOST
+from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, LOST, NO_RETURN
 from fogsim.lidar.points import PointCloud
-from fogsim.viz import strip
+from fogsim.viz import legend_row, ring_labels, strip
 
-__all__ = ["OUTCOME_COLOURS", "bev_image", "bev_levels", "points_vs_distance", "projected_image", "write_png"]
+__all__ = ["BEV_LEGEND", "OUTCOME_COLOURS", "bev_image", "bev_levels", "points_vs_distance", "projected_image",
+           "write_png"]
 
-OUTCOME_COLOURS = {KEPT: (44, 160, 44), ATTENUATED: (31, 119, 180), LOST: (205, 205, 205), CLUTTER: (255, 127, 14)}
+OUTCOME_COLOURS = {KEPT: (44, 160, 44), ATTENUATED: (31, 119, 180), LOST: (205, 205, 205), CLUTTER: (255, 127, 14),
+                   NO_RETURN: (205, 205, 205)}
 LEVEL_COLOURS = ((40, 40, 40), (31, 119, 180), (44, 160, 44), (255, 127, 14), (214, 39, 40), (148, 103, 189))
-#: drawing order: lost underneath, clutter on top
-ORDER = (LOST, KEPT, ATTENUATED, CLUTTER)
+#: drawing order: lost (and no-return rows, which sit at the sensor) underneath, clutter on top
+ORDER = (NO_RETURN, LOST, KEPT, ATTENUATED, CLUTTER)
+BOX_COLOUR = (60, 60, 60)
+#: what the colours of a bird's-eye view (and of the points drawn on an image) mean: :func:`fogsim.viz.legend_row`
+BEV_LEGEND = [("dot", OUTCOME_COLOURS[KEPT], "kept"), ("dot", OUTCOME_COLOURS[ATTENUATED], "attenuated (weaker echo)"),
+              ("dot", OUTCOME_COLOURS[CLUTTER], "fog clutter (the fog's own echo)"),
+              ("dot", OUTCOME_COLOURS[LOST], "lost (where it was)"), ("box", BOX_COLOUR, "object's 3D box"),
+              ("sensor", (0, 0, 0), "LiDAR; x forward up, y left, rings every 10 m")]
 
 
 def _to_pixels(xyz: np.ndarray, extent_m: float, px_per_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -47,7 +57,8 @@ def bev_image(scan: PointCloud, fogged: FoggedScan | None = None, extent_m: floa
     size = int(round(2 * extent_m * px_per_m))
     img = np.full((size, size, 3), 255, np.uint8)
     centre = (size // 2, size // 2)
-    for r in range(10, int(extent_m) + 1, 10):
+    rings = list(range(10, int(extent_m) + 1, 10))
+    for r in rings:
         cv2.circle(img, centre, int(r * px_per_m), (228, 228, 228), 1, cv2.LINE_AA)
     n = len(scan)
     outcome = np.full(n, KEPT, np.int8) if fogged is None else fogged.outcome
@@ -69,9 +80,10 @@ def bev_image(scan: PointCloud, fogged: FoggedScan | None = None, extent_m: floa
             continue
         c = box.corners()[[0, 2, 6, 4]]  # the bottom face, in order around it
         r, k, _ = _to_pixels(c, extent_m, px_per_m)
-        cv2.polylines(img, [np.stack([k, r], 1).astype(np.int32)], True, (60, 60, 60), 1, cv2.LINE_AA)
+        cv2.polylines(img, [np.stack([k, r], 1).astype(np.int32)], True, BOX_COLOUR, 1, cv2.LINE_AA)
     cv2.drawMarker(img, centre, (0, 0, 0), cv2.MARKER_TRIANGLE_UP, 10, 2)
-    return img
+    step = 1 if 10 * px_per_m >= 40 else 2  # every ring's distance where there is room, else every other one
+    return ring_labels(img, centre, rings[step - 1::step], px_per_m)
 
 
 def projected_image(image: np.ndarray, fogged: FoggedScan, intrinsics, lidar_to_camera: np.ndarray,
@@ -107,9 +119,12 @@ def _caption(key: str, fogged: FoggedScan | None) -> str:
 
 def bev_levels(scan: PointCloud, levels: dict[str, FoggedScan | None], width: int = 480, **kw) -> np.ndarray:
     """One :func:`bev_image` per level (None: the clear scan), side by side, captioned with the level's key
-    (ASCII: OpenCV's fonts have no β) and its lost and clutter shares."""
+    (ASCII: OpenCV's fonts have no β) and its lost and clutter shares, over the legend."""
+    if "px_per_m" not in kw:  # drawn at the size shown (its labels readable), not shrunk
+        kw["px_per_m"] = width / (2 * kw.get("extent_m", 50.0))
     images = [bev_image(scan, f, **kw) for f in levels.values()]
-    return strip(images, [_caption(k, f) for k, f in levels.items()], width=width)
+    row = strip(images, [_caption(k, f) for k, f in levels.items()], width=width)
+    return np.vstack([row, legend_row(BEV_LEGEND, row.shape[1])])
 
 
 def points_vs_distance(records: list[dict], levels: list[str], min_points: int = MIN_POINTS,

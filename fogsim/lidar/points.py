@@ -29,7 +29,7 @@ import numpy as np
 from fogsim.errors import InputError
 from fogsim.lidar.scales import scale as scale_named
 
-__all__ = ["PointCloud"]
+__all__ = ["PointCloud", "nearest_offset_beams"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,10 +119,16 @@ class PointCloud:
         x, y, z = (self.xyz[:, k].astype(np.float64) for k in range(3))
         return np.arctan2(z, np.hypot(x, y))
 
-    def estimated_rings(self, inclinations_rad: np.ndarray) -> np.ndarray:
+    def estimated_rings(self, inclinations_rad: np.ndarray, vertical_offsets_m=None) -> np.ndarray:
         """The beam of each point from its elevation: the index of the nearest of the sensor's
-        ``inclinations_rad`` (any order; the result indexes them as given), N int16."""
+        ``inclinations_rad`` (any order; the result indexes them as given), N int16. With the beams'
+        ``vertical_offsets_m`` h_k (a Velodyne's lasers sit 0.1–0.2 m off the origin), the beam whose line
+        passes nearest the point: min over k of |z·cos θ_k − ρ·sin θ_k − h_k| (ρ = √(x² + y²)), the
+        point's distance from beam k's line — so a near point is not taken for a beam ``asin(h_k / R)``
+        above its own."""
         incl = np.asarray(inclinations_rad, np.float64).reshape(-1)
+        if vertical_offsets_m is not None:
+            return nearest_offset_beams(self.xyz, incl, np.asarray(vertical_offsets_m, np.float64).reshape(-1))
         order = np.argsort(incl)
         s = incl[order]
         el = self.elevation
@@ -157,3 +163,35 @@ class PointCloud:
         return (self.scale == other.scale and same(self.xyz, other.xyz) and same(self.intensity, other.intensity)
                 and same(self.raw_intensity, other.raw_intensity) and same(self.index, other.index)
                 and same(self.ring, other.ring) and same(self.return_index, other.return_index))
+
+
+def nearest_offset_beams(xyz: np.ndarray, incl: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """The beam of each point (rows of ``xyz``, N×3, sensor frame): argmin over k of |g_k|,
+    g_k = z·cos θ_k − ρ·sin θ_k − h_k (a point's signed distance from beam k's line). With the beams sorted
+    by θ and h rising together (a Velodyne's), g_k falls with k: a binary search for its sign change, then
+    the nearer of the two beams around it; otherwise every beam."""
+    if offsets.shape != incl.shape:
+        raise ValueError(f"{len(offsets)} vertical offsets for {len(incl)} inclinations")
+    x, y, z = (xyz[:, k].astype(np.float64) for k in range(3))
+    rho = np.hypot(x, y)
+    order = np.argsort(incl, kind="stable")
+    th, h = incl[order], offsets[order]
+    cos, sin = np.cos(th), np.sin(th)
+    if len(th) > 1 and np.all(np.diff(h) >= 0):
+        # g_k ≥ 0 ⇔ elevation − θ_k ≥ asin(h_k / R) ≈ h_k / R (to 10⁻⁴ rad beyond 2 m): search on that
+        el, inv_r = np.arctan2(z, rho), 1.0 / np.maximum(np.hypot(rho, z), 1e-6)
+        lo, hi = np.zeros(len(z), np.int64), np.full(len(z), len(th) - 1)
+        for _ in range(int(np.ceil(np.log2(len(th))))):  # invariant: lo = 0 or g_lo ≥ 0; hi = K − 1 or g_hi < 0
+            mid = (lo + hi) // 2
+            up = el - th[mid] >= h[mid] * inv_r
+            lo, hi = np.where(up, mid, lo), np.where(up, hi, mid)
+        g_lo = np.abs(z * cos[lo] - rho * sin[lo] - h[lo])
+        g_hi = np.abs(z * cos[hi] - rho * sin[hi] - h[hi])
+        return order[np.where(g_hi < g_lo, hi, lo)].astype(np.int16)
+    best = np.full(len(z), np.inf)
+    out = np.zeros(len(z), np.int64)
+    for k in range(len(th)):
+        d = np.abs(z * cos[k] - rho * sin[k] - h[k])
+        closer = d < best
+        best[closer], out[closer] = d[closer], k
+    return order[out].astype(np.int16)

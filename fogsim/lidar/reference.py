@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from fogsim.lidar.points import PointCloud
+from fogsim.lidar.rays import PLACEHOLDER_M, laser_origins, no_returns
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor, load_sensor
 from fogsim.lidar.soft_target import STEPS_PER_PULSE
@@ -81,9 +82,12 @@ def _echo_point(s: LidarSensor, sc, qc: float, qf: float, rf: float, wf: float, 
 def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec: LidarFogSpec = LidarFogSpec(),
                   empty_rays=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(outcome int8, output xyz ×3 float64 (NaN where lost), normalised intensity, raw intensity) of one
-    level, point by point: N rows for the input points, then (``empty_rays``: K×3 directions, +inf range)
-    K rows for the empty rays (outcome clutter or lost). ``beta``: a number or one per point (each point's
-    echo exact; the empty rays use the mean)."""
+    level, point by point: N rows for the input points (no-return rows: :func:`fogsim.lidar.rays.no_returns`;
+    a clutter point of a sensor whose lasers sit off its axis on the laser's line,
+    :func:`~fogsim.lidar.rays.laser_origins`; in a scan that stores every firing a lost row's output is its
+    placeholder: 0, 0, 0, intensity 0), then (``empty_rays``: K×3 directions from the origin, +inf range) K
+    rows for the empty rays (outcome clutter or lost).
+    ``beta``: a number or one per point (each point's echo exact; the empty rays use the mean)."""
     s = load_sensor(sensor).calibrated(spec.calibration)
     sc = scale_named(scan.scale)
     mode = spec.return_mode or s.return_mode
@@ -97,6 +101,10 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
     z = rng.standard_normal(n, np.float32) if fog else np.zeros(n)
     uh = rng.standard_normal(n, np.float32) if fog else np.zeros(n)
     u = rng.standard_normal(n, np.float32) if fog else np.zeros(n)
+    blank = no_returns(scan, s)
+    rays = {} if blank is None else {int(row): (tuple(blank.directions[j]), bool(blank.open[j]))
+                                     for j, row in enumerate(blank.rows)}
+    lasers = laser_origins(scan, s)  # a sensor whose lasers sit off its axis: the echo on the laser's line
     echoes: dict[float, tuple[float, float, float]] = {}
     outcome = np.zeros(n + k, np.int8)
     xyz_out = np.full((n + k, 3), np.nan)
@@ -108,7 +116,22 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
         norm, raw = float(scan.intensity[i]), float(scan.raw_intensity[i])
         b = betas[i]
         if b == 0:
-            outcome[i], xyz_out[i], norm_out[i], raw_out[i] = 0, (x, y, zc), norm, raw
+            outcome[i], xyz_out[i], norm_out[i], raw_out[i] = 4 if i in rays else 0, (x, y, zc), norm, raw
+            continue
+        if i in rays:  # a no-return row: the fog echo on its ray when open (w = 1), else as it was
+            (dx, dy, dz), is_open = rays[i]
+            qc = 0.0
+            if spec.model == "soft-target" and is_open:
+                if b not in echoes:
+                    echoes[b] = reference_echo(s, b, spec)
+                qf, rf, wf = echoes[b]
+                if s.min_range_m <= rf:
+                    qc = qf * math.exp(float(np.float32(sigma_g) * u[i]))
+            if qc >= 1.0:
+                rn, norm_out[i], raw_out[i] = _echo_point(s, sc, qc, qf, rf, wf, z[i], math.inf)
+                outcome[i], xyz_out[i] = 3, (dx * rn, dy * rn, dz * rn)
+            else:
+                outcome[i], xyz_out[i], norm_out[i], raw_out[i] = 4, (x, y, zc), norm, raw
             continue
         r = max(math.sqrt(x * x + y * y + zc * zc), 1e-6)
         lin = raw if sc.name == "tanh" else norm
@@ -121,8 +144,9 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
         rho = max(rho, spec.reflectivity_floor)
         xi = 1.0 if s.overlap_full_m <= 0 else min(1.0, (r / s.overlap_full_m) ** 2)
         g = math.exp(float(np.float32(sigma_g) * u[i]))  # the fog echo's fluctuation (ln g in float32)
-        gh = math.exp(float(np.float32(sigma_g) * uh[i]))  # the hard return's
-        q0 = max(rho / s.reference_reflectivity * (s.max_range_m / r) ** 2 * xi * gh, math.exp(sigma_g))
+        log_gh = float(np.float32(sigma_g) * uh[i])  # the hard return's (ln g_h)
+        q0 = max(rho / s.reference_reflectivity * (s.max_range_m / r) ** 2 * xi * math.exp(log_gh),
+                 math.exp(sigma_g + abs(log_gh)))  # the clear-air floor: a margin of σ + |ln g_h|
         t2 = math.exp(-2.0 * spec.extinction_ratio * b * r)
         qh = q0 * t2
         hard = qh >= 1.0
@@ -157,9 +181,17 @@ def reference_fog(scan: PointCloud, sensor, beta, rng: np.random.Generator, spec
         elif fog_seen:
             rn, norm_out[i], raw_out[i] = _echo_point(s, sc, qc, qf, rf, wf, z[i], r)
             outcome[i] = 3
-            xyz_out[i] = (x / r * rn, y / r * rn, zc / r * rn)
+            if lasers is None:
+                xyz_out[i] = (x / r * rn, y / r * rn, zc / r * rn)
+            else:  # from the laser's origin o (⊥ its line) along the line through the point: √(R² − |o|²) to it
+                o = lasers[i]
+                t = math.sqrt(max(r * r - float(o @ o), 1e-12))
+                xyz_out[i] = o + (np.array([x, y, zc]) - o) * (rn / t)
         else:
             outcome[i] = 2
+    if blank is not None and scan.ring is not None and (scan.range_m[blank.rows] < PLACEHOLDER_M).any():
+        gone = np.flatnonzero(outcome[:n] == 2)  # every firing is a row: a lost one is a placeholder row
+        xyz_out[gone], norm_out[gone], raw_out[gone] = 0.0, 0.0, 0.0
     if k:
         ue = rng.standard_normal(k, np.float32)
         ze = rng.standard_normal(k, np.float32)

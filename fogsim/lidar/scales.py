@@ -66,12 +66,11 @@ class Scale:
 
     def from_linear(self, linear: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Linear intensity (≥ 0) → (normalised float32, raw float32), clipped to the scale's top."""
-        lin = np.maximum(np.asarray(linear, np.float64), 0.0)
+        lin = np.clip(np.asarray(linear, np.float64), 0.0, np.inf if self.name == "tanh" else 1.0)
         if self.name == "0-1":
-            lin = np.minimum(lin, 1.0)
-            return lin.astype(np.float32), lin.astype(np.float32)
+            norm = lin.astype(np.float32)
+            return norm, norm.copy()
         if self.name == "0-255":
-            lin = np.minimum(lin, 1.0)
             return lin.astype(np.float32), (lin * 255.0).astype(np.float32)
         return np.tanh(lin).astype(np.float32), lin.astype(np.float32)
 

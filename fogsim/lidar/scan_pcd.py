@@ -12,8 +12,9 @@ intensity     F 4      the intensity as the scan file stores it (its scale: the 
 ring          U 2      the beam, where the scan has one (renders, nuScenes, STF; not KITTI)
 label         U 2      SemanticKITTI class id (renders: the ``.label`` file's lower 16 bits)
 instance      U 2      instance id (renders: the ``.label`` file's upper 16 bits; 0 = none)
-outcome       U 1      what fog did to the point: 0 kept, 1 attenuated, 3 clutter
-                       (:data:`fogsim.lidar.fog.OUTCOMES`; lost points are not in the scan)
+outcome       U 1      what fog did to the point: 0 kept, 1 attenuated, 3 clutter, 4 no-return
+                       (:data:`fogsim.lidar.fog.OUTCOMES`; lost points are not in the scan, but
+                       in a scan that stores every firing, where they are placeholder rows: 2)
 ============  =======  ==========================================================================
 
 ``label`` and ``instance`` are written where labels are known (a render's levels), ``outcome`` for every
@@ -26,7 +27,7 @@ import os
 import numpy as np
 
 from fogsim.lidar.fog import FoggedScan
-from fogsim.lidar.outcomes import CLUTTER, LOST
+from fogsim.lidar.outcomes import CLUTTER
 from fogsim.lidar.pcd import write_pcd
 from fogsim.lidar.points import PointCloud
 
@@ -40,7 +41,7 @@ def reported_outcomes(fogged: FoggedScan) -> np.ndarray:
     """The outcome of every point of ``fogged.cloud`` (uint8, in its rows' order; the rows after the input's
     points are the empty rays' fog clutter)."""
     out = np.full(len(fogged.cloud), CLUTTER, np.uint8)
-    rows = np.flatnonzero(fogged.outcome != LOST)
+    rows = np.flatnonzero(fogged.output_index >= 0)
     out[fogged.output_index[rows]] = fogged.outcome[rows]
     return out
 

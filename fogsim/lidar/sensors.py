@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsim.fileio import MAX_DOCUMENT_BYTES, read_json
+from fogsim.io.documents import MAX_DOCUMENT_BYTES, read_json
 from fogsim.presets import presets_dir
 from fogsim.schema.base import check, load_json
 from fogsim.schema.lidar import DEPRECATED_CALIBRATIONS, HAHNER_CONSTANTS, LidarCalibration, LidarSensorSpec
@@ -67,7 +67,8 @@ class LidarSensor:
     """A spinning LiDAR (the fields of :class:`~fogsim.schema.lidar.LidarSensorSpec`; units and defaults
     there, and only there: build it with :meth:`from_dict`, :meth:`preset` or :func:`load_sensor`).
     ``inclinations_deg`` is None for a sensor whose beams come from the data's calibration until
-    :meth:`with_inclinations` gives them."""
+    :meth:`with_inclinations` gives them; ``vertical_offsets_m`` (None: every beam through the origin) the
+    beams' vertical offsets, in the same order."""
 
     name: str
     beams: int
@@ -93,6 +94,7 @@ class LidarSensor:
     retro_reflectivity_max: float
     fluctuation_sigma: float
     fog_echo_scale: float = 1.0
+    vertical_offsets_m: tuple[float, ...] | None = None
     calibration: str = "datasheet"
     sources: dict = field(default_factory=dict, hash=False, compare=False)
     stf_noise_level: float | None = None  # the STF chamber-fitted rule's n and g (stf2020; None: unpublished)
@@ -128,7 +130,8 @@ class LidarSensor:
                    description=spec.description or "", retro_reflective_from=spec.retro_reflective_from,
                    retro_reflectivity_max=spec.retro_reflectivity_max, fluctuation_sigma=spec.fluctuation_sigma,
                    fog_echo_scale=spec.fog_echo_scale, sources=dict(spec.sources or {}),
-                   stf_noise_level=spec.stf_noise_level, stf_gain=spec.stf_gain)
+                   stf_noise_level=spec.stf_noise_level, stf_gain=spec.stf_gain,
+                   vertical_offsets_m=None if spec.vertical_offsets_m is None else tuple(spec.vertical_offsets_m))
 
     @classmethod
     def preset(cls, name: str) -> "LidarSensor":
@@ -144,7 +147,7 @@ class LidarSensor:
         incl = np.degrees(np.asarray(inclinations_rad, np.float64).reshape(-1))
         if incl.size != self.beams or not np.isfinite(incl).all():
             raise ValueError(f"{self.name} has {self.beams} beams; got {incl.size} inclinations")
-        return replace(self, inclinations_deg=tuple(incl.tolist()))
+        return replace(self, inclinations_deg=tuple(incl.tolist()), vertical_offsets_m=None)
 
     def calibrated(self, calibration: "str | LidarCalibration | dict" = "datasheet") -> "LidarSensor":
         """The sensor under a calibration: ``datasheet`` (as it is), ``hahner-constants`` (Hahner et al.'s
@@ -177,6 +180,7 @@ class LidarSensor:
         """The sensor as a record (what a fog sidecar stores)."""
         d = asdict(self)
         d["inclinations_deg"] = None if self.inclinations_deg is None else list(self.inclinations_deg)
+        d["vertical_offsets_m"] = None if self.vertical_offsets_m is None else list(self.vertical_offsets_m)
         d["sources"] = dict(self.sources)
         return d
 
@@ -188,6 +192,34 @@ class LidarSensor:
             raise ValueError(f"{self.name}: the beam inclinations come from the data's calibration "
                              "(LidarSensor.with_inclinations)")
         return np.radians(np.asarray(self.inclinations_deg, np.float64))
+
+    def beam_origins(self, beam: np.ndarray, azimuth: np.ndarray | None = None, towards: np.ndarray | None = None
+                     ) -> np.ndarray:
+        """Where the rays of ``beam`` (indices into the inclinations) at ``azimuth`` (radians; or the azimuth of
+        the points ``towards``, N×3) start, in the sensor frame (N×3 float64): h·(−sin θ cos φ, −sin θ sin φ,
+        cos θ), so each beam's line passes its ``vertical_offsets_m`` h from the origin (a Velodyne's lasers
+        sit off its axis); zeros without offsets."""
+        beam = np.asarray(beam).reshape(-1)
+        if self.vertical_offsets_m is None:
+            return np.zeros((len(beam), 3))
+        theta = self.inclinations_rad[beam]
+        h = np.asarray(self.vertical_offsets_m, np.float64)[beam]
+        if towards is not None:  # cos φ, sin φ = x/ρ, y/ρ
+            p = np.asarray(towards, np.float64).reshape(-1, 3)
+            rho = np.maximum(np.hypot(p[:, 0], p[:, 1]), 1e-12)
+            cos_phi, sin_phi = p[:, 0] / rho, p[:, 1] / rho
+        else:
+            azimuth = np.asarray(azimuth, np.float64).reshape(-1)
+            cos_phi, sin_phi = np.cos(azimuth), np.sin(azimuth)
+        hs = h * np.sin(theta)
+        return np.stack([-hs * cos_phi, -hs * sin_phi, h * np.cos(theta)], 1)
+
+    @property
+    def reach_m(self) -> float:
+        """How far from the sensor's origin a ray can find a return (metres): the maximum range plus the largest
+        of the lasers' offsets from the origin."""
+        offsets = self.vertical_offsets_m or (0.0,)
+        return self.max_range_m + max(abs(h) for h in offsets)
 
     @property
     def horizontal_resolution_deg(self) -> float:

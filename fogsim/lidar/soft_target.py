@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -75,17 +76,31 @@ def _grid(sensor: LidarSensor) -> tuple[float, int, int, float]:
 
 def fog_waveform(sensor: LidarSensor, beta_ext: float) -> tuple[np.ndarray, np.ndarray]:
     """(R_t grid, J(R_t)) in metres and 1/m for the LiDAR extinction ``beta_ext`` (the module docstring)."""
-    step, m, n, start = _grid(sensor)
-    r = (np.arange(n) + 0.5) * step
-    w = sensor.overlap(r) * np.exp(-2.0 * beta_ext * r) / (r * r)
-    w[r < start] = 0.0
+    step, m, n, _ = _grid(sensor)
+    r, base, down, up = _terms(sensor)
+    w = base * np.exp(-2.0 * beta_ext * r)
     c0 = np.concatenate([[0.0], np.cumsum(w)])
-    c1 = np.concatenate([[0.0], np.cumsum(w * np.exp(-2j * np.pi * np.arange(n) / m))])
+    c1 = np.concatenate([[0.0], np.cumsum(w * down)])
     k = np.arange(n + 1)
     lo = np.maximum(k - m, 0)
     s0, s1 = c0[k] - c0[lo], c1[k] - c1[lo]
-    j = 0.5 * step * (s0 - (np.exp(2j * np.pi * (k - 0.5) / m) * s1).real)
+    j = 0.5 * step * (s0 - (up * s1).real)
     return k * step, np.maximum(j, 0.0)
+
+
+@lru_cache(maxsize=16)
+def _terms(sensor: LidarSensor):
+    """What J's grid for ``sensor`` needs that does not depend on β (read-only): the midpoints r, ξ(r)/r² (0
+    before the integration's start), and the phasors e^(−2πik/m) (k < n) and e^(2πi(k − ½)/m) (k ≤ n)."""
+    step, m, n, start = _grid(sensor)
+    r = (np.arange(n) + 0.5) * step
+    base = sensor.overlap(r) / (r * r)
+    base[r < start] = 0.0
+    down = np.exp(-2j * np.pi * np.arange(n) / m)
+    up = np.exp(2j * np.pi * (np.arange(n + 1) - 0.5) / m)
+    for a in (r, base, down, up):
+        a.flags.writeable = False
+    return r, base, down, up
 
 
 @dataclass(frozen=True)

@@ -51,8 +51,8 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_write_bytes
-from fogsim.headers import read_npy
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.headers import read_npy
 from fogsim.lidar.bounds import check_point_count, check_record, file_size
 from fogsim.lidar.formats import check_npy_fields, npy_widest
 from fogsim.lidar.pcd import PcdHeader, encode_pcd, read_pcd, read_pcd_header
@@ -181,7 +181,7 @@ def _read_npy(path: Path) -> RadarScan:
         check_npy_fields(path, dtype, NPY_DTYPE.names)
         check_record(path, dtype.itemsize, int(shape[0]), "a .npy detection record", npy_widest(dtype))
 
-    a = read_npy(path, check).copy()  # fogsim.headers: bounded, never unpickled
+    a = read_npy(path, check).copy()  # fogsim.io.headers: bounded, never unpickled
     names = set(a.dtype.names)
     if not {"x", "y", "z", "rcs"} <= names:
         raise InputError(path, f"a radar .npy needs fields x, y, z, rcs (has {', '.join(a.dtype.names)})")

@@ -12,7 +12,7 @@ import os
 import numpy as np
 
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_write_bytes
+from fogsim.io.atomic import atomic_write_bytes
 from fogsim.radar.fog import LOST, OUTCOMES, FoggedRadar
 from fogsim.schema.base import load_npz
 from fogsim.schema.radar import RadarOutcomes

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsim.fileio import MAX_DOCUMENT_BYTES, read_json
+from fogsim.io.documents import MAX_DOCUMENT_BYTES, read_json
 from fogsim.lidar.sensors import LIGHT_SPEED
 from fogsim.presets import presets_dir
 from fogsim.schema.base import check, load_json

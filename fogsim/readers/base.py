@@ -12,7 +12,7 @@ import numpy as np
 
 from fogsim.camera import Intrinsics
 from fogsim.errors import InputError
-from fogsim.fileio import read_depth_file
+from fogsim.io.depth_files import read_depth_file
 from fogsim.readers.cityscapes_files import read_cityscapes_depth
 from fogsim.readers.paper import read_paper_8bit
 
@@ -164,6 +164,8 @@ class ScanSource(Protocol):
       (:class:`fogsim.lidar.boxes.Box3D`, None where it has none);
     * ``kitti_calib()``: the frame's :class:`fogsim.readers.kitti.calib.KittiCalib` for a KITTI tree of
       its levels, or None (not a KITTI-style source);
+    * ``camera_view()``: the camera a cropped scan covers (:class:`fogsim.lidar.rays.CameraView`), or None
+      (a full sweep, or unknown): the empty rays of a cropped scan are those inside it;
     * ``describe()``: a JSON-able record of where the scan was read (``meta["lidar"]["input"]``).
     """
 
@@ -180,5 +182,7 @@ class ScanSource(Protocol):
     def boxes(self, records: list[dict]) -> list: ...
 
     def kitti_calib(self): ...
+
+    def camera_view(self): ...
 
     def describe(self) -> dict: ...

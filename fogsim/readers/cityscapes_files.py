@@ -22,7 +22,8 @@ import numpy as np
 
 from fogsim.camera import Intrinsics, StereoCamera, decode_disparity_png, disparity_to_depth
 from fogsim.errors import InputError
-from fogsim.fileio import read_json, read_uint16_map
+from fogsim.io.depth_files import read_uint16_map
+from fogsim.io.documents import read_json
 
 _FIELDS = "extrinsic.baseline and intrinsic.fx, fy, u0, v0"
 

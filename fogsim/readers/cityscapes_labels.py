@@ -41,8 +41,8 @@ import numpy as np
 from fogsim.boxes import boxes_from_mask, median_distance
 from fogsim.camera import disparity_to_depth, planar_to_ray
 from fogsim.errors import InputError
-from fogsim.fileio import read_uint16_map
-from fogsim.headers import image_header
+from fogsim.io.depth_files import read_uint16_map
+from fogsim.io.headers import image_header
 from fogsim.readers.base import Labels
 from fogsim.readers.cityscapes_files import read_cityscapes_disparity
 from fogsim.rle import rle_encode
@@ -66,7 +66,7 @@ def instance_ids_path(root: str | Path, split: str, city: str, base: str) -> Pat
 
 
 def png_size(path: str | Path) -> tuple[int, int] | None:
-    """(width, height) from a PNG's header (:func:`fogsim.headers.image_header`; 26 bytes read), None when it
+    """(width, height) from a PNG's header (:func:`fogsim.io.headers.image_header`; 26 bytes read), None when it
     is no PNG."""
     try:
         with open(path, "rb") as f:

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fogsim.fileio import read_image
+from fogsim.io.images import read_image
 
 
 @dataclass(frozen=True)

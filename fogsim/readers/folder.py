@@ -14,7 +14,8 @@ from pathlib import Path
 
 from fogsim.camera import Intrinsics
 from fogsim.errors import InputError
-from fogsim.fileio import DEPTH_SUFFIXES, IMAGE_SUFFIXES
+from fogsim.io.depth_files import DEPTH_SUFFIXES
+from fogsim.io.images import IMAGE_SUFFIXES
 from fogsim.readers.base import DepthSpec, Sample
 from fogsim.readers.files import ImageFile
 

@@ -28,7 +28,7 @@ def paper_distance_from_8bit(raw: np.ndarray) -> np.ndarray:
 
 def read_paper_8bit(path: str | Path) -> np.ndarray:
     """An 8-bit depth map (grey, or the first channel of a colour PNG) → distance in metres."""
-    from fogsim.fileio import read_stored
+    from fogsim.io.images import read_stored
 
     raw = read_stored(path)  # BGR as stored: channel 0 is the file's first
     if raw.ndim == 3:

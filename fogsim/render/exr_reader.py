@@ -3,7 +3,7 @@
 Why not the OpenEXR package here: inside Debian's Blender 3.4 process, importing it works but
 reading or writing a file crashes Blender (its OpenEXR libraries clash with Blender's own). The
 renderer reads its render passes with this module in every Blender; everything outside Blender
-(user depth maps) still goes through the OpenEXR package (:mod:`fogsim.fileio`). Reference: the
+(user depth maps) still goes through the OpenEXR package (:mod:`fogsim.io`). Reference: the
 "OpenEXR File Layout" document (magic 20000630, attribute headers, offset tables, chunks).
 """
 from __future__ import annotations
@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.errors import InputError
-from fogsim.headers import HEADER_BYTES, exr_header
+from fogsim.io.headers import HEADER_BYTES, exr_header
 
 MAGIC = 20000630
 _PIXEL = {0: np.dtype("<u4"), 1: np.dtype("<f2"), 2: np.dtype("<f4")}  # UINT, HALF, FLOAT

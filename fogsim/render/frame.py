@@ -21,9 +21,11 @@ from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.writer import frame_split, write_frame_labels
 from fogsim.depth.stereo import SGBMParams, hole_fraction, sgbm_disparity
 from fogsim.errors import InputError
-from fogsim.fileio import write_depth, write_image, write_json
 from fogsim.fog.scatter_optics import up_from_world_to_camera
 from fogsim.fog.visibility import attach_visibility
+from fogsim.io.depth_files import write_depth
+from fogsim.io.documents import write_json
+from fogsim.io.images import write_image
 from fogsim.render.fog_settings import fog_settings
 from fogsim.render.labels import object_records
 from fogsim.render.lidar_frame import lidar_stage, write_lidar

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from fogsim.fileio import MAX_PIXELS
+from fogsim.io.pixel_bound import MAX_PIXELS
 from fogsim.render.scene_classes import ClassMap
 
 #: Blender's largest frame number (MAXFRAME in its source: 1 048 574); frames are in ±MAX_FRAME

@@ -5,7 +5,7 @@ system temp folder, where nothing would ever remove it). A frame's temporary ren
 to the job that renders that frame (its shard): a job removes those of its own frames when it
 starts and when it closes, so shards running side by side never remove each other's files in
 flight. Unfinished atomic writes (``.part`` files) are removed by
-:func:`fogsim.fileio.remove_stale_parts`, the same rule as for every fogsim output. Pure
+:func:`fogsim.io.parts.remove_stale_parts`, the same rule as for every fogsim output. Pure
 Python: no bpy.
 """
 from __future__ import annotations

@@ -47,7 +47,7 @@ from fogsim.dataset.kitti import KittiTree
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.lidar import box_record as lidar_box_record
 from fogsim.dataset.semantic_kitti import FOG_ID, FOGSIM_TO_SEMANTIC_KITTI, SEQUENCE, SemanticKittiTree, semantic_id
-from fogsim.fileio import atomic_write_bytes
+from fogsim.io.atomic import atomic_write_bytes
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.fog import FoggedScan
 from fogsim.lidar.formats import FORMAT_SUFFIX, write_points
@@ -101,7 +101,7 @@ def lidar_stage(config, desc: dict, meshes: dict, records: list[dict], seed: int
     if caster is None:  # its own Embree scene: only the triangles the sensor's rays can reach
         ranged = geometry is None
         if ranged:
-            geometry = Geometry.of_frame(desc, meshes, within=(pose[:3, 3], sensor.max_range_m))
+            geometry = Geometry.of_frame(desc, meshes, within=(pose[:3, 3], sensor.reach_m))
         caster = sensor_caster(geometry, pose, sensor, ranged)
     scan = sweep(caster, pose, sensor, f"frame {desc.get('seed')}")
     w2c, w2l = np.asarray(desc["camera"]["world_to_camera"], np.float64), np.linalg.inv(pose)

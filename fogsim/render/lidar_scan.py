@@ -9,14 +9,16 @@ and a reflectivity. :func:`sweep` casts one ray per beam and azimuth step of a s
 ``fogsim bench render`` measures both), and returns the points the sensor reports in clear air.
 
 Conventions: the sensor frame is x forward, y left, z up (metres); azimuth φ is measured from x towards y,
-the beams' inclinations from the horizontal plane (up positive). A ray's range R is its distance from the
-sensor's origin to the first triangle it hits; the point is p = R·d in the sensor frame, exactly on the
-surface. Per point: the range, azimuth, beam (ring), the object it hit, the incidence angle θ between the
-ray and the surface normal, the surface's reflectivity ρ, and the intensity the sensor reports for the
-Lambertian return of apparent reflectivity ρ·cos θ at R (:meth:`~fogsim.lidar.sensors.LidarSensor.intensity_of`,
-in its intensity scale). A ray is reported when it hits within [min range, max range] and its clear-air
-signal (ρ·cos θ/ρ_ref)·(R_max/R)²·ξ(R) reaches the detection threshold (1): dark, grazing or far surfaces
-drop out as on a real sensor. Every point of one sweep is taken at one instant (no rolling-shutter motion).
+the beams' inclinations from the horizontal plane (up positive). A ray starts at its laser (the sensor's
+origin, or — a sensor with ``vertical_offsets_m``, KITTI's HDL-64E — h·(−sin θ cos φ, −sin θ sin φ, cos θ):
+:meth:`~fogsim.lidar.sensors.LidarSensor.beam_origins`); its range R is its distance from there to the first
+triangle it hits; the point is p = o + R·d in the sensor frame, exactly on the surface. Per point: the range,
+azimuth, beam (ring), the object it hit, the incidence angle θ between the ray and the surface normal, the
+surface's reflectivity ρ, and the intensity the sensor reports for the Lambertian return of apparent
+reflectivity ρ·cos θ at R (:meth:`~fogsim.lidar.sensors.LidarSensor.intensity_of`, in its intensity scale). A
+ray is reported when it hits within [min range, max range] and its clear-air signal
+(ρ·cos θ/ρ_ref)·(R_max/R)²·ξ(R) reaches the detection threshold (1): dark, grazing or far surfaces drop out as
+on a real sensor. Every point of one sweep is taken at one instant (no rolling-shutter motion).
 
 Reflectivity (at 905 nm, diffuse, Lambertian-equivalent): from the 905 nm table of
 :mod:`fogsim.scene.reflectivity`, never from the visible colour — each material slot its entry, car paint by
@@ -143,14 +145,18 @@ class Geometry:
         return Geometry(self.vertices[used], remap[faces], self.face_id[keep], self.face_rho[keep])
 
     def seen_from(self, pose: np.ndarray, elevation_deg: tuple | None = None, azimuth_deg: tuple | None = None,
-                  max_range_m: float | None = None, margin_deg: float = 0.05) -> "Geometry":
+                  max_range_m: float | None = None, margin_deg: float = 0.05,
+                  heights_m: tuple[float, float] = (0.0, 0.0)) -> "Geometry":
         """Only the triangles a sensor at ``pose`` (sensor → world, 4×4; x forward, y left, z up) can meet with
         rays of inclination within ``elevation_deg`` (lo, hi), azimuth within ``azimuth_deg`` (lo, hi; None:
         360°) that stop at ``max_range_m``, each widened by ``margin_deg``. Exact (no triangle a ray meets is
         dropped): a triangle is dropped when its three corners lie in one convex region no ray enters — above
-        the top beam's cone (hi ≥ 0: {z ≥ tan(hi)·ρ} is convex), below the bottom one's (lo ≤ 0), beyond one
-        side of a wedge narrower than 180°, or farther than the range (a corner's distance less the longest
-        edge)."""
+        the top beam's cone (hi ≥ 0: {z ≥ tan(hi)·ρ + b_hi} is convex), below the bottom one's (lo ≤ 0,
+        {z ≤ tan(lo)·ρ + b_lo}), beyond one side of a wedge narrower than 180°, or farther than the range (a
+        corner's distance less the longest edge). ``heights_m`` (b_lo, b_hi): the lowest and highest height at
+        which the rays' lines cross the sensor's axis — 0 when every ray starts at the origin; a laser whose
+        line passes h from it at inclination θ (``vertical_offsets_m``) crosses at h/cos θ and runs
+        z = tan θ·ρ + h/cos θ in its azimuth's half-plane (to within h·|sin θ| of the axis)."""
         if not len(self.faces):
             return self
         T = np.asarray(pose, np.float64)
@@ -160,9 +166,9 @@ class Geometry:
             lo, hi = elevation_deg[0] - margin_deg, elevation_deg[1] + margin_deg
             rho = np.hypot(v[:, 0], v[:, 1])
             if hi >= 0:
-                code |= (v[:, 2] > math.tan(math.radians(hi)) * rho).view(np.uint8)
+                code |= (v[:, 2] - heights_m[1] > math.tan(math.radians(hi)) * rho).view(np.uint8)
             if lo <= 0:
-                code |= (v[:, 2] < math.tan(math.radians(lo)) * rho).view(np.uint8) << 1
+                code |= (v[:, 2] - heights_m[0] < math.tan(math.radians(lo)) * rho).view(np.uint8) << 1
         if azimuth_deg is not None and azimuth_deg[1] - azimuth_deg[0] + 2 * margin_deg < 180:
             a0, a1 = math.radians(azimuth_deg[0] - margin_deg), math.radians(azimuth_deg[1] + margin_deg)
             code |= (-math.sin(a0) * v[:, 0] + math.cos(a0) * v[:, 1] < 0).view(np.uint8) << 2  # clockwise of a0
@@ -228,11 +234,14 @@ def sensor_caster(geometry: Geometry, pose: np.ndarray, sensor: LidarSensor, ran
     """The ray caster of ``sensor`` at ``pose`` (sensor → world): ``geometry`` less every triangle none of its
     rays can meet (:meth:`Geometry.seen_from`: above its top beam, below its bottom one, beyond its horizontal
     field of view, and — unless ``ranged``: already cut to the range — beyond its range): the same first hits,
-    a smaller Embree scene."""
+    a smaller Embree scene. Each laser's own origin (``vertical_offsets_m``) is allowed for."""
     incl = sensor.inclinations_deg
     fov = sensor.horizontal_fov_deg
+    heights = (0.0,) if sensor.vertical_offsets_m is None else \
+        np.asarray(sensor.vertical_offsets_m) / np.cos(sensor.inclinations_rad)  # each laser's line at ρ = 0
     return RayCaster(geometry.seen_from(pose, (min(incl), max(incl)), None if fov >= 360 else (-fov / 2, fov / 2),
-                                        None if ranged else sensor.max_range_m))
+                                        None if ranged else sensor.reach_m,
+                                        heights_m=(float(np.min(heights)), float(np.max(heights)))))
 
 
 def sweep_directions(sensor: LidarSensor) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -287,7 +296,8 @@ def sweep(caster: RayCaster, lidar_to_world: np.ndarray, sensor: LidarSensor, so
     d, beam, az = sweep_directions(sensor)
     T = np.asarray(lidar_to_world, np.float64)
     dirs_world = d @ T[:3, :3].T
-    origin = np.broadcast_to(T[:3, 3], dirs_world.shape)
+    start = sensor.beam_origins(beam, az)  # each laser's line, its vertical offset off the axis (if any)
+    origin = start @ T[:3, :3].T + T[:3, 3]
     t, prim, normal = caster.cast(origin, dirs_world, sensor.max_range_m)
     hit = np.isfinite(t) & (t >= sensor.min_range_m) & (t <= sensor.max_range_m)
     idx = np.flatnonzero(hit)
@@ -302,12 +312,13 @@ def sweep(caster: RayCaster, lidar_to_world: np.ndarray, sensor: LidarSensor, so
     keep = idx[seen]
     r, p, apparent, cos_i, rho, n_world = r[seen], p[seen], apparent[seen], cos_i[seen], rho[seen], n_world[seen]
     _, raw = scale_named(sensor.intensity_scale).from_linear(sensor.intensity_of(apparent, r))
-    xyz = (d[keep] * r[:, None]).astype(np.float32)
+    xyz = (start[keep] + d[keep] * r[:, None]).astype(np.float32)
     cloud = PointCloud.from_raw(xyz, raw, sensor.intensity_scale, source, ring=beam[keep], index=keep,
                                 allow_empty=True)
     unreported = np.ones(len(d), bool)
     unreported[keep] = False
-    empty = EmptyRays(d[unreported], beam[unreported], np.maximum(t[unreported], 1e-6)) if unreported.any() else None
+    empty = EmptyRays(d[unreported], beam[unreported], np.maximum(t[unreported], 1e-6),
+                      None if sensor.vertical_offsets_m is None else start[unreported]) if unreported.any() else None
     return SyntheticScan(cloud, caster.geometry.face_id[p], az[keep].astype(np.float32),
                          np.degrees(np.arccos(np.clip(cos_i, 0.0, 1.0))).astype(np.float32), rho.astype(np.float32),
                          (n_world @ T[:3, :3]).astype(np.float32), rays=len(d), hits=int(hit.sum()), empty=empty)

@@ -23,8 +23,8 @@ from typing import Literal
 from fogsim import presets
 from fogsim.camera import CITYSCAPES_BASELINE_M
 from fogsim.errors import InputError
-from fogsim.fileio import MAX_PIXELS, pixel_limit_problem
 from fogsim.fog.levels import FogLevel, parse_levels
+from fogsim.io.pixel_bound import MAX_PIXELS, pixel_limit_problem
 from fogsim.lidar.sensors import LidarSensor
 from fogsim.presets import preset_path
 from fogsim.radar.sensors import RadarSensor

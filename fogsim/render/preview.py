@@ -17,8 +17,9 @@ import numpy as np
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.reader import read_meta
 from fogsim.dataset.writer import draw_boxes
-from fogsim.fileio import EXR_DEPTH_CHANNELS, read_image
 from fogsim.fog.levels import FogLevel, level_from_beta
+from fogsim.io.depth_files import EXR_DEPTH_CHANNELS
+from fogsim.io.images import read_image
 from fogsim.render.exr_reader import read_exr
 
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsim.dataset.layout import DatasetLayout
-from fogsim.fileio import atomic_write_bytes
+from fogsim.io.atomic import atomic_write_bytes
 from fogsim.radar.detections import KINDS, OBJECT, RadarScan
 from fogsim.radar.fog import FoggedRadar
 from fogsim.radar.formats import write_radar

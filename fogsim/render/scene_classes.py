@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from fnmatch import fnmatchcase
 
 from fogsim.errors import InputError
-from fogsim.fileio import MAX_DOCUMENT_BYTES, parse_json, read_text_bounded
+from fogsim.io.documents import MAX_DOCUMENT_BYTES, parse_json, read_text_bounded
 from fogsim.scene.classes import LABELLED, STUFF
 
 PROPERTY = "fogsim_class"

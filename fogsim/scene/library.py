@@ -98,7 +98,7 @@ _FBX_FILES = (re.compile(rb"[\x08]FileNameS(....)|[\x10]RelativeFilenameS(....)"
 
 def inside(path: Path, root: Path) -> bool:
     """Whether ``path``, its symlinks resolved, lies in the folder ``root`` (resolved too)."""
-    from fogsim.fileio import resolve_path
+    from fogsim.io.paths import resolve_path
 
     p, r = resolve_path(path), resolve_path(root)
     return p == r or r in p.parents
@@ -144,7 +144,7 @@ def _gltf_uris(file: Path) -> list[tuple[str, str]]:
     import struct
     from urllib.parse import unquote
 
-    from fogsim.fileio import MAX_JSON_BYTES, parse_json, read_text_bounded
+    from fogsim.io.documents import MAX_JSON_BYTES, parse_json, read_text_bounded
 
     if file.suffix.lower() == ".glb":
         with open(file, "rb") as f:

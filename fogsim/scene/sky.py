@@ -69,7 +69,9 @@ def hdri_problem(path: str | Path) -> str | None:
     import cv2
 
     from fogsim.errors import InputError
-    from fogsim.fileio import pixel_bound, read_exr_channels, read_image
+    from fogsim.io.exr import read_exr_channels
+    from fogsim.io.images import read_image
+    from fogsim.io.pixel_bound import pixel_bound
 
     path = Path(path)
     try:

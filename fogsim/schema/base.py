@@ -317,8 +317,8 @@ def check_flag(flag: str, value: Any, kind: Any) -> Any:
 
 def load_json(path: str | os.PathLike, model: type[M]) -> M:
     """Read the JSON file ``path`` and check it against ``model`` (one line naming the file; the size bound
-    of :func:`fogsim.fileio.read_json` is the smaller one for a :class:`Closed` document, which users write)."""
-    from fogsim.fileio import MAX_DOCUMENT_BYTES, MAX_JSON_BYTES, read_json
+    of :func:`fogsim.io.documents.read_json` is the smaller one for a :class:`Closed` document, which users write)."""
+    from fogsim.io.documents import MAX_DOCUMENT_BYTES, MAX_JSON_BYTES, read_json
 
     return check(read_json(path, MAX_DOCUMENT_BYTES if issubclass(model, Closed) else MAX_JSON_BYTES), model, path)
 

@@ -8,7 +8,8 @@ document                       model                           read by
 ``meta/<frame>.json``          :class:`FrameMeta`              finalize (render, fog), depth score
 ``meta/<frame>.json`` camera   :class:`FrameCamera`            ``fogsim depth score --pred-kind ray``
 ``fogsim_run.json``            :class:`FogRunFile`             ``fogsim fog --finalize-only`` / end
-``render_run.json``            :class:`RenderRunFile`          ``fogsim bench fog-physics``
+``<level>/<name>.json``        :class:`PointsSidecar`          ``fogsim fog --points``' outcome totals
+``render_run.json``            :class:`RenderRunFile`          ``fogsim render --finalize-only``, benches
 ``dataset.json``               :class:`DatasetManifest`        the study, dataset readers
 ``coco/<level>.json``          :class:`CocoFile`               the study (ground truth)
 ``study.json``                 :class:`StudyFile`              ``fogsim study --report-only``
@@ -35,8 +36,8 @@ from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field, RootMod
 from fogsim.schema.base import Bool, Closed, Int, NonNegInt, Number, Open, Text, int_in, items, number_in
 
 __all__ = ["ClassMapFile", "CocoFile", "DatasetManifest", "DoneFile", "FogFrameMeta", "FogRunFile", "FrameCamera",
-           "FrameMeta", "Holdout", "LEVEL_KEY", "Predictions", "RenderRunFile", "StudyFile", "level_key",
-           "relative_path"]
+           "FrameMeta", "Holdout", "LEVEL_KEY", "PointsSidecar", "Predictions", "RenderRunFile", "StudyFile",
+           "level_key", "relative_path"]
 
 Name = Annotated[str, Field(strict=True, min_length=1)]
 Box = items(Number, 4, "[x0, y0, x1, y1] box")
@@ -149,12 +150,62 @@ class RenderRunParameters(Open):
     style: Text | dict | None = None  # the style's name, or the whole style (as render writes it)
 
 
+class PointsSidecar(Open):
+    """``OUT/<level>/<name>.json`` of ``fogsim fog --points`` (a scan's or a radar sweep's level): what the
+    end-of-run outcome totals read (:mod:`fogsim.fog.outcome_totals`)."""
+
+    document: ClassVar[str] = "points sidecar"
+
+    outcomes: dict[str, NonNegInt]
+    empty_ray_clutter: NonNegInt = 0  # LiDAR: fog clutter on rays that returned nothing in clear air
+
+
+class RenderRunLevel(RunLevel):
+    key: Annotated[Name, AfterValidator(lambda v: folder_name(v))]  # it names images/<key>/, labels/<key>/
+
+
+class RenderRunConfig(Open):
+    """The whole configuration a render ran with (``render_run.json``'s ``config``,
+    :meth:`fogsim.render.preset.RenderConfig.to_dict`): what ``--finalize-only`` finalizes with."""
+
+    name: Text
+    source: Text
+    style: dict
+    camera: dict
+    resolution: items(Side, 2, "[width, height]")
+    quality: dict = {}
+    levels: Annotated[list[RenderRunLevel], Field(min_length=1), AfterValidator(lambda v: _distinct_keys(v))]
+    fog_model: dict = {}
+    labels: dict = {}
+    exposure: Number = 1.0
+    frames: int_in(1)
+    seed: int_in(0) = 0
+    stereo_baseline_m: number_in(0) | None = None
+    train_fraction: number_in(0, 1, lo_open=True, hi_open=True) = 0.8
+    lighting: dict = {}
+    sensor: dict = {}
+    assets: dict = {}
+    lidar: dict = {}
+    radar: dict = {}
+
+
 class RenderRunFile(Open):
-    """``render_run.json`` as the fog-physics bench and fit-fog read it (exposure; preset, seed, style)."""
+    """``render_run.json``: the claimed parameters, the whole configuration (``config``) and the Blender
+    that claimed it — read by ``fogsim render --finalize-only`` (the
+    configuration) and by the fog-physics bench and fit-fog (exposure; preset, seed, style)."""
 
     document: ClassVar[str] = "render run file"
 
     parameters: RenderRunParameters = RenderRunParameters()
+    config: RenderRunConfig | None = None
+    blender: Text | None = None
+
+
+def _distinct_keys(levels: list) -> list:
+    keys = [lv.key for lv in levels]
+    if len(set(keys)) != len(keys):
+        raise ValueError(f"must be distinct level keys (got {keys})")
+    return levels
 
 
 # ----------------------------------------------------------------------------- dataset files

@@ -130,6 +130,9 @@ class LidarSensorSpec(Closed):
     beams: int_in(1, 1024)
     vertical_fov_deg: pair(number_in(-90, 90)) | None = None  # [lowest, highest] beam, uniform between
     inclinations_deg: Inclinations | None = None  # explicit beams (any order) or "calibration"
+    # each beam's vertical offset (m, Velodyne's vertOffsetCorrection), in the order of inclinations_deg: the
+    # beam's line passes this far from the origin, so a point's elevation is the beam's + asin(offset / range)
+    vertical_offsets_m: Annotated[list[number_in(-1, 1)], Field(min_length=1)] | None = None
     horizontal_fov_deg: number_in(0, 360, lo_open=True) = 360.0
     horizontal_resolution_deg: number_in(0, 10, lo_open=True) | None = None
     steps_per_sweep: int_in(1, 1_000_000) | None = None
@@ -155,7 +158,7 @@ class LidarSensorSpec(Closed):
     fluctuation_sigma: number_in(0, 3) = FLUCTUATION_SIGMA
     # the STF authors' chamber-fitted noise level n and gain g (stf2020; None: not published for this sensor)
     stf_noise_level: number_in(0, 1, lo_open=True) | None = None
-    stf_gain: number_in(0, 10) | None = None
+    stf_gain: number_in(0, 10, lo_open=True) | None = None
     mount: Mount = Mount()
     sources: dict[str, Text] | None = None  # where each parameter's value comes from (key → source)
 
@@ -166,6 +169,10 @@ class LidarSensorSpec(Closed):
                              "'inclinations_deg' (a list, or \"calibration\")")
         if isinstance(self.inclinations_deg, list) and len(self.inclinations_deg) != self.beams:
             raise ValueError(f"inclinations_deg has {len(self.inclinations_deg)} values for {self.beams} beams")
+        if self.vertical_offsets_m is not None and (not isinstance(self.inclinations_deg, list)
+                                                     or len(self.vertical_offsets_m) != self.beams):
+            raise ValueError(f"vertical_offsets_m needs inclinations_deg as a list and one offset per beam "
+                             f"({self.beams}), got {len(self.vertical_offsets_m)}")
         if (self.horizontal_resolution_deg is None) == (self.steps_per_sweep is None):
             raise ValueError("needs exactly one of 'horizontal_resolution_deg' and 'steps_per_sweep'")
         steps = self.steps_per_sweep or max(1, round(self.horizontal_fov_deg / self.horizontal_resolution_deg))
@@ -206,7 +213,7 @@ class LidarCalibration(Closed):
     intensity_reference_range_m: number_in(0, 1e4, lo_open=True) | None = None
     retro_reflectivity_max: number_in(1, 1e6) | None = None
     stf_noise_level: number_in(0, 1, lo_open=True) | None = None
-    stf_gain: number_in(0, 10) | None = None
+    stf_gain: number_in(0, 10, lo_open=True) | None = None
 
     @model_validator(mode="after")
     def _sourced(self):
@@ -255,7 +262,7 @@ class LidarFogSpec(Closed):
 
 class LidarOutcomes(Open):
     """``<frame>.outcomes.npz`` beside a fogged scan (:mod:`fogsim.lidar.outcome_file`): per input point
-    its ``outcome`` (0 kept, 1 attenuated, 2 lost, 3 clutter) and ``output_index`` (its row in the
+    its ``outcome`` (0 kept, 1 attenuated, 2 lost, 3 clutter, 4 no-return) and ``output_index`` (its row in the
     fogged scan, −1 when lost), of equal length."""
 
     document: ClassVar[str] = "LiDAR outcome file"

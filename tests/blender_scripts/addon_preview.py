@@ -17,7 +17,7 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
 import blender_addon  # noqa: E402
-from fogsim.fileio import write_image  # noqa: E402
+from fogsim.io.images import write_image  # noqa: E402
 from fogsim.render.blender import addon  # noqa: E402
 from fogsim.render.blender.preview import IMAGE_NAME, image_pixels  # noqa: E402
 

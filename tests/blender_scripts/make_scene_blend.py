@@ -39,7 +39,8 @@ scene.frame_start, scene.frame_end = spec["frames"]
 scene.cycles.samples = 4
 
 world = bpy.data.worlds.new("sky")
-world.use_nodes = True
+if bpy.app.version < (5, 0, 0):  # from 5.0 every world has its node tree (use_nodes deprecated)
+    world.use_nodes = True
 world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.6, 0.7, 0.9, 1.0)
 scene.world = world
 sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
@@ -85,7 +86,8 @@ for b in spec["boxes"]:
     mesh.update()
     if b.get("color"):
         mat = bpy.data.materials.new(b["name"])
-        mat.use_nodes = True
+        if bpy.app.version < (5, 0, 0):  # likewise materials
+            mat.use_nodes = True
         mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*b["color"], 1.0)
         mesh.materials.append(mat)
     obj = bpy.data.objects.new(b["name"], mesh)

@@ -32,8 +32,10 @@ from fogsim.detection.bev.boxes import footprint, obb_line
 from fogsim.detection.bev.grid import LIDAR_CHANNELS, RADAR_CHANNELS, BevGrid, lidar_raster, radar_raster
 from fogsim.detection.bev.source import BEV_CLASSES, LidarLevels, bev_range
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_write_bytes, encode_image, write_json
 from fogsim.fog.engine import FogSettings
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.documents import write_json
+from fogsim.io.images import encode_image
 from fogsim.lidar.boxes import points_in_boxes
 from fogsim.lidar.fog import lidar_fog_spec
 from fogsim.lidar.rays import empty_rays
@@ -108,7 +110,7 @@ def decode_raster(path: str | Path) -> np.ndarray:
     """The channels of a raster file, in the order written (H × W × C uint8)."""
     import cv2
 
-    from fogsim.fileio import read_image
+    from fogsim.io.images import read_image
 
     path = Path(path)
     if path.suffix == ".png":

@@ -22,7 +22,9 @@ from fogsim.detection.bev.pictures import contact_sheet, recall_by_distance_plot
 from fogsim.detection.bev.study import ORACLE, BevStudy
 from fogsim.detection.table import heatmap, markdown
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_write_bytes, write_image, write_json
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.documents import write_json
+from fogsim.io.images import write_image
 from fogsim.schema.base import load_json
 from fogsim.schema.bev import CameraTable
 from fogsim.schema.documents import DoneFile

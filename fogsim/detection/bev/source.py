@@ -34,8 +34,8 @@ from fogsim.dataset.layout import DatasetLayout
 from fogsim.dataset.lidar import KITTI_IDS
 from fogsim.dataset.reader import dataset_levels
 from fogsim.errors import InputError
-from fogsim.fileio import read_json, read_text_file
-from fogsim.headers import image_header
+from fogsim.io.documents import read_json, read_text_file
+from fogsim.io.headers import image_header
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.points import PointCloud

@@ -42,7 +42,8 @@ from fogsim.detection.bev.grid import BevGrid
 from fogsim.detection.bev.source import BEV_CLASSES, LidarLevels
 from fogsim.detection.yolo import TrainConfig, check_model, predict_obb, replace_symlink, train
 from fogsim.errors import InputError
-from fogsim.fileio import atomic_write_bytes, write_json
+from fogsim.io.atomic import atomic_write_bytes
+from fogsim.io.documents import write_json
 from fogsim.runs import claim_output
 from fogsim.schema.base import check, load_json
 from fogsim.schema.bev import BevFrameTruth, BevPredictions, BevStudyFile
@@ -248,7 +249,7 @@ class BevStudy:
         return out
 
     def read_predictions(self, path: Path) -> list[dict]:
-        from fogsim.fileio import read_json
+        from fogsim.io.documents import read_json
 
         dets = read_json(path)
         check(dets, BevPredictions, path)

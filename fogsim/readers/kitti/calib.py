@@ -32,7 +32,7 @@ import numpy as np
 
 from fogsim.camera import Intrinsics
 from fogsim.errors import InputError
-from fogsim.fileio import read_text_file
+from fogsim.io.documents import read_text_file
 
 __all__ = ["KEYS", "KittiCalib", "format_kitti_calib", "read_kitti_calib", "stf_calib_from_tf"]
 

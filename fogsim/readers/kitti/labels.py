@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsim.errors import InputError
-from fogsim.fileio import read_text_file
+from fogsim.io.documents import read_text_file
 from fogsim.readers.base import Labels
 from fogsim.readers.kitti.calib import KittiCalib, read_kitti_calib
 

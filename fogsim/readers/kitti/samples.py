@@ -33,6 +33,7 @@ from fogsim.errors import InputError
 from fogsim.lidar.boxes import Box3D
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.points import PointCloud
+from fogsim.lidar.rays import CameraView
 from fogsim.lidar.sensors import LidarSensor, load_sensor
 from fogsim.readers.base import Sample
 from fogsim.readers.cityscapes_labels import png_size
@@ -61,7 +62,8 @@ class KittiPoints:
     It is also the frame's scan source (:class:`fogsim.readers.base.ScanSource`) for ``fogsim fog --lidar``:
     ``key`` names the LiDAR frame (the sample key), ``kitti_id`` its id in a KITTI tree (KITTI's own;
     STF's a 6-digit number, as mmdetection3d's converter reads ids as integers), ``part`` the tree's part
-    it belongs in (``training`` or ``testing``), ``return_mode`` the scan's (STF: the folder read)."""
+    it belongs in (``training`` or ``testing``), ``return_mode`` the scan's (STF: the folder read),
+    ``image_size`` image 2's (width, height) in pixels (None: unknown)."""
 
     scan: str
     calib: "str | KittiCalib"
@@ -70,6 +72,7 @@ class KittiPoints:
     kitti_id: str = ""
     return_mode: str | None = None
     part: str = "training"
+    image_size: tuple[int, int] | None = None
 
     def calibration(self) -> KittiCalib:
         if isinstance(self.calib, KittiCalib):
@@ -92,6 +95,13 @@ class KittiPoints:
     def boxes(self, records: list[dict]) -> list[Box3D | None]:
         """The records' label boxes in the LiDAR frame (None for ignore regions)."""
         return label_boxes(records, self.calibration())
+
+    def camera_view(self) -> CameraView | None:
+        """Camera 2's view of the LiDAR's rays (its projection and image size), which a scan cropped to it
+        (``velodyne_reduced``) covers: :func:`fogsim.lidar.rays.empty_rays` finds the empty rays inside it."""
+        if self.image_size is None:
+            return None
+        return CameraView(self.calibration().projection(2), *self.image_size)
 
     def kitti_calib(self) -> KittiCalib:
         """The calibration a KITTI tree of this frame holds."""
@@ -184,7 +194,7 @@ def kitti_samples(root: str | os.PathLike, split: str | os.PathLike | None = Non
         calib = read_kitti_calib(files["calibration"])
         key = f"{base.name}/image_2/{fid}"
         points = KittiPoints(str(files["scan"]), str(files["calibration"]), "kitti", key, fid,
-                             part=base.name if base.name in KITTI_PARTS else part)
+                             part=base.name if base.name in KITTI_PARTS else part, image_size=(w, h))
         meta = {"dataset": "kitti", "frame": fid, "part": base.name, "scan": str(files["scan"]),
                 "calib": str(files["calibration"]), "lidar_points": points, "lidar_format": "kitti",
                 "lidar_sensor": SENSORS["kitti"]}
@@ -239,7 +249,7 @@ def stf_samples(root: str | os.PathLike, split: str | os.PathLike | None = None,
         cal = shared if shared is not None else read_kitti_calib(files["calibration"], require_imu=False)
         cal_ref = shared if shared is not None else str(files["calibration"])
         key = f"cam_stereo_left_lut/{fid}"
-        points = KittiPoints(str(files["scan"]), cal_ref, "stf", key, f"{n:06d}", returns)
+        points = KittiPoints(str(files["scan"]), cal_ref, "stf", key, f"{n:06d}", returns, image_size=(w, h))
         meta = {"dataset": "stf", "frame": fid, "scan": str(files["scan"]), "calib": cal.source,
                 "lidar_points": points, "lidar_format": "stf", "lidar_sensor": SENSORS["stf"],
                 "return_mode": returns}

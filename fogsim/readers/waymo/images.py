@@ -6,7 +6,7 @@ images, and the one parquet opener of the Waymo readers.
 * v2: :class:`ParquetImage`, the ``[CameraImageComponent].image`` of one row of a
   ``camera_image/*.parquet`` file (read with pyarrow, the ``waymo`` extra).
 
-Images decode to RGB uint8 H×W×3 (:func:`fogsim.fileio.decode_image`).
+Images decode to RGB uint8 H×W×3 (:func:`fogsim.io.images.decode_image`).
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ import numpy as np
 
 from fogsim.deps import require
 from fogsim.errors import InputError
-from fogsim.fileio import decode_image
+from fogsim.io.images import decode_image
 from fogsim.readers.waymo import protobuf_wire as pw
 from fogsim.readers.waymo.address import V1Record
 

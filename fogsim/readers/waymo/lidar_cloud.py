@@ -171,6 +171,9 @@ class WaymoScan:
     def kitti_calib(self):
         return None
 
+    def camera_view(self):
+        return None  # the TOP laser's range image is a full sweep
+
     def describe(self) -> dict:
         return {"file": None, "frame": self.points.source, "laser": self.laser, "returns": [1, 2],
                 "format": "waymo range images"}

@@ -8,7 +8,7 @@
 Sample keys are ``<context name>/<timestamp_micros>_<CAMERA>``. Intrinsics and distortion are
 those of :mod:`.sensors` (the distortion is not removed, only recorded in ``meta["distortion"]``).
 Waymo has no dense depth: depth maps come from ``depth_dir/<key><ext>`` (ext in
-:data:`fogsim.fileio.DEPTH_SUFFIXES`), else none. Each sample holds picklable readers of its image
+:data:`fogsim.io.depth_files.DEPTH_SUFFIXES`), else none. Each sample holds picklable readers of its image
 (:mod:`.images`), labels (:mod:`.labels_v1`, :mod:`.labels_v2`) and, for the labels' distance
 fallback, its LiDAR points (:mod:`.lidar`).
 """
@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Iterable
 
 from fogsim.errors import InputError
-from fogsim.fileio import DEPTH_SUFFIXES
+from fogsim.io.depth_files import DEPTH_SUFFIXES
 from fogsim.readers.base import DepthSpec, Sample
 from fogsim.readers.folder import find_depth
 from fogsim.readers.waymo import protobuf_wire as pw

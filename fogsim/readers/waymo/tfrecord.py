@@ -235,9 +235,9 @@ def read_record(path: str | os.PathLike, offset: int, length: int,
 
 
 def write_tfrecord(path: str | os.PathLike, records: Iterable[bytes]) -> None:
-    """Write ``records`` as a TFRecord file, atomically (:func:`fogsim.fileio.atomic_path`: a
+    """Write ``records`` as a TFRecord file, atomically (:func:`fogsim.io.atomic.atomic_path`: a
     temporary file and a rename; the file gets 0666 minus the umask, as any tool's output)."""
-    from fogsim.fileio import atomic_path
+    from fogsim.io.atomic import atomic_path
 
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
         for data in records:

@@ -200,7 +200,7 @@ def lidar_casters(config, frames: int) -> dict:
             lidar_stage(config, frame.desc, frame.meshes, [], index)
             stage.append(time.perf_counter() - t0)
             stage_cpu.append(time.process_time() - c0)
-            geometry = Geometry.of_frame(frame.desc, frame.meshes, within=(pose[:3, 3], sensor.max_range_m))
+            geometry = Geometry.of_frame(frame.desc, frame.meshes, within=(pose[:3, 3], sensor.reach_m))
             faces = len(geometry.faces)
             t0 = time.perf_counter()
             sweep(RayCaster(geometry), pose, sensor, "bench")
@@ -318,7 +318,7 @@ def fast_errors(root: Path, config, frames: int) -> dict:
     import numpy as np
 
     from fogsim.dataset.layout import DatasetLayout
-    from fogsim.fileio import read_image
+    from fogsim.io.images import read_image
     from fogsim.render.frame import frame_name
 
     lay = {v: DatasetLayout(root / v) for v in ("hybrid", "hybrid-fast", "hybrid-seed2")}

@@ -13,6 +13,23 @@ PASS_CHANNELS = {
 }
 
 
+def node_tree(idblock):
+    """A material's or world's node tree, switched on where this Blender needs it: before 5.0 a new one has no
+    tree until ``use_nodes = True``; from 5.0 every one has its tree and ``use_nodes`` is deprecated (removed in
+    6.0: reading or setting it warns), so it is left alone unless the tree is missing."""
+    if VERSION < (5, 0, 0) or idblock.node_tree is None:
+        idblock.use_nodes = True
+    return idblock.node_tree
+
+
+def node_tree_in_use(idblock):
+    """The node tree a material or world renders with, or None (before 5.0 a tree can exist switched off)."""
+    tree = idblock.node_tree
+    if tree is None:
+        return None
+    return tree if VERSION >= (5, 0, 0) or idblock.use_nodes else None
+
+
 def has_denoiser() -> bool:
     """True when this Cycles build has OpenImageDenoise (Debian's 3.4 has not)."""
     try:

@@ -40,6 +40,8 @@ import numpy as np
 from fogsim.render.blender.compat import (
     force_homogeneous,
     has_denoiser,
+    node_tree,
+    node_tree_in_use,
     set_denoiser_speed,
     set_volume_phase,
     set_volume_unbiased,
@@ -91,8 +93,7 @@ def _fog_material(settings: dict) -> tuple[object, list, str]:
     """The medium's material (no surface) and its (socket, factor-of-β) list."""
     medium = settings["medium"]
     mat = bpy.data.materials.new(f"fogsim_fog_{medium}")
-    mat.use_nodes = True
-    nt = mat.node_tree
+    nt = node_tree(mat)
     for node in list(nt.nodes):
         if node.type != "OUTPUT_MATERIAL":
             nt.nodes.remove(node)
@@ -151,8 +152,8 @@ def _fog_material(settings: dict) -> tuple[object, list, str]:
 def build_domain(built, scene, settings: dict) -> FogDomain:
     """Create the fog layer around ``scene.camera`` and record it in ``built`` (so
     :func:`fogsim.render.blender.scratch.clear` removes it). β starts at 0: call :func:`set_density`."""
-    if scene.world is not None and scene.world.use_nodes:
-        out = next((n for n in scene.world.node_tree.nodes if n.type == "OUTPUT_WORLD"), None)
+    if scene.world is not None and (tree := node_tree_in_use(scene.world)) is not None:
+        out = next((n for n in tree.nodes if n.type == "OUTPUT_WORLD"), None)
         if out is not None and out.inputs["Volume"].is_linked:
             raise ValueError("the world has a volume shader: it blocks all world and sun light; "
                              "fogsim's fog is a box domain, remove the world volume")

@@ -19,12 +19,9 @@ import bpy
 import numpy as np
 
 from fogsim.dataset.layout import DatasetLayout
-from fogsim.dataset.reader import frame_records
-from fogsim.dataset.writer import finalize
-from fogsim.deps import package_versions
 from fogsim.depth.stereo import right_world_to_camera
 from fogsim.errors import InputError
-from fogsim.fileio import remove_stale_parts
+from fogsim.io.parts import remove_stale_parts
 from fogsim.render.blender import build as scene_build
 from fogsim.render.blender import fog_volume
 from fogsim.render.blender.compat import has_mie_phase
@@ -32,30 +29,16 @@ from fogsim.render.blender.cycles import configure, render, render_combined
 from fogsim.render.blender.library import load_library
 from fogsim.render.blender.motion import motion_blur
 from fogsim.render.blender.scratch import clear
+from fogsim.render.finalize import GROWABLE, RUN_FILE, dataset_parameters, finalize_render
 from fogsim.render.fog_settings import frame_volumetric, volumetric_settings
 from fogsim.render.frame import DescribedFrame, FogRenders, FramePasses, check_scene, commit_frame, frame_name
 from fogsim.render.job_options import RunOptions
 from fogsim.render.leftovers import remove_render_tmp, render_tmp_dir
 from fogsim.render.preset import RenderConfig
-from fogsim.runs import FRAME_SEED_RULE, claim_output, frame_seed
+from fogsim.runs import claim_output, frame_seed
 from fogsim.scene.motion import frame_motion
 
-RUN_FILE = "render_run.json"
-
-
-def _is_frame_name(name: str) -> bool:
-    """A rendered frame's name: its index, six digits or more (:func:`frame_name`)."""
-    return len(name) >= 6 and name.isdigit() and name == frame_name(int(name))
 SCENE_NAME = "fogsim"
-
-
-#: Preset keys that may change between runs into one dataset (more frames, another split).
-GROWABLE = ("frames", "source", "train_fraction")
-
-
-def dataset_parameters(config: RenderConfig) -> dict:
-    """What must match for a run to add frames to an existing dataset."""
-    return {k: v for k, v in config.to_dict().items() if k not in GROWABLE}
 
 
 def _legacy_parameters(old: dict) -> dict | None:
@@ -178,8 +161,8 @@ class RenderJob:
         """8-bit images per level (clear level = the clear render), linear EXRs if asked, meta["fog"]."""
         from fogsim.camera import Intrinsics, planar_to_ray
         from fogsim.colour import linear_to_srgb8
-        from fogsim.fileio import write_rgb_exr
         from fogsim.fog.physics import far_luminance
+        from fogsim.io.exr import write_rgb_exr
         from fogsim.render.fog_rebuild import RULE, rebuild
         from fogsim.render.volumetric import auto_exposure
 
@@ -220,25 +203,9 @@ class RenderJob:
         return FogRenders(foggy, info)
 
     def finish(self) -> dict:
-        """Write the dataset-level files (COCO, YAMLs, manifest, contact sheet) over all done frames
-        whose records pass the schema (the others are skipped and named in ``skipped_frames``);
-        returns ``dataset.json``'s content. ``preset.frames`` is never below the frames the
-        dataset holds (a resume with fewer ``--frames`` does not shrink it)."""
-        records = frame_records(self.layout)
-        records.skipped += [f"{self.layout.meta(f)}: not a frame of a render (frame names are 6 digits)"
-                            for f in records.frames if not _is_frame_name(f)]
-        keep = [n for n, f in enumerate(records.frames) if _is_frame_name(f)]
-        records.frames = [records.frames[n] for n in keep]
-        records.metas = [records.metas[n] for n in keep]
-        preset = self.config.to_dict()
-        if records.frames:
-            preset["frames"] = max(preset["frames"], max(int(f) for f in records.frames) + 1)
-        manifest = {"preset": preset, "seed": self.config.seed,
-                    "frame_seeds": {f: frame_seed(self.config.seed, int(f)) for f in records.frames},
-                    "frame_seed_rule": FRAME_SEED_RULE,
-                    "blender": bpy.app.version_string, "versions": package_versions()}
-        return finalize(self.layout, self.config.levels, manifest, self.config.train_fraction,
-                        seed=self.config.seed, records=records)
+        """Write the dataset-level files over all done frames (:func:`fogsim.render.finalize.finalize_render`);
+        returns ``dataset.json``'s content."""
+        return finalize_render(self.layout, self.config, bpy.app.version_string)
 
     def close(self) -> None:
         """Remove the scene and this job's temporary renders (the folder too, once empty)."""

@@ -107,13 +107,14 @@ def material_info(material) -> dict:
     ``name``; ``color`` (its Principled BSDF's base colour, linear RGB) and ``transmission`` (0–1), None
     and 0 without one; ``reflectivity``, its ``fogsim_reflectivity`` custom property (0–100) or None — a
     value out of range is an InputError naming the material."""
-    from fogsim.render.blender.compat import principled_inputs
+    from fogsim.render.blender.compat import node_tree_in_use, principled_inputs
 
     info = {"name": material.name, "color": None, "transmission": 0.0, "reflectivity": None}
     if REFLECTIVITY in material:
         where = f"{type(material).__name__} {material.name!r}"
         info["reflectivity"] = checked_reflectivity(material[REFLECTIVITY], where)
-    nodes = material.node_tree.nodes if material.use_nodes and material.node_tree else ()
+    tree = node_tree_in_use(material)
+    nodes = tree.nodes if tree is not None else ()
     bsdf = next((n for n in nodes if n.type == "BSDF_PRINCIPLED"), None)
     if bsdf is not None:
         sockets = principled_inputs(bsdf)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import bpy
 
-from fogsim.render.blender.compat import principled_inputs
+from fogsim.render.blender.compat import node_tree, principled_inputs
 from fogsim.scene.materials import material as catalogue_material
 
 _NOISE_DETAIL = {"asphalt": (14.0, 0.35), "concrete": (6.0, 0.25), "noise": (4.0, 0.2),
@@ -24,8 +24,7 @@ def make_material(name: str, slot: str, overrides: dict) -> bpy.types.Material:
     """A new material for catalogue entry ``slot`` with instance ``overrides`` (e.g. colour)."""
     spec = catalogue_material(slot, **overrides)
     mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
-    nt = mat.node_tree
+    nt = node_tree(mat)
     bsdf = next(n for n in nt.nodes if n.type == "BSDF_PRINCIPLED")
     sockets = principled_inputs(bsdf)
     color = tuple(spec["color"])

@@ -247,7 +247,7 @@ class SceneJob(RenderJob):
             raise
 
     def _setup(self, out) -> None:
-        from fogsim.fileio import MAX_PIXELS
+        from fogsim.io.pixel_bound import MAX_PIXELS
 
         o, scene = self.options, self.user_scene
         source = o.source or bpy.data.filepath or f"scene {scene.name!r}"

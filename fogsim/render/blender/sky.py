@@ -21,7 +21,7 @@ from pathlib import Path
 import bpy
 
 from fogsim.errors import InputError
-from fogsim.render.blender.compat import sky_type_physical
+from fogsim.render.blender.compat import node_tree, sky_type_physical
 from fogsim.scene.sky import OVERCAST_COLOR, hdri_file, sky_of
 
 #: the world importance map's side: small for smooth skies (Cycles' default 1024² costs ~0.7 s a
@@ -91,8 +91,7 @@ def make_world(built, light: dict):
     kind = sky_of(light)
     world = bpy.data.worlds.new("fogsim_world")
     built.others.append(("worlds", world))
-    world.use_nodes = True
-    nt = world.node_tree
+    nt = node_tree(world)
     bg = nt.nodes["Background"]
     bg.inputs["Strength"].default_value = light["sky_strength"]
     if kind == "hdri":

@@ -16,10 +16,20 @@ import numpy as np
 
 from fogsim.errors import InputError
 
-__all__ = ["HEADER_BYTES", "ImageHeader", "exr_header", "image_header", "npy_header", "read_npy"]
+__all__ = ["HEADER_BYTES", "ImageHeader", "exr_header", "image_header", "npy_header", "read_head", "read_npy"]
 
 #: the prefix of a file read to find its header (JPEG metadata segments before the frame header included)
 HEADER_BYTES = 1 << 20
+
+
+def read_head(path: str | os.PathLike, count: int) -> bytes:
+    """The first ``count`` bytes of ``path`` (fewer when it is shorter): where its header is; an
+    :class:`InputError` naming the file when it cannot be read."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(count)
+    except OSError as exc:
+        raise InputError(path, f"cannot read the file ({exc.strerror or exc})") from None
 
 
 @dataclass(frozen=True)
