@@ -33,6 +33,106 @@ def cells(report_json):
     return [c for row in report_json.values() for c in row.values()]
 
 
+def ultralytics_round_trip(grid, boxes, tmp_path, hyp: dict | None = None):
+    """The labels of ``boxes`` ((class, footprint) pairs) through Ultralytics: its OBB dataset reads a raster's
+    label file (``hyp``: its augmentation, else none) into normalised (x, y, w, h, θ) boxes, which become an
+    ``Results.obb`` as its predictor makes them, read by fogsim's own :func:`obb_records` and put back into
+    metres by the grid. Returns the boxes that came back (class ids, corners in metres)."""
+    import cv2
+    import torch
+
+    from fogsim.detection.bev.boxes import obb_line
+    from fogsim.detection.yolo import load_ultralytics, obb_records
+
+    load_ultralytics(tmp_path / "cfg")
+    from ultralytics.cfg import get_cfg
+    from ultralytics.data.dataset import YOLODataset
+    from ultralytics.engine.results import Results
+
+    (tmp_path / "images").mkdir(parents=True)
+    (tmp_path / "labels").mkdir()
+    cv2.imwrite(str(tmp_path / "images" / "f0.png"), np.zeros((grid.height, grid.width, 3), np.uint8))
+    (tmp_path / "labels" / "f0.txt").write_text("".join(obb_line(c, corners, grid) + "\n" for c, corners in boxes))
+    size = max(grid.width, grid.height)
+    ds = YOLODataset(img_path=str(tmp_path / "images"), imgsz=size, augment=hyp is not None, task="obb",
+                     hyp=get_cfg(overrides={"mosaic": 0.0, **(hyp or {})}), data={"names": {0: "car", 1: "pedestrian",
+                                                                                  2: "cyclist"}, "channels": 3})
+    item = ds[0]
+    assert tuple(item["img"].shape[1:]) == (grid.height, grid.width)  # no letterbox: the raster is the input
+    xywhr = item["bboxes"].clone()
+    xywhr[:, [0, 2]] *= grid.width
+    xywhr[:, [1, 3]] *= grid.height
+    table = torch.cat([xywhr, torch.ones(len(xywhr), 1), item["cls"].reshape(-1, 1).float()], 1)
+    res = Results(np.zeros((grid.height, grid.width, 3), np.uint8), "f0.png", ds.data["names"], obb=table)
+    recs = obb_records("f0", res.obb)
+    return [r["category_id"] for r in recs], [grid.to_metres(np.array(r["corners_px"])) for r in recs]
+
+
+def test_labels_through_ultralytics_come_back_as_the_boxes(tmp_path):
+    """GT footprints → fogsim's OBB label lines → Ultralytics' loader (minimum-area rectangles, its angle range
+    [−π/4, 3π/4), the longer side as w) → a ``Results.obb`` → fogsim's prediction records → metres: each box
+    comes back with exact IoU > 0.999 and, scored as predictions, AP 1 at KITTI's 0.7 / 0.5. With Ultralytics'
+    left–right flip on, every box comes back mirrored (y → −y: the grid is symmetric about the car's axis)."""
+    from fogsim.detection.bev.boxes import rotated_iou, yaw_box
+    from fogsim.detection.bev.evaluate import evaluate_level
+    from fogsim.detection.bev.grid import BevGrid
+    from test_bev import ROUND_TRIP
+
+    pytest.importorskip("ultralytics")
+    grid = BevGrid.for_image(320)
+    boxes = [(c, yaw_box(x, y, ln, w, yaw)) for c, x, y, ln, w, yaw in ROUND_TRIP]
+    cls, back = ultralytics_round_trip(grid, boxes, tmp_path / "plain")
+    assert sorted(cls) == sorted(c for c, _ in boxes)
+    for c, gt in boxes:  # Ultralytics keeps the label file's order
+        best = max(rotated_iou(b, gt) for k, b in zip(cls, back) if k == c)
+        assert best > 0.999
+    names = ("car", "pedestrian", "cyclist")
+    truth = [{"id": "f0", "frame": "f0", "split": "val", "dontcare": [], "ground_z": -1.7, "image_size": [1, 1],
+              "projection": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0]],
+              "objects": [{"class": names[c], "scored": True, "difficulty": 1, "kitti_type": names[c],
+                           "corners_m": gt.tolist(), "distance_m": 10.0, "points": {"L": 50}} for c, gt in boxes]}]
+    dets = [{"image_id": "f0", "category_id": k, "score": 0.9, "corners_m": b.tolist()} for k, b in zip(cls, back)]
+    cell = evaluate_level(truth, dets, "L")
+    assert cell["ap"] == pytest.approx(1.0) and cell["recall_max"] == 1.0
+    _, flipped = ultralytics_round_trip(grid, boxes, tmp_path / "flip",
+                                        {"fliplr": 1.0, "scale": 0.0, "translate": 0.0, "degrees": 0.0})
+    for _, gt in boxes:
+        assert max(rotated_iou(b, gt * [1, -1]) for b in flipped) > 0.999
+
+
+def test_the_study_s_augmentation_keeps_a_cell_a_cell(tmp_path):
+    """Through Ultralytics' training augmentation with the BEV study's overrides (translation and flips on),
+    every box that stays clear of the image's edges keeps its size in pixels — so in metres: the cell is a
+    fixed length and a car is as long in every raster. Ultralytics' default zoom (scale 0.5) would not."""
+    import random
+
+    from fogsim.detection.bev.boxes import yaw_box
+    from fogsim.detection.bev.grid import BevGrid
+    from fogsim.detection.bev.study import AUGMENT
+    from test_bev import ROUND_TRIP
+
+    pytest.importorskip("ultralytics")
+    grid = BevGrid.for_image(320)
+    boxes = [(c, yaw_box(x, y, ln, w, yaw)) for c, x, y, ln, w, yaw in ROUND_TRIP]
+
+    def sides(corners):
+        return sorted(np.linalg.norm(np.roll(corners, -1, 0)[:2] - corners[:2], axis=1))
+
+    want = sorted(sides(b) for _, b in boxes)
+    for seed, hyp in enumerate(({**AUGMENT, "translate": 0.1, "fliplr": 0.5}, {"scale": 0.5})):
+        kept = []
+        for k in range(4):
+            random.seed(10 * seed + k)
+            np.random.seed(10 * seed + k)
+            _, back = ultralytics_round_trip(grid, boxes, tmp_path / f"aug{seed}_{k}", hyp)
+            uv = [grid.to_pixels(b) for b in back]
+            kept += [sides(b) for b, p in zip(back, uv) if p.min() > 1 and p[:, 0].max() < grid.width - 1
+                     and p[:, 1].max() < grid.height - 1]
+        assert len(kept) >= 20
+        same = all(min(np.abs(np.subtract(s, w)).max() for w in want) < 0.02 for s in kept)  # 2 cm
+        assert same == (seed == 0)
+
+
 @pytest.mark.slow
 def test_the_fogged_kitti_route_end_to_end(street_fog, tmp_path, capsys):
     out = tmp_path / "study"

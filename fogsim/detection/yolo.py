@@ -310,10 +310,15 @@ def predict_obb(weights: Path, images: list[tuple[str, Path]], cfg: TrainConfig,
             results = model.predict(arrays, imgsz=cfg.imgsz, conf=conf, iou=iou, max_det=max_det, device=device,
                                     verbose=False, stream=True)
             for (image_id, _), res in zip(batch, results):
-                obb = res.obb
-                if obb is None:
+                if res.obb is None:
                     raise FogsimError(f"{weights} is not an oriented-box (OBB) model")
-                for corners, score, cls in zip(obb.xyxyxyxy.tolist(), obb.conf.tolist(), obb.cls.tolist()):
-                    out.append({"image_id": image_id, "category_id": int(cls), "score": round(float(score), 5),
-                                "corners_px": [[round(u, 3), round(v, 3)] for u, v in corners]})
+                out += obb_records(image_id, res.obb)
     return out
+
+
+def obb_records(image_id: str, obb) -> list[dict]:
+    """One image's oriented boxes (an Ultralytics ``Results.obb``) as :func:`predict_obb`'s records: the four
+    corners in pixels of the image (edges: Ultralytics' coordinates), ``category_id`` the YOLO class."""
+    return [{"image_id": image_id, "category_id": int(cls), "score": round(float(score), 5),
+             "corners_px": [[round(u, 3), round(v, 3)] for u, v in corners]}
+            for corners, score, cls in zip(obb.xyxyxyxy.tolist(), obb.conf.tolist(), obb.cls.tolist())]
