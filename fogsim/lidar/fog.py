@@ -71,9 +71,10 @@ Outcomes (per input point, :data:`OUTCOMES`):
   firing (it has rings and placeholder rows at ≈ 0 m: nuScenes) keeps one row per firing: there a lost
   return becomes a placeholder row (x y z 0, intensity 0, its ring) and ``output_index`` names it.
 * ``clutter`` — the fog echo is reported instead: a point on the same ray at r_f + noise (a sensor whose
-  lasers sit off its axis, ``vertical_offsets_m``: on the laser's own line, r_f + noise from the laser), with the
-  intensity the sensor gives an echo of that strength at that range (its calibrated value, without the
-  fluctuation: ρ_app = q_f·ρ_ref·(r_f/R_max)²/ξ(r_f)); for a no-return row, on its ray (step 8).
+  lasers sit off its axis, ``vertical_offsets_m``: on the laser's own line, r_f + noise from the laser:
+  :mod:`fogsim.lidar.laser_line`), with the intensity the sensor gives an echo of that strength at that range
+  (its calibrated value, without the fluctuation: ρ_app = q_f·ρ_ref·(r_f/R_max)²/ξ(r_f)); for a no-return
+  row, on its ray (step 8).
 * ``no-return`` — a no-return row (step 8) that still returns nothing: written exactly as it was.
 
 Every input row has one outcome (the counts sum to the input's rows); ``FoggedScan.no_returns`` counts the
@@ -81,11 +82,11 @@ input's no-return rows and ``no_return_clutter`` those of them that became clutt
 ``no-return`` + ``no_return_clutter``); rows out = rows in − ``lost`` + ``empty_ray_clutter`` (a scan that
 stores every firing: rows in + ``empty_ray_clutter``).
 
-The fogged scan holds the reported points in input order (``index`` still names the input row; ring and
-return index carried over), then the empty rays' clutter points (``index`` :data:`EMPTY_RAY_INDEX` = −1,
-their ring, return index 1), intensities in the source's own scale; ``FoggedScan.empty_ray_clutter``
-counts them. β = 0 gives the input back bit for bit. The same scan stored 0–1 or 0–255 gives the same
-outcomes (the physics reads normalised intensities).
+The fogged scan (:mod:`fogsim.lidar.fogged_scan`) holds the reported points in input order (``index`` still
+names the input row; ring and return index carried over), then the empty rays' clutter points (``index``
+:data:`EMPTY_RAY_INDEX` = −1, their ring, return index 1), intensities in the source's own scale;
+``FoggedScan.empty_ray_clutter`` counts them. β = 0 gives the input back bit for bit. The same scan stored
+0–1 or 0–255 gives the same outcomes (the physics reads normalised intensities).
 
 Heterogeneous fog: β may be an array (one visible β per point: the mean extinction along that point's
 ray, as the camera path's density field gives per pixel); the fog echo is then computed per point
@@ -100,12 +101,13 @@ to all its pulses, is folded into σ); fog levels drawn from different Generator
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
+from fogsim.lidar.fogged_scan import FoggedScan, assemble, clear_level
+from fogsim.lidar.laser_line import LaserLines
 from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, EMPTY_RAY_INDEX, KEPT, LOST, NO_RETURN, OUTCOMES
-from fogsim.lidar.points import PointCloud, nearest_offset_beams
+from fogsim.lidar.points import PointCloud
 from fogsim.lidar.rays import PLACEHOLDER_M, EmptyRays, no_returns
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor, load_sensor
@@ -148,39 +150,6 @@ def checked_beta(beta, n: int, item: str = "point") -> float | np.ndarray:
     return float(b[0]) if n and (b == b[0]).all() else b
 
 
-@dataclass(frozen=True, eq=False)
-class FoggedScan:
-    """One fog level of a scan: ``cloud`` (what the sensor reports: the reported input points in input
-    order, then the empty rays' clutter points, ``index`` :data:`EMPTY_RAY_INDEX`), per input point
-    ``outcome`` (int8, :data:`OUTCOMES`) and ``output_index`` (int64, its row in ``cloud``, −1 when lost),
-    the ``parameters`` that made it, ``empty_rays`` (how many were given), ``empty_ray_clutter`` (how
-    many of them became clutter points), ``added_points`` (the points the model added after those:
-    stf2020's random scatter), ``no_returns`` (the input's no-return rows) and ``no_return_clutter`` (how
-    many of those became the fog echo's clutter, in place) (:meth:`record`)."""
-
-    cloud: PointCloud
-    outcome: np.ndarray
-    output_index: np.ndarray
-    parameters: dict = field(default_factory=dict)
-    empty_rays: int = 0
-    empty_ray_clutter: int = 0
-    added_points: int = 0
-    no_returns: int = 0
-    no_return_clutter: int = 0
-
-    def counts(self) -> dict[str, int]:
-        """Points per outcome."""
-        got = np.bincount(self.outcome, minlength=len(OUTCOMES))
-        return {name: int(got[k]) for k, name in enumerate(OUTCOMES)}
-
-    def record(self) -> dict:
-        """The parameters and the counts per outcome (what a sidecar or a report stores)."""
-        return {**self.parameters, "points_in": int(len(self.outcome)), "points_out": int(len(self.cloud)),
-                "outcomes": self.counts(), "empty_rays": int(self.empty_rays),
-                "empty_ray_clutter": int(self.empty_ray_clutter), "added_points": int(self.added_points),
-                "no_returns": int(self.no_returns), "no_return_clutter": int(self.no_return_clutter)}
-
-
 class LidarFogger:
     """Fog one scan at many densities, sharing the work that does not depend on β (mirrors
     :class:`fogsim.fog.model.Fogger`)::
@@ -208,7 +177,7 @@ class LidarFogger:
         if empty_rays is not None and not isinstance(empty_rays, EmptyRays):
             empty_rays = EmptyRays(empty_rays)
         self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
-        self._laser = None  # each point's laser, found when first needed (a fog echo on the laser's line)
+        self._lines = None  # the points' laser lines (fogsim.lidar.laser_line), made when a fog echo needs them
         #: the scan's no-return rows (nearer than the sensor's minimum range: fogsim.lidar.rays.no_returns)
         self.blank = no_returns(scan, self.sensor) if (r < self.sensor.min_range_m).any() else None
         self.blank_mask = None
@@ -263,7 +232,7 @@ class LidarFogger:
         if self.published is not None:
             self.published.check(beta)
         if np.ndim(beta) == 0 and beta == 0:
-            return self._clear()
+            return clear_level(self, self.parameters(0.0))
         if rng is None:
             raise ValueError("fog with β > 0 draws range noise: pass a seeded numpy.random.Generator")
         if self.published is not None:
@@ -363,43 +332,20 @@ class LidarFogger:
                 placed.append((c[on_ray], blank.directions[where] * new_r[c[on_ray], None]))
             if s.vertical_offsets_m is not None:  # the echo lies on the laser's own line (its vertical offset)
                 hard_c = ~on_ray
-                placed.append((c[hard_c], self._on_laser_line(ic[hard_c], new_r[c[hard_c]])))
+                placed.append((c[hard_c], self._laser_lines().place(ic[hard_c], new_r[c[hard_c]])))
         if gone is not None:
             norm_out[gone], raw_out[gone] = 0.0, 0.0
         outcome = np.full(n, LOST, np.int8)
         outcome[pick] = oc
         extra = self._empty_ray_clutter(beta, rng, e)
-        return self._assemble(idx, pick, oc, new_r, norm_out, raw_out, outcome, self.parameters(beta, e), extra,
+        return assemble(self, idx, pick, oc, new_r, norm_out, raw_out, outcome, self.parameters(beta, e), extra,
                               placed)
 
-    def _on_laser_line(self, rows, r):
-        """Points at range ``r`` from their laser along the laser's line through input points ``rows`` (a sensor
-        with vertical offsets). A point's laser k — its ring, else the one whose line passes nearest
-        (:func:`~fogsim.lidar.points.nearest_offset_beams`) — is found once, when a fog echo first needs it. Its
-        origin o = h_k·(−sin θ_k·x/ρ, −sin θ_k·y/ρ, cos θ_k) is ⊥ the line and the point lies t = √(R² − h_k²)
-        along it: q = o + (p − o)·r/t, i.e. x, y scaled by f − h_k sin θ_k (1 − f)/ρ and z = z·f + h_k cos θ_k (1 − f),
-        f = r/t."""
-        s = self.sensor
-        if self._laser is None:  # per point, −1 until found; per laser h sin θ, h cos θ, h²
-            h, theta = np.asarray(s.vertical_offsets_m, np.float64), s.inclinations_rad
-            self._laser = np.full(len(self.scan), -1, np.int16), (h * np.sin(theta), h * np.cos(theta), h * h)
-        laser, (hs, hc, hh) = self._laser
-        k = laser[rows]
-        unknown = k < 0
-        if unknown.any():
-            u, ring = rows[unknown], self.scan.ring
-            k[unknown] = ring[u] if ring is not None and int(ring.max()) < s.beams else \
-                nearest_offset_beams(self.scan.xyz[u], s.inclinations_rad, np.asarray(s.vertical_offsets_m))
-            laser[u] = k[unknown]
-        p, rr = self.scan.xyz[rows].astype(np.float64), self.range_m[rows]
-        f = r / np.sqrt(np.maximum(rr * rr - hh[k], 1e-12))
-        rest = 1.0 - f
-        g = f - hs[k] * rest / np.maximum(np.hypot(p[:, 0], p[:, 1]), 1e-9)
-        p[:, 0] *= g
-        p[:, 1] *= g
-        p[:, 2] *= f
-        p[:, 2] += hc[k] * rest
-        return p
+    def _laser_lines(self) -> LaserLines:
+        """The scan's laser lines (a sensor with vertical offsets: a fog echo lies on its laser's own line)."""
+        if self._lines is None:
+            self._lines = LaserLines(self.scan, self.sensor, self.range_m)
+        return self._lines
 
     def _echo_range(self, rf, wf, qc, z, limit):
         """Where a detected fog echo is reported: r_f + σ_c·z, σ_c² = σ₀² + (σ₁·(w_f/(L/2))/q_c)², kept
@@ -443,77 +389,6 @@ class LidarFogger:
         if self.empty.origins is not None:  # each ray from its laser
             xyz += self.empty.origins[rows]
         return rows, (xyz, norm, raw)
-
-    def _assemble(self, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameters: dict, extra=None,
-                  placed=None, added=None) -> FoggedScan:
-        """The fogged cloud of the reported rows ``idx`` (outcomes ``oc``): kept and no-return rows bit for
-        bit (their factor R'/R is exactly 1), the others moved along their ray and given their new intensity
-        (``placed``: [(positions among them, xyz)] of rows placed otherwise: a no-return row's clutter on its
-        ray, a lost firing's placeholder at 0); then the empty rays' clutter points (``extra``: their rows and
-        (xyz, normalised, raw)), index −1; then the points the model adds (``added``: (xyz, normalised, raw,
-        the input rows whose ring and return index they carry)), index −1. ``new_r`` is overwritten."""
-        scan = self.scan
-        every = isinstance(pick, slice)  # every row reported: no gathers
-        base = scan.xyz if every else np.take(scan.xyz, idx, axis=0)
-        factor = np.divide(new_r, self.range_m[pick], out=new_r)  # (new_r is the caller's scratch)
-        xyz = np.empty(base.shape, np.float32)
-        for k in range(3):  # column by column (numpy broadcasts over a last axis of 3 slowly), in float64
-            np.multiply(base[:, k], factor, out=xyz[:, k])
-        for where, at in placed or ():
-            xyz[where] = at
-        moved = (oc != KEPT) & (oc != NO_RETURN)
-        inten, raw = (scan.intensity.copy(), scan.raw_intensity.copy()) if every else \
-            (scan.intensity[idx], scan.raw_intensity[idx])
-        np.copyto(inten, norm_out, where=moved)
-        np.copyto(raw, raw_out, where=moved)
-
-        def take(a):
-            return None if a is None else a.copy() if every else a[idx]
-        ring, ret, index = take(scan.ring), take(scan.return_index), take(scan.index)
-        rows = np.zeros(0, np.int64) if extra is None else extra[0]
-        if len(rows):
-            exyz, enorm, eraw = extra[1]
-            xyz = np.concatenate([xyz, exyz])
-            inten, raw = np.concatenate([inten, enorm]), np.concatenate([raw, eraw])
-            index = np.concatenate([index, np.full(len(rows), EMPTY_RAY_INDEX, np.int64)])
-            if ring is not None:
-                er = self.empty.ring
-                ring = np.concatenate([ring, (np.zeros(len(rows), np.int16) if er is None else er[rows])])
-            if ret is not None:
-                ret = np.concatenate([ret, np.ones(len(rows), ret.dtype)])
-        n_added = 0 if added is None else len(added[0])
-        if n_added:
-            axyz, anorm, araw, src = added
-            xyz = np.concatenate([xyz, axyz])
-            inten, raw = np.concatenate([inten, anorm]), np.concatenate([raw, araw])
-            index = np.concatenate([index, np.full(n_added, EMPTY_RAY_INDEX, np.int64)])
-            ring = None if ring is None else np.concatenate([ring, scan.ring[src]])
-            ret = None if ret is None else np.concatenate([ret, scan.return_index[src]])
-        f32 = {"dtype": np.float32, "copy": False}
-        cloud = PointCloud(xyz.astype(**f32), inten.astype(**f32), raw.astype(**f32), scan.scale, index, scan.source,
-                           ring, ret)
-        if every:
-            out_index = np.arange(len(outcome), dtype=np.int64)
-        else:
-            out_index = np.full(len(outcome), -1, np.int64)  # (a lost firing's placeholder row: its row)
-            out_index[idx] = np.arange(len(idx))
-        blank = 0 if self.blank is None else len(self.blank)
-        return FoggedScan(cloud, outcome, out_index, parameters, 0 if self.empty is None else len(self.empty),
-                          int(len(rows)), n_added, blank, blank - int((outcome == NO_RETURN).sum()))
-
-    def _clear(self) -> FoggedScan:
-        s = self.scan
-        copy = PointCloud(s.xyz.copy(), s.intensity.copy(), s.raw_intensity.copy(), s.scale, s.index.copy(), s.source,
-                          None if s.ring is None else s.ring.copy(),
-                          None if s.return_index is None else s.return_index.copy())
-        n = len(s)
-        outcome = np.full(n, KEPT, np.int8)
-        if self.blank is not None:
-            outcome[self.blank.rows] = NO_RETURN
-        return FoggedScan(copy, outcome, np.arange(n, dtype=np.int64), self.parameters(0.0),
-                          0 if self.empty is None else len(self.empty), 0, 0,
-                          0 if self.blank is None else len(self.blank))
-
 
 def fog_scan(scan: PointCloud, sensor, beta, rng: np.random.Generator | None = None,
              spec: LidarFogSpec | dict | None = None, empty_rays=None) -> FoggedScan:

@@ -48,6 +48,7 @@ import math
 
 import numpy as np
 
+from fogsim.lidar.fogged_scan import assemble
 from fogsim.lidar.hahner import HahnerParameters, fog_peak, open_fog_response
 from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, NO_RETURN
 
@@ -73,8 +74,9 @@ def backscatter(alpha: float, variant: str = "batch", p: HahnerParameters = Hahn
 
 
 class Model:
-    """hahner2021 on a :class:`~fogsim.lidar.fog.LidarFogger`'s scan (``owner``: its scan, spec, scale and
-    assembly); ``model(β, rng)`` one level (β > 0, one per scan)."""
+    """hahner2021 on a :class:`~fogsim.lidar.fog.LidarFogger`'s scan (``owner``: its scan, spec, scale and no-return
+    rows; the level assembled by :func:`fogsim.lidar.fogged_scan.assemble`); ``model(β, rng)`` one level (β > 0,
+    one per scan)."""
 
     def __init__(self, owner):
         self.owner = owner
@@ -128,5 +130,5 @@ class Model:
         if owner.blank_mask is not None:
             outcome[owner.blank_mask] = NO_RETURN  # written as it was
         n = len(outcome)
-        return owner._assemble(np.arange(n), slice(None), outcome, new_r, norm, raw, outcome.copy(),
-                               owner.parameters(beta))
+        return assemble(owner, np.arange(n), slice(None), outcome, new_r, norm, raw, outcome.copy(),
+                        owner.parameters(beta))
