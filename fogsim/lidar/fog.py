@@ -101,17 +101,18 @@ to all its pulses, is folded into σ); fog levels drawn from different Generator
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from fogsim.lidar.fogged_scan import FoggedScan, assemble, clear_level
+from fogsim.lidar.fogged_scan import FoggedScan, clear_level
 from fogsim.lidar.laser_line import LaserLines
 from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, EMPTY_RAY_INDEX, KEPT, LOST, NO_RETURN, OUTCOMES
 from fogsim.lidar.points import PointCloud
 from fogsim.lidar.rays import PLACEHOLDER_M, EmptyRays, no_returns
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor, load_sensor
-from fogsim.lidar.soft_target import backscatter_coefficient, echo_per_point, fog_echo
+from fogsim.lidar.soft_target import FogEcho, backscatter_coefficient, echo_per_point, fog_echo
 from fogsim.schema.base import check
 from fogsim.schema.lidar import LidarFogSpec
 
@@ -122,6 +123,14 @@ __all__ = ["ATTENUATED", "checked_beta", "CLUTTER", "EMPTY_RAY_INDEX", "fog_scan
 MIN_REPORTED_M = 0.01
 #: the published models, each in its own module (imported when chosen)
 PUBLISHED_MODELS = ("hahner2021", "stf2020")
+#: input points per block of a level's pass: its temporaries (64 KiB a float64 column) stay in the cache and in
+#: the allocator's free lists, so a level takes no fresh memory but its draws and output (docs/lidar-fog.md#speed)
+BLOCK = 8192
+
+
+def _blocks(n: int):
+    """Slices of :data:`BLOCK` rows covering 0 … n − 1."""
+    return (slice(start, min(start + BLOCK, n)) for start in range(0, n, BLOCK))
 
 
 def lidar_fog_spec(spec: LidarFogSpec | dict | None = None) -> LidarFogSpec:
@@ -150,6 +159,33 @@ def checked_beta(beta, n: int, item: str = "point") -> float | np.ndarray:
     return float(b[0]) if n and (b == b[0]).all() else b
 
 
+@dataclass(eq=False)
+class _Level:
+    """One level in progress (:meth:`LidarFogger.__call__`): β, its draws (z, σ·ln g_h, σ·ln g_f per input point),
+    ``coef`` −2·β₉₀₅ (1/m: ln of the two-way transmission per metre), ``e`` the scalar β's fog echo, ``echo`` its
+    (q_f, r_f, w_f) when detectable (scalars, or one each per point), ``extra`` the empty rays' clutter; the output
+    arrays (``xyz``, ``intensity``, ``raw``: the reported rows then the empty rays' clutter; per input row
+    ``outcome`` and ``reported``), the rows ``written`` so far and the fog echo's rows (``clutter``: output rows,
+    input rows, q_c) left to place."""
+
+    beta: float | np.ndarray
+    scalar: bool
+    z: np.ndarray
+    sh: np.ndarray
+    su: np.ndarray
+    coef: float | np.ndarray
+    e: FogEcho | None
+    echo: tuple | None
+    extra: tuple | None
+    xyz: np.ndarray
+    intensity: np.ndarray
+    raw: np.ndarray
+    outcome: np.ndarray
+    reported: np.ndarray
+    written: int = 0
+    clutter: list = field(default_factory=list)
+
+
 class LidarFogger:
     """Fog one scan at many densities, sharing the work that does not depend on β (mirrors
     :class:`fogsim.fog.model.Fogger`)::
@@ -173,17 +209,20 @@ class LidarFogger:
         r = scan.range_m
         self.range_m = np.maximum(r, 1e-6)
         self.normalised = scan.intensity.astype(np.float64)
-        self.linear = self.scale.to_linear(scan.intensity, scan.raw_intensity)
+        self.linear = self.scale.to_linear(self.normalised, scan.raw_intensity)  # (the same array when equal)
         if empty_rays is not None and not isinstance(empty_rays, EmptyRays):
             empty_rays = EmptyRays(empty_rays)
         self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
         self._lines = None  # the points' laser lines (fogsim.lidar.laser_line), made when a fog echo needs them
+        self._draws = None  # a level's draws, 3 × N float32 (allocated at the first level)
         #: the scan's no-return rows (nearer than the sensor's minimum range: fogsim.lidar.rays.no_returns)
         self.blank = no_returns(scan, self.sensor) if (r < self.sensor.min_range_m).any() else None
-        self.blank_mask = None
+        self.blank_mask = self.blank_open = None
         if self.blank is not None:
             self.blank_mask = np.zeros(len(scan), bool)
             self.blank_mask[self.blank.rows] = True
+            self.blank_open = np.zeros(len(scan), bool)  # the open ones (their ray known, nothing in front of it)
+            self.blank_open[self.blank.rows] = self.blank.open
         #: the scan stores every firing (it has rings and placeholder rows, nuScenes): a lost return keeps its row
         self.keeps_firings = bool(self.blank is not None and scan.ring is not None
                                   and (r[self.blank.rows] < PLACEHOLDER_M).any())
@@ -196,11 +235,21 @@ class LidarFogger:
         if self.spec.model in PUBLISHED_MODELS:
             self.published = Model(self)
             return
-        rho = np.maximum(self.sensor.reflectivity_of(self.linear, self.range_m), self.spec.reflectivity_floor)
-        self.reflectivity = rho
         #: ln of the modelled clear-air signal over the threshold, before the fluctuation (step 2)
+        self.log_signal = np.empty(len(scan))
         with np.errstate(divide="ignore"):
-            self.log_signal = np.log(self.sensor.clear_signal(rho, self.range_m))
+            for rows in _blocks(len(scan)):
+                self.log_signal[rows] = np.log(self.sensor.clear_signal(self._reflectivity(rows), self.range_m[rows]))
+
+    def _reflectivity(self, rows=slice(None)) -> np.ndarray:
+        """ρ of the input ``rows`` (step 1)."""
+        rho = self.sensor.reflectivity_of(self.linear[rows], self.range_m[rows])
+        return np.maximum(rho, self.spec.reflectivity_floor)
+
+    @property
+    def reflectivity(self) -> np.ndarray:
+        """ρ per input point (step 1)."""
+        return self._reflectivity()
 
     # ------------------------------------------------------------------ the parameters
     def parameters(self, beta, echo=None) -> dict:
@@ -237,109 +286,185 @@ class LidarFogger:
             raise ValueError("fog with β > 0 draws range noise: pass a seeded numpy.random.Generator")
         if self.published is not None:
             return self.published(beta, rng)
-        sg = self.sensor.fluctuation_sigma
-        z = rng.standard_normal(n, np.float32)  # the draws, in this order (input points): range noise,
-        sh = sg * rng.standard_normal(n, np.float32)  # ln g_h, the hard return's fluctuation,
-        su = sg * rng.standard_normal(n, np.float32)  # ln g_f, the fog echo's; then the empty rays'
-        r, s, scalar = self.range_m, self.sensor, np.ndim(beta) == 0
-        log_clear = np.abs(sh, dtype=np.float64)  # ln q0 = max(ln q + ln g_h, σ + |ln g_h|) (step 2)
-        log_clear += sg
-        np.maximum(log_clear, self.log_signal + sh, out=log_clear)
-        nb = r * (-2.0 * self.spec.extinction_ratio * beta)  # ln of the two-way transmission
-        t2 = np.exp(nb)
-        log_qh = log_clear + nb
-        hard = log_qh >= 0.0
-        blank = self.blank
-        if blank is not None:
-            hard[blank.rows] = False  # a no-return row has no hard return (step 8)
-        half_pulse = 0.5 * s.pulse_length_m
-        e = qf = rf = wf = None
-        clutter = None
+        level = self._level(beta, rng)
+        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):  # ln 0 (step 4), e^(4β₉₀₅R) (step 6)
+            for rows in _blocks(n):
+                self._block(level, rows)
+        return self._finish(level)
+
+    def _level(self, beta, rng: np.random.Generator) -> _Level:
+        """One level's draws (the module docstring's order), fog echo, empty-ray clutter and output arrays."""
+        s, n, sg = self.sensor, len(self.scan), self.sensor.fluctuation_sigma
+        if self._draws is None:  # this fogger's draw buffers, reused level after level (one call at a time)
+            self._draws = np.empty((3, n), np.float32)
+        z, sh, su = self._draws
+        rng.standard_normal(dtype=np.float32, out=z)  # range noise,
+        rng.standard_normal(dtype=np.float32, out=sh)  # ln g_h, the hard return's fluctuation,
+        sh *= sg
+        rng.standard_normal(dtype=np.float32, out=su)  # ln g_f, the fog echo's; then the empty rays'
+        su *= sg
+        scalar, e, echo = np.ndim(beta) == 0, None, None
         if self.spec.model == "soft-target":
             if scalar:
                 e = fog_echo(s, beta, self.spec)
-                qf, rf, wf = e.signal, e.range_m, e.width_m
-                if rf >= s.min_range_m and qf > 0:
-                    log_qc = np.add(su, math.log(qf), dtype=np.float64)  # ln(q_f·g_f·w), w: step 4
-                    near = r < rf + half_pulse
-                    if near.any():
-                        with np.errstate(divide="ignore"):
-                            log_qc[near] += np.log(np.clip((r[near] - rf) / half_pulse, 0.0, 1.0))
-                    if blank is not None:  # an open no-return ray sees the whole echo, a blocked one none
-                        log_qc[blank.rows] = np.where(blank.open, np.add(su[blank.rows], math.log(qf),
-                                                                         dtype=np.float64), -np.inf)
-                    reported_hard = hard & (log_qh >= log_qc) if self.mode == "strongest" else hard
-                    clutter = (log_qc >= 0.0) & ~reported_hard
+                if e.range_m >= s.min_range_m and e.signal > 0:
+                    echo = e.signal, e.range_m, e.width_m
             else:
-                qf, rf, wf = echo_per_point(s, beta, self.spec)
+                echo = echo_per_point(s, beta, self.spec)
+        extra = self._empty_ray_clutter(beta, rng, e)
+        rows = 0 if extra is None or extra[1] is None else len(extra[0])
+        return _Level(beta, scalar, z, sh, su, -2.0 * self.spec.extinction_ratio * beta, e, echo, extra,
+                      np.empty((n + rows, 3), np.float32), np.empty(n + rows, np.float32),
+                      np.empty(n + rows, np.float32), np.empty(n, np.int8), np.empty(n, bool))
+
+    def _block(self, level: _Level, rows: slice) -> None:
+        """Steps 0–8 for the input ``rows`` (the module docstring): their outcomes, and the rows they report written
+        at the level's next output rows (a fog echo's position and intensity are left to :meth:`_finish`)."""
+        s, sg, lv = self.sensor, self.sensor.fluctuation_sigma, level
+        r, sh, su = self.range_m[rows], lv.sh[rows], lv.su[rows]
+        log_clear = np.abs(sh, dtype=np.float64)  # ln q0 = max(ln q + ln g_h, σ + |ln g_h|) (step 2)
+        log_clear += sg
+        np.maximum(log_clear, self.log_signal[rows] + sh, out=log_clear)
+        nb = r * (lv.coef if lv.scalar else lv.coef[rows])  # ln of the two-way transmission
+        log_qh = log_clear + nb
+        hard = log_qh >= 0.0
+        blank = None if self.blank_mask is None else self.blank_mask[rows]
+        if blank is not None:
+            hard &= ~blank  # a no-return row has no hard return (step 8)
+        reported_hard, clutter = hard, None
+        if lv.echo is not None:
+            qf, rf, wf = lv.echo
+            half_pulse = 0.5 * s.pulse_length_m
+            if lv.scalar:
+                q = np.add(su, math.log(qf), dtype=np.float64)  # ln q_c = ln(q_f·g_f·w), w: step 4
+                near = r < rf + half_pulse
+                if near.any():
+                    q[near] += np.log(np.clip((r[near] - rf) / half_pulse, 0.0, 1.0))
+                if blank is not None and blank.any():  # an open no-return ray sees the whole echo, a blocked one none
+                    q[blank] = np.where(self.blank_open[rows][blank], np.add(su[blank], math.log(qf), dtype=np.float64),
+                                        -np.inf)
+                if self.mode == "strongest":
+                    reported_hard = hard & (log_qh >= q)
+                clutter = (q >= 0.0) & ~reported_hard
+            else:
+                qf, rf = qf[rows], rf[rows]
                 w = np.clip((r - rf) / half_pulse, 0.0, 1.0) * (rf >= s.min_range_m)
                 if blank is not None:
-                    w[blank.rows] = blank.open
-                qc = qf * np.exp(su) * w
-                reported_hard = hard & (np.exp(log_qh) >= qc) if self.mode == "strongest" else hard
-                clutter = (qc >= 1.0) & ~reported_hard
-        if clutter is None:
-            reported_hard, clutter = hard, None
-        # the reported points, in input order, and what fog did to each
+                    w[blank] = self.blank_open[rows][blank]
+                q = qf * np.exp(su) * w  # q_c
+                if self.mode == "strongest":
+                    reported_hard = hard & (np.exp(log_qh) >= q)
+                clutter = (q >= 1.0) & ~reported_hard
+        # the reported rows, in input order, and what fog did to each
         reported = reported_hard if clutter is None else reported_hard | clutter
         gone = None
         if self.keeps_firings:  # one row per firing: a lost return becomes a no-return placeholder row
-            gone = ~(reported | self.blank_mask)
-            reported = np.ones(n, bool)
+            gone = ~(reported | blank)
+            reported = np.ones(len(r), bool)
         elif blank is not None:
-            reported = reported | self.blank_mask  # a no-return row stays a row: clutter or as it was
+            reported = reported | blank  # a no-return row stays a row: clutter or as it was
+        lv.reported[rows] = reported
         every = bool(reported.all())  # every row reported (the common case): views, no gathers
-        idx = None if every else np.flatnonzero(reported)
-        pick = slice(None) if every else idx
-        rh = reported_hard[pick]
-        t2i, ri, zi = t2[pick], r[pick], z[pick]
-        norm_out, raw_out = self.scale.from_linear(self.linear[pick] * t2i)
-        kept = rh & (self.normalised[pick] - norm_out < self.spec.kept_tolerance)
-        oc = np.full(len(rh), CLUTTER, np.int8)
-        oc[rh] = ATTENUATED
-        oc[kept] = KEPT
+        pick = slice(None) if every else np.flatnonzero(reported)
+        rh, ri, zi = reported_hard[pick], r[pick], lv.z[rows][pick]
+        nbi = nb[pick]
+        norm, raw = self.scale.from_linear(self.linear[rows][pick] * np.exp(nbi))
+        kept = rh & (self.normalised[rows][pick] - norm < self.spec.kept_tolerance)
+        outcome = lv.outcome[rows]
+        oc = outcome if every else np.empty(len(rh), np.int8)  # the reported rows' outcomes
+        oc.fill(CLUTTER)
+        np.copyto(oc, ATTENUATED, where=rh)
+        np.copyto(oc, KEPT, where=kept)
         stay = None
         if blank is not None:  # no-return rows that did not become the fog echo's clutter stay as they were
-            stay = self.blank_mask[pick] if clutter is None else self.blank_mask[pick] & ~clutter[pick]
+            stay = blank[pick] if clutter is None else blank[pick] & ~clutter[pick]
             oc[stay] = NO_RETURN
-        placed = []
-        if gone is not None and gone.any():
+        if gone is not None:
             oc[gone] = LOST  # (every row is picked)
-            placed.append((np.flatnonzero(gone), np.zeros((int(gone.sum()), 3))))
-        with np.errstate(over="ignore", invalid="ignore"):  # σ₁·√(1/q_h² − 1/q0²) = σ₁/q0·√(e^(4β₉₀₅R) − 1)
-            sigma = np.expm1(-2.0 * nb[pick])
-            np.sqrt(sigma, out=sigma)
-            sigma *= np.exp(-log_clear[pick])
-            sigma *= s.range_noise_at_threshold_m
-            sigma *= zi
-            sigma += ri
-            np.maximum(sigma, MIN_REPORTED_M, out=sigma)
-        new_r = sigma  # a kept point's range as it was (bit for bit)
-        np.copyto(new_r, ri, where=kept)
+            norm[gone], raw[gone] = 0.0, 0.0
+        if not every:
+            outcome.fill(LOST)
+            outcome[pick] = oc
+        new_r = np.expm1(-2.0 * nbi)  # σ₁·√(1/q_h² − 1/q0²) = σ₁/q0·√(e^(4β₉₀₅R) − 1)
+        np.sqrt(new_r, out=new_r)
+        new_r *= np.exp(-log_clear[pick])
+        new_r *= s.range_noise_at_threshold_m
+        new_r *= zi
+        new_r += ri
+        np.maximum(new_r, MIN_REPORTED_M, out=new_r)
+        np.copyto(new_r, ri, where=kept)  # a kept point's range as it was (bit for bit)
         if stay is not None:
             new_r[stay] = ri[stay]
-        if clutter is not None and not rh.all():
-            c = np.flatnonzero(oc == CLUTTER)
-            ic = c if every else idx[c]
-            qcc = np.exp(log_qc[ic]) if scalar else qc[ic]
-            rfc, wfc, qfc = (rf, wf, qf) if scalar else (rf[ic], wf[ic], qf[ic])
-            limit = ri[c] if blank is None else np.where(self.blank_mask[ic], np.inf, ri[c])
-            new_r[c] = self._echo_range(rfc, wfc, qcc, zi[c], limit)
-            norm_out[c], raw_out[c] = self._echo_intensity(qfc, rfc)  # (one value for one β)
-            on_ray = np.zeros(len(c), bool) if blank is None else self.blank_mask[ic]
-            if blank is not None:  # a no-return row's clutter point: on its ray, not along its (void) position
-                where = np.searchsorted(blank.rows, ic[on_ray])
-                placed.append((c[on_ray], blank.directions[where] * new_r[c[on_ray], None]))
-            if s.vertical_offsets_m is not None:  # the echo lies on the laser's own line (its vertical offset)
-                hard_c = ~on_ray
-                placed.append((c[hard_c], self._laser_lines().place(ic[hard_c], new_r[c[hard_c]])))
+        # written at the next output rows: kept and no-return rows bit for bit (their factor R'/R is exactly 1)
+        at = lv.written
+        lv.written += len(rh)
+        xyz, base = lv.xyz[at:lv.written], self.scan.xyz[rows][pick]
+        factor = np.divide(new_r, ri, out=new_r)
+        for k in range(3):  # column by column (numpy broadcasts over a last axis of 3 slowly), in float64
+            np.multiply(base[:, k], factor, out=xyz[:, k])
         if gone is not None:
-            norm_out[gone], raw_out[gone] = 0.0, 0.0
-        outcome = np.full(n, LOST, np.int8)
-        outcome[pick] = oc
-        extra = self._empty_ray_clutter(beta, rng, e)
-        return assemble(self, idx, pick, oc, new_r, norm_out, raw_out, outcome, self.parameters(beta, e), extra,
-                              placed)
+            xyz[gone] = 0.0
+        moved = (oc != KEPT) & (oc != NO_RETURN)
+        for out, clear, fogged in ((lv.intensity, self.scan.intensity, norm), (lv.raw, self.scan.raw_intensity, raw)):
+            out = out[at:lv.written]
+            out[:] = clear[rows][pick]
+            np.copyto(out, fogged, where=moved)
+        if clutter is not None:  # the fog echo's rows: their output rows, input rows and q_c
+            c = np.flatnonzero(clutter[pick])  # (= oc == CLUTTER)
+            if len(c):
+                i = c if every else pick[c]
+                lv.clutter.append((at + c, rows.start + i, np.exp(q[i]) if lv.scalar else q[i]))
+
+    def _finish(self, level: _Level) -> FoggedScan:
+        """The level's fog-echo rows (their range, intensity and place), then the empty rays' clutter points
+        (``index`` :data:`EMPTY_RAY_INDEX`), and the :class:`FoggedScan`."""
+        s, scan, lv, n = self.sensor, self.scan, level, len(self.scan)
+        if lv.clutter:
+            at, ic, qc = (np.concatenate(a) for a in zip(*lv.clutter))
+            qf, rf, wf = lv.echo
+            if not lv.scalar:
+                qf, rf, wf = qf[ic], rf[ic], wf[ic]
+            ri = self.range_m[ic]
+            on_ray = np.zeros(len(ic), bool) if self.blank is None else self.blank_mask[ic]
+            new_r = self._echo_range(rf, wf, qc, lv.z[ic], np.where(on_ray, np.inf, ri))
+            lv.intensity[at], lv.raw[at] = self._echo_intensity(qf, rf)  # (one value for one β)
+            if self.blank is not None:  # a no-return row's clutter point: on its ray, not along its (void) position
+                where = np.searchsorted(self.blank.rows, ic[on_ray])
+                lv.xyz[at[on_ray]] = self.blank.directions[where] * new_r[on_ray, None]
+            hard = ~on_ray
+            if s.vertical_offsets_m is not None:  # the echo lies on the laser's own line (its vertical offset)
+                lv.xyz[at[hard]] = self._laser_lines().place(ic[hard], new_r[hard])
+            else:  # on the input point's ray
+                lv.xyz[at[hard]] = scan.xyz[ic[hard]] * (new_r[hard] / ri[hard])[:, None]
+        m, every = lv.written, lv.written == n
+        rows = np.zeros(0, np.int64) if lv.extra is None else lv.extra[0]
+        end = m + len(rows)
+        if len(rows):
+            lv.xyz[m:end], lv.intensity[m:end], lv.raw[m:end] = lv.extra[1]
+        xyz, inten, raw = lv.xyz, lv.intensity, lv.raw
+        if not every:  # lost points: the arrays end after the rows written (no copy)
+            for a in (xyz, inten, raw):
+                a.resize((end,) + a.shape[1:], refcheck=False)
+
+        def take(a):
+            return None if a is None else a.copy() if every else a[lv.reported]
+        ring, ret, index = take(scan.ring), take(scan.return_index), take(scan.index)
+        if len(rows):
+            index = np.concatenate([index, np.full(len(rows), EMPTY_RAY_INDEX, np.int64)])
+            if ring is not None:
+                er = self.empty.ring
+                ring = np.concatenate([ring, (np.zeros(len(rows), np.int16) if er is None else er[rows])])
+            if ret is not None:
+                ret = np.concatenate([ret, np.ones(len(rows), ret.dtype)])
+        if every:
+            out_index = np.arange(n, dtype=np.int64)
+        else:
+            out_index = np.full(n, -1, np.int64)  # (a lost firing's placeholder row: its row)
+            out_index[lv.reported] = np.arange(m)
+        blank = 0 if self.blank is None else len(self.blank)
+        return FoggedScan(PointCloud(xyz, inten, raw, scan.scale, index, scan.source, ring, ret), lv.outcome, out_index,
+                          self.parameters(lv.beta, lv.e), 0 if self.empty is None else len(self.empty), int(len(rows)),
+                          0, blank, blank - int((lv.outcome == NO_RETURN).sum()))
 
     def _laser_lines(self) -> LaserLines:
         """The scan's laser lines (a sensor with vertical offsets: a fog echo lies on its laser's own line)."""
