@@ -182,6 +182,7 @@ class _Level:
     raw: np.ndarray
     outcome: np.ndarray
     reported: np.ndarray
+    scratch: np.ndarray  # BLOCK × 3 float64
     written: int = 0
     clutter: list = field(default_factory=list)
 
@@ -214,7 +215,7 @@ class LidarFogger:
             empty_rays = EmptyRays(empty_rays)
         self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
         self._lines = None  # the points' laser lines (fogsim.lidar.laser_line), made when a fog echo needs them
-        self._draws = None  # a level's draws, 3 × N float32 (allocated at the first level)
+        self._draws = self._scratch = None  # a level's draws, 3 × N float32, and a block's xyz (at the first level)
         #: the scan's no-return rows (nearer than the sensor's minimum range: fogsim.lidar.rays.no_returns)
         self.blank = no_returns(scan, self.sensor) if (r < self.sensor.min_range_m).any() else None
         self.blank_mask = self.blank_open = None
@@ -295,8 +296,8 @@ class LidarFogger:
     def _level(self, beta, rng: np.random.Generator) -> _Level:
         """One level's draws (the module docstring's order), fog echo, empty-ray clutter and output arrays."""
         s, n, sg = self.sensor, len(self.scan), self.sensor.fluctuation_sigma
-        if self._draws is None:  # this fogger's draw buffers, reused level after level (one call at a time)
-            self._draws = np.empty((3, n), np.float32)
+        if self._draws is None:  # this fogger's draw and block buffers, reused level after level (one call at a time)
+            self._draws, self._scratch = np.empty((3, n), np.float32), np.empty((min(n, BLOCK), 3))
         z, sh, su = self._draws
         rng.standard_normal(dtype=np.float32, out=z)  # range noise,
         rng.standard_normal(dtype=np.float32, out=sh)  # ln g_h, the hard return's fluctuation,
@@ -315,7 +316,7 @@ class LidarFogger:
         rows = 0 if extra is None or extra[1] is None else len(extra[0])
         return _Level(beta, scalar, z, sh, su, -2.0 * self.spec.extinction_ratio * beta, e, echo, extra,
                       np.empty((n + rows, 3), np.float32), np.empty(n + rows, np.float32),
-                      np.empty(n + rows, np.float32), np.empty(n, np.int8), np.empty(n, bool))
+                      np.empty(n + rows, np.float32), np.empty(n, np.int8), np.empty(n, bool), self._scratch)
 
     def _block(self, level: _Level, rows: slice) -> None:
         """Steps 0–8 for the input ``rows`` (the module docstring): their outcomes, and the rows they report written
@@ -398,12 +399,13 @@ class LidarFogger:
         # written at the next output rows: kept and no-return rows bit for bit (their factor R'/R is exactly 1)
         at = lv.written
         lv.written += len(rh)
-        xyz, base = lv.xyz[at:lv.written], self.scan.xyz[rows][pick]
-        factor = np.divide(new_r, ri, out=new_r)
-        for k in range(3):  # column by column (numpy broadcasts over a last axis of 3 slowly), in float64
-            np.multiply(base[:, k], factor, out=xyz[:, k])
+        xyz, factor = lv.scratch[:len(ri)], np.divide(new_r, ri, out=new_r)
+        xyz[...] = self.scan.xyz[rows][pick]
+        for k in range(3):  # column by column, in float64 (numpy broadcasts over a last axis of 3 slowly)
+            xyz[:, k] *= factor
         if gone is not None:
             xyz[gone] = 0.0
+        lv.xyz[at:lv.written] = xyz
         moved = (oc != KEPT) & (oc != NO_RETURN)
         for out, clear, fogged in ((lv.intensity, self.scan.intensity, norm), (lv.raw, self.scan.raw_intensity, raw)):
             out = out[at:lv.written]
