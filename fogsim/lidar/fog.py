@@ -208,9 +208,6 @@ class LidarFogger:
         self.scale = scale_named(scan.scale)
         self.mode = self.spec.return_mode or self.sensor.return_mode
         r = scan.range_m
-        self.range_m = np.maximum(r, 1e-6)
-        self.normalised = scan.intensity.astype(np.float64)
-        self.linear = self.scale.to_linear(self.normalised, scan.raw_intensity)  # (the same array when equal)
         if empty_rays is not None and not isinstance(empty_rays, EmptyRays):
             empty_rays = EmptyRays(empty_rays)
         self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
@@ -227,6 +224,7 @@ class LidarFogger:
         #: the scan stores every firing (it has rings and placeholder rows, nuScenes): a lost return keeps its row
         self.keeps_firings = bool(self.blank is not None and scan.ring is not None
                                   and (r[self.blank.rows] < PLACEHOLDER_M).any())
+        self.range_m = np.maximum(r, 1e-6, out=r)
         #: the published model's fogger (None: soft-target or attenuation, here)
         self.published = None
         if self.spec.model == "hahner2021":
@@ -242,10 +240,24 @@ class LidarFogger:
             for rows in _blocks(len(scan)):
                 self.log_signal[rows] = np.log(self.sensor.clear_signal(self._reflectivity(rows), self.range_m[rows]))
 
+    def _linear(self, rows=slice(None)) -> np.ndarray:
+        """The linear intensities of the input ``rows`` (float64, :mod:`fogsim.lidar.scales`)."""
+        return self.scale.to_linear(np.asarray(self.scan.intensity[rows], np.float64), self.scan.raw_intensity[rows])
+
     def _reflectivity(self, rows=slice(None)) -> np.ndarray:
         """ρ of the input ``rows`` (step 1)."""
-        rho = self.sensor.reflectivity_of(self.linear[rows], self.range_m[rows])
+        rho = self.sensor.reflectivity_of(self._linear(rows), self.range_m[rows])
         return np.maximum(rho, self.spec.reflectivity_floor)
+
+    @property
+    def normalised(self) -> np.ndarray:
+        """The normalised intensity per input point (float64)."""
+        return self.scan.intensity.astype(np.float64)
+
+    @property
+    def linear(self) -> np.ndarray:
+        """The linear intensity per input point (float64)."""
+        return self._linear()
 
     @property
     def reflectivity(self) -> np.ndarray:
@@ -369,8 +381,8 @@ class LidarFogger:
         pick = slice(None) if every else np.flatnonzero(reported)
         rh, ri, zi = reported_hard[pick], r[pick], lv.z[rows][pick]
         nbi = nb[pick]
-        norm, raw = self.scale.from_linear(self.linear[rows][pick] * np.exp(nbi))
-        kept = rh & (self.normalised[rows][pick] - norm < self.spec.kept_tolerance)
+        norm, raw = self.scale.from_linear(self._linear(rows)[pick] * np.exp(nbi))
+        kept = rh & (np.subtract(self.scan.intensity[rows][pick], norm, dtype=np.float64) < self.spec.kept_tolerance)
         outcome = lv.outcome[rows]
         oc = outcome if every else np.empty(len(rh), np.int8)  # the reported rows' outcomes
         oc.fill(CLUTTER)
