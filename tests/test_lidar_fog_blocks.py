@@ -1,14 +1,14 @@
-"""The LiDAR fog's level runs over blocks of input points (``fogsim.lidar.fog.BLOCK``) and reuses its fogger's
-buffers from level to level: neither may show in what it returns. The block size changes no output bit (a scan
-with lost points, no-return rows, the fog echo on the lasers' lines, empty rays, a per-point β), and a level's
-result is neither changed by the next level nor different when the same level is fogged again."""
+"""The LiDAR fog's level runs over blocks of input points (``fogsim.lidar.soft_target_model.BLOCK``) and reuses
+its fogger's buffers from level to level: neither may show in what it returns. The block size changes no output
+bit (a scan with lost points, no-return rows, the fog echo on the lasers' lines, empty rays, a per-point β), and a
+level's result is neither changed by the next level nor different when the same level is fogged again."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 import lidar_fixtures as lf
-from fogsim.lidar import fog
+from fogsim.lidar import soft_target_model as model
 from fogsim.lidar.fog import CLUTTER, LOST, NO_RETURN, LidarFogger
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.rays import CameraView, empty_rays
@@ -50,7 +50,7 @@ def levels(scan, sensor, rays, spec, beta):
 def test_the_block_size_changes_no_output_bit(scans, name, spec, monkeypatch):
     scan, sensor, rays = scans[name]
     n = len(scan)
-    assert n > fog.BLOCK  # several blocks (and more with the smaller ones below)
+    assert n > model.BLOCK  # several blocks (and more with the smaller ones below)
     patchy = np.random.default_rng(3).uniform(0.02, 0.3, n)  # a per-point β
     beta = (0.03, 0.12, 0.3, patchy)
     base = levels(scan, sensor, rays, spec, beta)
@@ -59,7 +59,7 @@ def test_the_block_size_changes_no_output_bit(scans, name, spec, monkeypatch):
     assert (outcome == LOST).sum() > (100 if attenuation else 0) and (attenuation or (outcome == CLUTTER).sum() > 100)
     assert name != "firings" or (outcome == NO_RETURN).sum() > 100
     for block in (1000, 4097, n + 1):
-        monkeypatch.setattr(fog, "BLOCK", block)
+        monkeypatch.setattr(model, "BLOCK", block)
         assert all(same(a, b) for a, b in zip(levels(scan, sensor, rays, spec, beta), base)), block
 
 

@@ -45,6 +45,7 @@ Generator, in the same order, so the same Generator state gives the same clutter
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 
@@ -79,7 +80,7 @@ class Model:
     one per scan)."""
 
     def __init__(self, owner):
-        self.owner = owner
+        self.owner = weakref.proxy(owner)  # (no reference cycle: a fogger's arrays go when the fogger goes)
         self.params = HahnerParameters()
         self.variant = owner.spec.hahner_variant
         self.fed = fed_intensity(owner.scan)

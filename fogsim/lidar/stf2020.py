@@ -48,6 +48,7 @@ points in that order).
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -120,7 +121,7 @@ class Model:
     level (β > 0: a number, or one per point)."""
 
     def __init__(self, owner):
-        self.owner = owner
+        self.owner = weakref.proxy(owner)  # (no reference cycle: a fogger's arrays go when the fogger goes)
         self.n, self.g = constants(owner.sensor)
         self.field = owner.spec.stf_beta_field
         self.d = owner.range_m
