@@ -17,7 +17,7 @@ The frame record (``meta/<frame>.json``) — what the table and the pictures rea
 * ``lidar`` (optional, for the pictures and the outcome totals): ``{"format": point format, "levels":
   {<level key>: {"file": the level's scan, "outcome_file": its outcomes (both relative to the root),
   "outcomes": {outcome: count}, …}}, "input": {"file": the clear scan (absolute or relative to the root,
-  or None), "format"}}`` — each level's entry is :meth:`fogsim.lidar.fog.FoggedScan.record` (its
+  or None), "format"}}`` — each level's entry is :meth:`fogsim.lidar.fogged_scan.FoggedScan.record` (its
   ``outcomes`` counts are summed per level) plus the two paths; ``kitti`` = ``{"id", "part"}`` when the
   frame is in the KITTI trees (``kitti/<level>/…``).
 
@@ -37,7 +37,7 @@ from fogsim.errors import InputError
 from fogsim.io.atomic import atomic_write_bytes
 from fogsim.io.documents import write_json
 from fogsim.lidar.boxes import Box3D
-from fogsim.lidar.fog import FoggedScan
+from fogsim.lidar.fogged_scan import FoggedScan
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.objects import DISTANCE_BINS, MIN_POINTS, cross_sensor_table, table_markdown
 from fogsim.lidar.outcome_file import read_outcomes

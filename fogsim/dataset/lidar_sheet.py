@@ -11,7 +11,7 @@ from fogsim.camera import Intrinsics
 from fogsim.colour import to_uint8
 from fogsim.dataset.layout import DatasetLayout
 from fogsim.io.images import read_image
-from fogsim.lidar.fog import FoggedScan
+from fogsim.lidar.fogged_scan import FoggedScan
 from fogsim.lidar.formats import read_points
 from fogsim.lidar.outcome_file import read_outcomes
 from fogsim.lidar.pictures import BEV_LEGEND, bev_image, projected_image

@@ -40,7 +40,7 @@ from fogsim.dataset.layout import DatasetLayout, frame_from_key
 from fogsim.dataset.lidar import box_record
 from fogsim.fog.engine import FogSettings
 from fogsim.lidar.boxes import points_in_boxes
-from fogsim.lidar.fog import FoggedScan
+from fogsim.lidar.fogged_scan import FoggedScan
 from fogsim.lidar.formats import FORMAT_SUFFIX, write_points
 from fogsim.lidar.objects import MIN_POINTS
 from fogsim.lidar.outcome_file import write_outcomes

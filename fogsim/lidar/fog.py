@@ -54,6 +54,9 @@ rays, ln g_f/σ (K) and z (K) for the empty rays in their order. Same Generator 
 
 ``attenuation`` — steps 0–3 and 6 alone: a point is lost when q_h < 1; no fog echo, no empty-ray clutter.
 
+Both are computed level by level in :mod:`fogsim.lidar.soft_target_model` (over blocks of points; the outputs do
+not depend on the block size); what does not depend on β (ranges, ln q, no-return rows) once per scan, here.
+
 ``hahner2021`` — Hahner et al. 2021's released code as it fogs datasets (:mod:`fogsim.lidar.hahner2021`);
 ``stf2020`` — the STF authors' chamber-fitted rule (:mod:`fogsim.lidar.stf2020`): each module states its
 equations and its draws. Neither uses the sensor's radiometry above nor the empty rays (counted, never
@@ -71,9 +74,10 @@ Outcomes (per input point, :data:`OUTCOMES`):
   firing (it has rings and placeholder rows at ≈ 0 m: nuScenes) keeps one row per firing: there a lost
   return becomes a placeholder row (x y z 0, intensity 0, its ring) and ``output_index`` names it.
 * ``clutter`` — the fog echo is reported instead: a point on the same ray at r_f + noise (a sensor whose
-  lasers sit off its axis, ``vertical_offsets_m``: on the laser's own line, r_f + noise from the laser), with the
-  intensity the sensor gives an echo of that strength at that range (its calibrated value, without the
-  fluctuation: ρ_app = q_f·ρ_ref·(r_f/R_max)²/ξ(r_f)); for a no-return row, on its ray (step 8).
+  lasers sit off its axis, ``vertical_offsets_m``: on the laser's own line, r_f + noise from the laser:
+  :mod:`fogsim.lidar.laser_line`), with the intensity the sensor gives an echo of that strength at that range
+  (its calibrated value, without the fluctuation: ρ_app = q_f·ρ_ref·(r_f/R_max)²/ξ(r_f)); for a no-return
+  row, on its ray (step 8).
 * ``no-return`` — a no-return row (step 8) that still returns nothing: written exactly as it was.
 
 Every input row has one outcome (the counts sum to the input's rows); ``FoggedScan.no_returns`` counts the
@@ -81,11 +85,11 @@ input's no-return rows and ``no_return_clutter`` those of them that became clutt
 ``no-return`` + ``no_return_clutter``); rows out = rows in − ``lost`` + ``empty_ray_clutter`` (a scan that
 stores every firing: rows in + ``empty_ray_clutter``).
 
-The fogged scan holds the reported points in input order (``index`` still names the input row; ring and
-return index carried over), then the empty rays' clutter points (``index`` :data:`EMPTY_RAY_INDEX` = −1,
-their ring, return index 1), intensities in the source's own scale; ``FoggedScan.empty_ray_clutter``
-counts them. β = 0 gives the input back bit for bit. The same scan stored 0–1 or 0–255 gives the same
-outcomes (the physics reads normalised intensities).
+The fogged scan (:mod:`fogsim.lidar.fogged_scan`) holds the reported points in input order (``index`` still
+names the input row; ring and return index carried over), then the empty rays' clutter points (``index``
+:data:`EMPTY_RAY_INDEX` = −1, their ring, return index 1), intensities in the source's own scale;
+``FoggedScan.empty_ray_clutter`` counts them. β = 0 gives the input back bit for bit. The same scan stored
+0–1 or 0–255 gives the same outcomes (the physics reads normalised intensities).
 
 Heterogeneous fog: β may be an array (one visible β per point: the mean extinction along that point's
 ray, as the camera path's density field gives per pixel); the fog echo is then computed per point
@@ -100,24 +104,24 @@ to all its pulses, is folded into σ); fog levels drawn from different Generator
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
+from fogsim.lidar.fogged_scan import FoggedScan, clear_level
 from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, EMPTY_RAY_INDEX, KEPT, LOST, NO_RETURN, OUTCOMES
-from fogsim.lidar.points import PointCloud, nearest_offset_beams
+from fogsim.lidar.points import PointCloud
 from fogsim.lidar.rays import PLACEHOLDER_M, EmptyRays, no_returns
 from fogsim.lidar.scales import scale as scale_named
 from fogsim.lidar.sensors import LidarSensor, load_sensor
-from fogsim.lidar.soft_target import backscatter_coefficient, echo_per_point, fog_echo
+from fogsim.lidar.soft_target import backscatter_coefficient, fog_echo
+from fogsim.lidar.soft_target_model import Model as OwnModel
+from fogsim.lidar.soft_target_model import blocks
 from fogsim.schema.base import check
 from fogsim.schema.lidar import LidarFogSpec
 
 __all__ = ["ATTENUATED", "checked_beta", "CLUTTER", "EMPTY_RAY_INDEX", "fog_scan", "FoggedScan", "KEPT",
            "lidar_fog_spec", "LidarFogger", "LOST", "NO_RETURN", "OUTCOMES", "PUBLISHED_MODELS"]
 
-#: the smallest range a noisy return is placed at (metres)
-MIN_REPORTED_M = 0.01
 #: the published models, each in its own module (imported when chosen)
 PUBLISHED_MODELS = ("hahner2021", "stf2020")
 
@@ -148,39 +152,6 @@ def checked_beta(beta, n: int, item: str = "point") -> float | np.ndarray:
     return float(b[0]) if n and (b == b[0]).all() else b
 
 
-@dataclass(frozen=True, eq=False)
-class FoggedScan:
-    """One fog level of a scan: ``cloud`` (what the sensor reports: the reported input points in input
-    order, then the empty rays' clutter points, ``index`` :data:`EMPTY_RAY_INDEX`), per input point
-    ``outcome`` (int8, :data:`OUTCOMES`) and ``output_index`` (int64, its row in ``cloud``, −1 when lost),
-    the ``parameters`` that made it, ``empty_rays`` (how many were given), ``empty_ray_clutter`` (how
-    many of them became clutter points), ``added_points`` (the points the model added after those:
-    stf2020's random scatter), ``no_returns`` (the input's no-return rows) and ``no_return_clutter`` (how
-    many of those became the fog echo's clutter, in place) (:meth:`record`)."""
-
-    cloud: PointCloud
-    outcome: np.ndarray
-    output_index: np.ndarray
-    parameters: dict = field(default_factory=dict)
-    empty_rays: int = 0
-    empty_ray_clutter: int = 0
-    added_points: int = 0
-    no_returns: int = 0
-    no_return_clutter: int = 0
-
-    def counts(self) -> dict[str, int]:
-        """Points per outcome."""
-        got = np.bincount(self.outcome, minlength=len(OUTCOMES))
-        return {name: int(got[k]) for k, name in enumerate(OUTCOMES)}
-
-    def record(self) -> dict:
-        """The parameters and the counts per outcome (what a sidecar or a report stores)."""
-        return {**self.parameters, "points_in": int(len(self.outcome)), "points_out": int(len(self.cloud)),
-                "outcomes": self.counts(), "empty_rays": int(self.empty_rays),
-                "empty_ray_clutter": int(self.empty_ray_clutter), "added_points": int(self.added_points),
-                "no_returns": int(self.no_returns), "no_return_clutter": int(self.no_return_clutter)}
-
-
 class LidarFogger:
     """Fog one scan at many densities, sharing the work that does not depend on β (mirrors
     :class:`fogsim.fog.model.Fogger`)::
@@ -192,7 +163,8 @@ class LidarFogger:
     for the defaults; its ``calibration`` is applied to the sensor). ``empty_rays``: the sweep's rays that
     returned nothing in clear air (:class:`~fogsim.lidar.rays.EmptyRays`, or K×3 directions in the sensor
     frame; :func:`fogsim.lidar.rays.empty_rays` finds them in a scan): each gains a fog-clutter point when
-    its fog echo is detected. The scan must be in the sensor frame (ranges from the sensor origin).
+    its fog echo is detected. The scan must be in the sensor frame (ranges from the sensor origin). A fogger
+    keeps its draw buffers from level to level: call it from one thread at a time (each level's result is its own).
     """
 
     def __init__(self, scan: PointCloud, sensor: LidarSensor | str | dict, spec: LidarFogSpec | dict | None = None,
@@ -202,24 +174,23 @@ class LidarFogger:
         self.scale = scale_named(scan.scale)
         self.mode = self.spec.return_mode or self.sensor.return_mode
         r = scan.range_m
-        self.range_m = np.maximum(r, 1e-6)
-        self.normalised = scan.intensity.astype(np.float64)
-        self.linear = self.scale.to_linear(scan.intensity, scan.raw_intensity)
         if empty_rays is not None and not isinstance(empty_rays, EmptyRays):
             empty_rays = EmptyRays(empty_rays)
         self.empty = empty_rays if empty_rays is not None and len(empty_rays) else None
-        self._laser = None  # each point's laser, found when first needed (a fog echo on the laser's line)
         #: the scan's no-return rows (nearer than the sensor's minimum range: fogsim.lidar.rays.no_returns)
         self.blank = no_returns(scan, self.sensor) if (r < self.sensor.min_range_m).any() else None
-        self.blank_mask = None
+        self.blank_mask = self.blank_open = None
         if self.blank is not None:
             self.blank_mask = np.zeros(len(scan), bool)
             self.blank_mask[self.blank.rows] = True
+            self.blank_open = np.zeros(len(scan), bool)  # the open ones (their ray known, nothing in front of it)
+            self.blank_open[self.blank.rows] = self.blank.open
         #: the scan stores every firing (it has rings and placeholder rows, nuScenes): a lost return keeps its row
         self.keeps_firings = bool(self.blank is not None and scan.ring is not None
                                   and (r[self.blank.rows] < PLACEHOLDER_M).any())
-        #: the published model's fogger (None: soft-target or attenuation, here)
-        self.published = None
+        self.range_m = np.maximum(r, 1e-6, out=r)
+        #: the published model's fogger (None: soft-target or attenuation, whose levels ``levels`` computes)
+        self.published = self.levels = None
         if self.spec.model == "hahner2021":
             from fogsim.lidar.hahner2021 import Model
         elif self.spec.model == "stf2020":
@@ -227,11 +198,36 @@ class LidarFogger:
         if self.spec.model in PUBLISHED_MODELS:
             self.published = Model(self)
             return
-        rho = np.maximum(self.sensor.reflectivity_of(self.linear, self.range_m), self.spec.reflectivity_floor)
-        self.reflectivity = rho
+        self.levels = OwnModel(self)  # (fogsim.lidar.soft_target_model)
         #: ln of the modelled clear-air signal over the threshold, before the fluctuation (step 2)
+        self.log_signal = np.empty(len(scan))
         with np.errstate(divide="ignore"):
-            self.log_signal = np.log(self.sensor.clear_signal(rho, self.range_m))
+            for rows in blocks(len(scan)):
+                self.log_signal[rows] = np.log(self.sensor.clear_signal(self._reflectivity(rows), self.range_m[rows]))
+
+    def linear_of(self, rows=slice(None)) -> np.ndarray:
+        """The linear intensities of the input ``rows`` (float64, :mod:`fogsim.lidar.scales`)."""
+        return self.scale.to_linear(np.asarray(self.scan.intensity[rows], np.float64), self.scan.raw_intensity[rows])
+
+    def _reflectivity(self, rows=slice(None)) -> np.ndarray:
+        """ρ of the input ``rows`` (step 1)."""
+        rho = self.sensor.reflectivity_of(self.linear_of(rows), self.range_m[rows])
+        return np.maximum(rho, self.spec.reflectivity_floor)
+
+    @property
+    def normalised(self) -> np.ndarray:
+        """The normalised intensity per input point (float64)."""
+        return self.scan.intensity.astype(np.float64)
+
+    @property
+    def linear(self) -> np.ndarray:
+        """The linear intensity per input point (float64)."""
+        return self.linear_of()
+
+    @property
+    def reflectivity(self) -> np.ndarray:
+        """ρ per input point (step 1)."""
+        return self._reflectivity()
 
     # ------------------------------------------------------------------ the parameters
     def parameters(self, beta, echo=None) -> dict:
@@ -263,256 +259,10 @@ class LidarFogger:
         if self.published is not None:
             self.published.check(beta)
         if np.ndim(beta) == 0 and beta == 0:
-            return self._clear()
+            return clear_level(self, self.parameters(0.0))
         if rng is None:
             raise ValueError("fog with β > 0 draws range noise: pass a seeded numpy.random.Generator")
-        if self.published is not None:
-            return self.published(beta, rng)
-        sg = self.sensor.fluctuation_sigma
-        z = rng.standard_normal(n, np.float32)  # the draws, in this order (input points): range noise,
-        sh = sg * rng.standard_normal(n, np.float32)  # ln g_h, the hard return's fluctuation,
-        su = sg * rng.standard_normal(n, np.float32)  # ln g_f, the fog echo's; then the empty rays'
-        r, s, scalar = self.range_m, self.sensor, np.ndim(beta) == 0
-        log_clear = np.abs(sh, dtype=np.float64)  # ln q0 = max(ln q + ln g_h, σ + |ln g_h|) (step 2)
-        log_clear += sg
-        np.maximum(log_clear, self.log_signal + sh, out=log_clear)
-        nb = r * (-2.0 * self.spec.extinction_ratio * beta)  # ln of the two-way transmission
-        t2 = np.exp(nb)
-        log_qh = log_clear + nb
-        hard = log_qh >= 0.0
-        blank = self.blank
-        if blank is not None:
-            hard[blank.rows] = False  # a no-return row has no hard return (step 8)
-        half_pulse = 0.5 * s.pulse_length_m
-        e = qf = rf = wf = None
-        clutter = None
-        if self.spec.model == "soft-target":
-            if scalar:
-                e = fog_echo(s, beta, self.spec)
-                qf, rf, wf = e.signal, e.range_m, e.width_m
-                if rf >= s.min_range_m and qf > 0:
-                    log_qc = np.add(su, math.log(qf), dtype=np.float64)  # ln(q_f·g_f·w), w: step 4
-                    near = r < rf + half_pulse
-                    if near.any():
-                        with np.errstate(divide="ignore"):
-                            log_qc[near] += np.log(np.clip((r[near] - rf) / half_pulse, 0.0, 1.0))
-                    if blank is not None:  # an open no-return ray sees the whole echo, a blocked one none
-                        log_qc[blank.rows] = np.where(blank.open, np.add(su[blank.rows], math.log(qf),
-                                                                         dtype=np.float64), -np.inf)
-                    reported_hard = hard & (log_qh >= log_qc) if self.mode == "strongest" else hard
-                    clutter = (log_qc >= 0.0) & ~reported_hard
-            else:
-                qf, rf, wf = echo_per_point(s, beta, self.spec)
-                w = np.clip((r - rf) / half_pulse, 0.0, 1.0) * (rf >= s.min_range_m)
-                if blank is not None:
-                    w[blank.rows] = blank.open
-                qc = qf * np.exp(su) * w
-                reported_hard = hard & (np.exp(log_qh) >= qc) if self.mode == "strongest" else hard
-                clutter = (qc >= 1.0) & ~reported_hard
-        if clutter is None:
-            reported_hard, clutter = hard, None
-        # the reported points, in input order, and what fog did to each
-        reported = reported_hard if clutter is None else reported_hard | clutter
-        gone = None
-        if self.keeps_firings:  # one row per firing: a lost return becomes a no-return placeholder row
-            gone = ~(reported | self.blank_mask)
-            reported = np.ones(n, bool)
-        elif blank is not None:
-            reported = reported | self.blank_mask  # a no-return row stays a row: clutter or as it was
-        every = bool(reported.all())  # every row reported (the common case): views, no gathers
-        idx = None if every else np.flatnonzero(reported)
-        pick = slice(None) if every else idx
-        rh = reported_hard[pick]
-        t2i, ri, zi = t2[pick], r[pick], z[pick]
-        norm_out, raw_out = self.scale.from_linear(self.linear[pick] * t2i)
-        kept = rh & (self.normalised[pick] - norm_out < self.spec.kept_tolerance)
-        oc = np.full(len(rh), CLUTTER, np.int8)
-        oc[rh] = ATTENUATED
-        oc[kept] = KEPT
-        stay = None
-        if blank is not None:  # no-return rows that did not become the fog echo's clutter stay as they were
-            stay = self.blank_mask[pick] if clutter is None else self.blank_mask[pick] & ~clutter[pick]
-            oc[stay] = NO_RETURN
-        placed = []
-        if gone is not None and gone.any():
-            oc[gone] = LOST  # (every row is picked)
-            placed.append((np.flatnonzero(gone), np.zeros((int(gone.sum()), 3))))
-        with np.errstate(over="ignore", invalid="ignore"):  # σ₁·√(1/q_h² − 1/q0²) = σ₁/q0·√(e^(4β₉₀₅R) − 1)
-            sigma = np.expm1(-2.0 * nb[pick])
-            np.sqrt(sigma, out=sigma)
-            sigma *= np.exp(-log_clear[pick])
-            sigma *= s.range_noise_at_threshold_m
-            sigma *= zi
-            sigma += ri
-            np.maximum(sigma, MIN_REPORTED_M, out=sigma)
-        new_r = sigma  # a kept point's range as it was (bit for bit)
-        np.copyto(new_r, ri, where=kept)
-        if stay is not None:
-            new_r[stay] = ri[stay]
-        if clutter is not None and not rh.all():
-            c = np.flatnonzero(oc == CLUTTER)
-            ic = c if every else idx[c]
-            qcc = np.exp(log_qc[ic]) if scalar else qc[ic]
-            rfc, wfc, qfc = (rf, wf, qf) if scalar else (rf[ic], wf[ic], qf[ic])
-            limit = ri[c] if blank is None else np.where(self.blank_mask[ic], np.inf, ri[c])
-            new_r[c] = self._echo_range(rfc, wfc, qcc, zi[c], limit)
-            norm_out[c], raw_out[c] = self._echo_intensity(qfc, rfc)  # (one value for one β)
-            on_ray = np.zeros(len(c), bool) if blank is None else self.blank_mask[ic]
-            if blank is not None:  # a no-return row's clutter point: on its ray, not along its (void) position
-                where = np.searchsorted(blank.rows, ic[on_ray])
-                placed.append((c[on_ray], blank.directions[where] * new_r[c[on_ray], None]))
-            if s.vertical_offsets_m is not None:  # the echo lies on the laser's own line (its vertical offset)
-                hard_c = ~on_ray
-                placed.append((c[hard_c], self._on_laser_line(ic[hard_c], new_r[c[hard_c]])))
-        if gone is not None:
-            norm_out[gone], raw_out[gone] = 0.0, 0.0
-        outcome = np.full(n, LOST, np.int8)
-        outcome[pick] = oc
-        extra = self._empty_ray_clutter(beta, rng, e)
-        return self._assemble(idx, pick, oc, new_r, norm_out, raw_out, outcome, self.parameters(beta, e), extra,
-                              placed)
-
-    def _on_laser_line(self, rows, r):
-        """Points at range ``r`` from their laser along the laser's line through input points ``rows`` (a sensor
-        with vertical offsets). A point's laser k — its ring, else the one whose line passes nearest
-        (:func:`~fogsim.lidar.points.nearest_offset_beams`) — is found once, when a fog echo first needs it. Its
-        origin o = h_k·(−sin θ_k·x/ρ, −sin θ_k·y/ρ, cos θ_k) is ⊥ the line and the point lies t = √(R² − h_k²)
-        along it: q = o + (p − o)·r/t, i.e. x, y scaled by f − h_k sin θ_k (1 − f)/ρ and z = z·f + h_k cos θ_k (1 − f),
-        f = r/t."""
-        s = self.sensor
-        if self._laser is None:  # per point, −1 until found; per laser h sin θ, h cos θ, h²
-            h, theta = np.asarray(s.vertical_offsets_m, np.float64), s.inclinations_rad
-            self._laser = np.full(len(self.scan), -1, np.int16), (h * np.sin(theta), h * np.cos(theta), h * h)
-        laser, (hs, hc, hh) = self._laser
-        k = laser[rows]
-        unknown = k < 0
-        if unknown.any():
-            u, ring = rows[unknown], self.scan.ring
-            k[unknown] = ring[u] if ring is not None and int(ring.max()) < s.beams else \
-                nearest_offset_beams(self.scan.xyz[u], s.inclinations_rad, np.asarray(s.vertical_offsets_m))
-            laser[u] = k[unknown]
-        p, rr = self.scan.xyz[rows].astype(np.float64), self.range_m[rows]
-        f = r / np.sqrt(np.maximum(rr * rr - hh[k], 1e-12))
-        rest = 1.0 - f
-        g = f - hs[k] * rest / np.maximum(np.hypot(p[:, 0], p[:, 1]), 1e-9)
-        p[:, 0] *= g
-        p[:, 1] *= g
-        p[:, 2] *= f
-        p[:, 2] += hc[k] * rest
-        return p
-
-    def _echo_range(self, rf, wf, qc, z, limit):
-        """Where a detected fog echo is reported: r_f + σ_c·z, σ_c² = σ₀² + (σ₁·(w_f/(L/2))/q_c)², kept
-        within [min range, ``limit``] (the ray's target, or +inf)."""
-        s = self.sensor
-        spread = s.range_noise_at_threshold_m * (wf / (0.5 * s.pulse_length_m)) / qc
-        sigma_c = np.sqrt(s.range_noise_m ** 2 + spread ** 2)
-        return np.maximum(np.clip(rf + sigma_c * z, s.min_range_m, limit), MIN_REPORTED_M)
-
-    def _echo_intensity(self, qf, rf):
-        """The intensity the sensor reports for the fog echo (its calibrated value: the echo's apparent
-        reflectivity q_f·ρ_ref·(r_f/R_max)²/ξ(r_f), without the fluctuation) in the scan's scale: (normalised,
-        raw), shaped as ``qf`` and ``rf`` broadcast."""
-        s = self.sensor
-        rho_app = qf * s.reference_reflectivity * (rf / s.max_range_m) ** 2 / s.overlap(rf)
-        return self.scale.from_linear(s.intensity_of(rho_app, rf))
-
-    def _empty_ray_clutter(self, beta, rng, echo):
-        """The clutter points of the empty rays (:attr:`empty`) at ``beta`` (a per-point β: its mean), or
-        None: draws σ·u (fluctuation) then z (range noise), one each per empty ray, after the points'."""
-        if self.empty is None:
-            return None
-        k = len(self.empty)
-        su = self.sensor.fluctuation_sigma * rng.standard_normal(k, np.float32)
-        z = rng.standard_normal(k, np.float32)
-        s = self.sensor
-        if self.spec.model != "soft-target":
-            return np.zeros(0, np.int64), None
-        b = float(beta) if np.ndim(beta) == 0 else float(np.mean(beta))
-        e = echo if echo is not None and np.ndim(beta) == 0 else fog_echo(s, b, self.spec)
-        if not (e.range_m >= s.min_range_m and e.signal > 0):
-            return np.zeros(0, np.int64), None
-        w = np.clip((self.empty.range_m - e.range_m) / (0.5 * s.pulse_length_m), 0.0, 1.0)  # +inf: 1
-        with np.errstate(divide="ignore"):
-            log_qc = math.log(e.signal) + su + np.log(w)
-        rows = np.flatnonzero(log_qc >= 0.0)
-        qc = np.exp(log_qc[rows])
-        rr = self._echo_range(e.range_m, e.width_m, qc, z[rows], self.empty.range_m[rows])
-        norm, raw = (np.broadcast_to(a, rows.shape) for a in self._echo_intensity(e.signal, e.range_m))
-        xyz = self.empty.directions[rows] * rr[:, None]
-        if self.empty.origins is not None:  # each ray from its laser
-            xyz += self.empty.origins[rows]
-        return rows, (xyz, norm, raw)
-
-    def _assemble(self, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameters: dict, extra=None,
-                  placed=None, added=None) -> FoggedScan:
-        """The fogged cloud of the reported rows ``idx`` (outcomes ``oc``): kept and no-return rows bit for
-        bit (their factor R'/R is exactly 1), the others moved along their ray and given their new intensity
-        (``placed``: [(positions among them, xyz)] of rows placed otherwise: a no-return row's clutter on its
-        ray, a lost firing's placeholder at 0); then the empty rays' clutter points (``extra``: their rows and
-        (xyz, normalised, raw)), index −1; then the points the model adds (``added``: (xyz, normalised, raw,
-        the input rows whose ring and return index they carry)), index −1. ``new_r`` is overwritten."""
-        scan = self.scan
-        every = isinstance(pick, slice)  # every row reported: no gathers
-        base = scan.xyz if every else np.take(scan.xyz, idx, axis=0)
-        factor = np.divide(new_r, self.range_m[pick], out=new_r)  # (new_r is the caller's scratch)
-        xyz = np.empty(base.shape, np.float32)
-        for k in range(3):  # column by column (numpy broadcasts over a last axis of 3 slowly), in float64
-            np.multiply(base[:, k], factor, out=xyz[:, k])
-        for where, at in placed or ():
-            xyz[where] = at
-        moved = (oc != KEPT) & (oc != NO_RETURN)
-        inten, raw = (scan.intensity.copy(), scan.raw_intensity.copy()) if every else \
-            (scan.intensity[idx], scan.raw_intensity[idx])
-        np.copyto(inten, norm_out, where=moved)
-        np.copyto(raw, raw_out, where=moved)
-
-        def take(a):
-            return None if a is None else a.copy() if every else a[idx]
-        ring, ret, index = take(scan.ring), take(scan.return_index), take(scan.index)
-        rows = np.zeros(0, np.int64) if extra is None else extra[0]
-        if len(rows):
-            exyz, enorm, eraw = extra[1]
-            xyz = np.concatenate([xyz, exyz])
-            inten, raw = np.concatenate([inten, enorm]), np.concatenate([raw, eraw])
-            index = np.concatenate([index, np.full(len(rows), EMPTY_RAY_INDEX, np.int64)])
-            if ring is not None:
-                er = self.empty.ring
-                ring = np.concatenate([ring, (np.zeros(len(rows), np.int16) if er is None else er[rows])])
-            if ret is not None:
-                ret = np.concatenate([ret, np.ones(len(rows), ret.dtype)])
-        n_added = 0 if added is None else len(added[0])
-        if n_added:
-            axyz, anorm, araw, src = added
-            xyz = np.concatenate([xyz, axyz])
-            inten, raw = np.concatenate([inten, anorm]), np.concatenate([raw, araw])
-            index = np.concatenate([index, np.full(n_added, EMPTY_RAY_INDEX, np.int64)])
-            ring = None if ring is None else np.concatenate([ring, scan.ring[src]])
-            ret = None if ret is None else np.concatenate([ret, scan.return_index[src]])
-        f32 = {"dtype": np.float32, "copy": False}
-        cloud = PointCloud(xyz.astype(**f32), inten.astype(**f32), raw.astype(**f32), scan.scale, index, scan.source,
-                           ring, ret)
-        if every:
-            out_index = np.arange(len(outcome), dtype=np.int64)
-        else:
-            out_index = np.full(len(outcome), -1, np.int64)  # (a lost firing's placeholder row: its row)
-            out_index[idx] = np.arange(len(idx))
-        blank = 0 if self.blank is None else len(self.blank)
-        return FoggedScan(cloud, outcome, out_index, parameters, 0 if self.empty is None else len(self.empty),
-                          int(len(rows)), n_added, blank, blank - int((outcome == NO_RETURN).sum()))
-
-    def _clear(self) -> FoggedScan:
-        s = self.scan
-        copy = PointCloud(s.xyz.copy(), s.intensity.copy(), s.raw_intensity.copy(), s.scale, s.index.copy(), s.source,
-                          None if s.ring is None else s.ring.copy(),
-                          None if s.return_index is None else s.return_index.copy())
-        n = len(s)
-        outcome = np.full(n, KEPT, np.int8)
-        if self.blank is not None:
-            outcome[self.blank.rows] = NO_RETURN
-        return FoggedScan(copy, outcome, np.arange(n, dtype=np.int64), self.parameters(0.0),
-                          0 if self.empty is None else len(self.empty), 0, 0,
-                          0 if self.blank is None else len(self.blank))
+        return self.published(beta, rng) if self.published is not None else self.levels(beta, rng)
 
 
 def fog_scan(scan: PointCloud, sensor, beta, rng: np.random.Generator | None = None,

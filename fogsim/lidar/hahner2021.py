@@ -45,9 +45,11 @@ Generator, in the same order, so the same Generator state gives the same clutter
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 
+from fogsim.lidar.fogged_scan import assemble
 from fogsim.lidar.hahner import HahnerParameters, fog_peak, open_fog_response
 from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, NO_RETURN
 
@@ -73,11 +75,12 @@ def backscatter(alpha: float, variant: str = "batch", p: HahnerParameters = Hahn
 
 
 class Model:
-    """hahner2021 on a :class:`~fogsim.lidar.fog.LidarFogger`'s scan (``owner``: its scan, spec, scale and
-    assembly); ``model(β, rng)`` one level (β > 0, one per scan)."""
+    """hahner2021 on a :class:`~fogsim.lidar.fog.LidarFogger`'s scan (``owner``: its scan, spec, scale and no-return
+    rows; the level assembled by :func:`fogsim.lidar.fogged_scan.assemble`); ``model(β, rng)`` one level (β > 0,
+    one per scan)."""
 
     def __init__(self, owner):
-        self.owner = owner
+        self.owner = weakref.proxy(owner)  # (no reference cycle: a fogger's arrays go when the fogger goes)
         self.params = HahnerParameters()
         self.variant = owner.spec.hahner_variant
         self.fed = fed_intensity(owner.scan)
@@ -128,5 +131,5 @@ class Model:
         if owner.blank_mask is not None:
             outcome[owner.blank_mask] = NO_RETURN  # written as it was
         n = len(outcome)
-        return owner._assemble(np.arange(n), slice(None), outcome, new_r, norm, raw, outcome.copy(),
-                               owner.parameters(beta))
+        return assemble(owner, np.arange(n), slice(None), outcome, new_r, norm, raw, outcome.copy(),
+                        owner.parameters(beta))

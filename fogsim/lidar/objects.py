@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from fogsim.lidar.boxes import Box3D, box_members, points_in_boxes
-from fogsim.lidar.fog import FoggedScan
+from fogsim.lidar.fogged_scan import FoggedScan
 from fogsim.lidar.outcomes import KEPT
 from fogsim.lidar.points import PointCloud
 

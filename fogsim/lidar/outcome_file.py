@@ -14,7 +14,7 @@ import numpy as np
 
 from fogsim.errors import InputError
 from fogsim.io.atomic import atomic_write_bytes
-from fogsim.lidar.fog import FoggedScan
+from fogsim.lidar.fogged_scan import FoggedScan
 from fogsim.lidar.outcomes import LOST, OUTCOMES
 from fogsim.schema.base import load_npz
 from fogsim.schema.lidar import LidarOutcomes

@@ -21,7 +21,7 @@ import numpy as np
 
 from fogsim.io.images import write_image
 from fogsim.lidar.boxes import Box3D
-from fogsim.lidar.fog import FoggedScan
+from fogsim.lidar.fogged_scan import FoggedScan
 from fogsim.lidar.objects import MIN_POINTS, distances_and_points
 from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, LOST, NO_RETURN
 from fogsim.lidar.points import PointCloud

@@ -106,7 +106,8 @@ class PointCloud:
     @property
     def range_m(self) -> np.ndarray:
         """Distance of each point from the sensor origin (N float64, metres)."""
-        return np.sqrt(np.einsum("ij,ij->i", self.xyz.astype(np.float64), self.xyz.astype(np.float64)))
+        p = self.xyz.astype(np.float64)
+        return np.sqrt(np.einsum("ij,ij->i", p, p))
 
     @property
     def azimuth(self) -> np.ndarray:

@@ -26,7 +26,7 @@ import os
 
 import numpy as np
 
-from fogsim.lidar.fog import FoggedScan
+from fogsim.lidar.fogged_scan import FoggedScan
 from fogsim.lidar.outcomes import CLUTTER
 from fogsim.lidar.pcd import write_pcd
 from fogsim.lidar.points import PointCloud

@@ -48,10 +48,12 @@ points in that order).
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
 
+from fogsim.lidar.fogged_scan import assemble
 from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, LOST, NO_RETURN
 
 __all__ = ["D_MIN_M", "RANDOM_SCATTER", "S2_ASSUMED", "Model", "RandomBetaField", "constants"]
@@ -114,11 +116,12 @@ class RandomBetaField:
 
 
 class Model:
-    """stf2020 on a :class:`~fogsim.lidar.fog.LidarFogger`'s scan (``owner``: its scan, sensor, spec, scale and
-    assembly); ``model(β, rng)`` one level (β > 0: a number, or one per point)."""
+    """stf2020 on a :class:`~fogsim.lidar.fog.LidarFogger`'s scan (``owner``: its scan, sensor, spec, scale
+    and no-return rows; the level assembled by :func:`fogsim.lidar.fogged_scan.assemble`); ``model(β, rng)`` one
+    level (β > 0: a number, or one per point)."""
 
     def __init__(self, owner):
-        self.owner = owner
+        self.owner = weakref.proxy(owner)  # (no reference cycle: a fogger's arrays go when the fogger goes)
         self.n, self.g = constants(owner.sensor)
         self.field = owner.spec.stf_beta_field
         self.d = owner.range_m
@@ -193,5 +196,5 @@ class Model:
         # the random-scatter points: on their source point's ray at u
         axyz = (owner.scan.xyz[src].astype(np.float64) * (u / d[src])[:, None]).astype(np.float32)
         pick_rows = slice(None) if len(idx) == n else idx
-        return owner._assemble(idx, pick_rows, outcome[idx], new_r[idx], norm[idx], raw[idx], outcome, params,
-                               placed=placed, added=(axyz, a_norm, a_raw, src))
+        return assemble(owner, idx, pick_rows, outcome[idx], new_r[idx], norm[idx], raw[idx], outcome, params,
+                        placed=placed, added=(axyz, a_norm, a_raw, src))

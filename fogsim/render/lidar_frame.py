@@ -49,7 +49,7 @@ from fogsim.dataset.lidar import box_record as lidar_box_record
 from fogsim.dataset.semantic_kitti import FOG_ID, FOGSIM_TO_SEMANTIC_KITTI, SEQUENCE, SemanticKittiTree, semantic_id
 from fogsim.io.atomic import atomic_write_bytes
 from fogsim.lidar.boxes import Box3D
-from fogsim.lidar.fog import FoggedScan
+from fogsim.lidar.fogged_scan import FoggedScan
 from fogsim.lidar.formats import FORMAT_SUFFIX, write_points
 from fogsim.lidar.objects import attach_lidar_points, fogged_object_points
 from fogsim.lidar.outcome_file import write_outcomes
