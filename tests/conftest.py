@@ -86,6 +86,24 @@ def run_hostile_case(case, tmp_path: Path, capsys, in_process: bool = True) -> s
     return err
 
 
+def run_sensor_case(case, tmp_path: Path, capsys, monkeypatch, needs_itur: bool = False) -> str:
+    """A hostile case of the sensor surfaces (:func:`run_hostile_case` in ``tmp_path`` with the case's ``env``):
+    a refusal is one line each (under 1000 characters) and never a library's raw failure (a MemoryError,
+    numpy's wording). ``needs_itur``: skipped without itur (radar sweeps' fog). Returns stderr."""
+    if needs_itur:
+        pytest.importorskip("itur")
+    monkeypatch.chdir(tmp_path)
+    for key, value in getattr(case, "env", {}).items():
+        monkeypatch.setenv(key, value)
+    err = run_hostile_case(case, tmp_path, capsys)
+    if case.code:
+        lines = [ln for ln in err.splitlines() if ln.startswith(("fogsim: error", "  failed:"))]
+        # one line each (a schema error lists the allowed keys)
+        assert lines and all(len(ln) < 1000 for ln in lines), err
+        assert "MemoryError" not in err and "usecols" not in err and "all input arrays" not in err, err
+    return err
+
+
 @pytest.fixture
 def folder_dataset(tmp_path):
     """images/{a,sub/b}.png + depth/{a,sub/b}.exr (planar Z, sky inf) + K.json."""
