@@ -229,6 +229,7 @@ def cmd_sensor_study(args, dataset: Path) -> int:
 
 def cmd_study(args) -> int:
     from fogsim.augment.spec import parse_augment
+    from fogsim.cli.study_bev import report_due
     from fogsim.detection.class_map import load_class_map
     from fogsim.detection.study import Study
     from fogsim.detection.yolo import TrainConfig
@@ -256,13 +257,7 @@ def cmd_study(args) -> int:
     study = Study(dataset, out, cfg, unknown_distance=args.unknown_distance, class_map=class_map,
                   sim_dataset=args.sim_dataset, augment=augment, eval_dataset=args.eval_dataset,
                   scatter_dataset=args.scatter_dataset)
-    if not args.report_only:
-        study.run_models(shard, progress=not args.quiet)
-    if args.no_report:
-        return EXIT_OK
-    if not args.report_only and study.missing_predictions():
-        print(f"fogsim: shard {shard[0]}/{shard[1]} done; when every shard has finished, "
-              f"write the report with --report-only")
+    if not report_due(study, args, shard):
         return EXIT_OK
     study.report(args.max_distance, visible_only=args.visible_only)
     if not args.quiet:

@@ -52,6 +52,21 @@ def bev_setup(args):
     return cfg, parse_grid(args.bev_grid, args.imgsz), parse_fog_models(args.fog_models), parse_shard(args.shard)
 
 
+def report_due(study, args, shard) -> bool:
+    """(The camera study's and the BEV study's.) Train this shard's models (none with --report-only); True when
+    the report is to be written now: not with --no-report, nor while another shard's predictions are missing
+    (then say how to finish)."""
+    if not args.report_only:
+        study.run_models(shard, progress=not args.quiet)
+    if args.no_report:
+        return False
+    if not args.report_only and study.missing_predictions():
+        print(f"fogsim: shard {shard[0]}/{shard[1]} done; when every shard has finished, "
+              f"write the report with --report-only")
+        return False
+    return True
+
+
 def cmd_bev(args, dataset: Path, setup) -> int:
     """The BEV study of ``dataset`` (rendered already, when --render) with ``setup`` from :func:`bev_setup`."""
     from fogsim.detection.bev.report import write_bev_report
@@ -71,13 +86,7 @@ def cmd_bev(args, dataset: Path, setup) -> int:
         study.prepare(progress=not args.quiet)
         print(f"BEV data: {study.files.root} ({', '.join(v.name for v in study.all_variants())})")
         return EXIT_OK
-    if not args.report_only:
-        study.run_models(shard, progress=not args.quiet)
-    if args.no_report:
-        return EXIT_OK
-    if not args.report_only and study.missing_predictions():
-        print(f"fogsim: shard {shard[0]}/{shard[1]} done; when every shard has finished, "
-              f"write the report with --report-only")
+    if not report_due(study, args, shard):
         return EXIT_OK
     write_bev_report(study, args.difficulty)
     report = study.files.report("report.md")
