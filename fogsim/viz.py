@@ -12,8 +12,13 @@ __all__ = ["colorize_depth", "fitted_scale", "label", "legend_row", "ring_labels
 def fitted_scale(text: str, width: int, scale: float, font: int = cv2.FONT_HERSHEY_SIMPLEX,
                  thickness: int = 1) -> float:
     """``scale``, or the smaller font scale at which ``text`` fits ``width`` pixels (never clipped)."""
-    drawn = cv2.getTextSize(text, font, scale, thickness)[0][0]
-    return scale if drawn <= width else scale * width / drawn
+    # OpenCV rounds each glyph's advance, so the width is not proportional to the scale: shrink until it fits.
+    for _ in range(50):
+        drawn = cv2.getTextSize(text, font, scale, thickness)[0][0]
+        if drawn <= width:
+            return scale
+        scale *= min(width / drawn, 0.98)
+    return scale
 
 
 def label(image: np.ndarray, text: str, height: int = 28) -> np.ndarray:
