@@ -100,7 +100,8 @@ def _maps(fx, fy, cx, cy, w, h, coeffs: tuple) -> tuple[np.ndarray, np.ndarray]:
     v, u = np.mgrid[0:h, 0:w].astype(np.float64)
     grid = np.stack([u.ravel(), v.ravel()], axis=1).reshape(-1, 1, 2)
     src = undistort_points(grid, _matrix(K), coeffs)
-    src = src.reshape(h, w, 2).astype(np.float32)
+    src = src.reshape(h, w, 2)
+    src = np.where(np.abs(src) < 1e7, src, np.nan).astype(np.float32)  # a diverged inverse: no source pixel
     return np.ascontiguousarray(src[..., 0]), np.ascontiguousarray(src[..., 1])
 
 
