@@ -52,6 +52,18 @@ class FoggedScan:
                 "no_returns": int(self.no_returns), "no_return_clutter": int(self.no_return_clutter)}
 
 
+
+def append_empty_rays(index: np.ndarray, ring: np.ndarray | None, ret: np.ndarray | None,
+                      empty_ring: np.ndarray | None, rows: np.ndarray):
+    """``index``, ``ring`` and ``return_index`` columns with the empty rays ``rows``' clutter points appended:
+    index −1 (no input row), the empty ray's ring (0 where the rays carry none), first return."""
+    index = np.concatenate([index, np.full(len(rows), EMPTY_RAY_INDEX, np.int64)])
+    if ring is not None:
+        ring = np.concatenate([ring, np.zeros(len(rows), np.int16) if empty_ring is None else empty_ring[rows]])
+    if ret is not None:
+        ret = np.concatenate([ret, np.ones(len(rows), ret.dtype)])
+    return index, ring, ret
+
 def assemble(fogger, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameters: dict, extra=None,
              placed=None, added=None) -> FoggedScan:
     """The fogged level of ``fogger``'s scan (a :class:`~fogsim.lidar.fog.LidarFogger`: its ``scan``,
@@ -86,12 +98,7 @@ def assemble(fogger, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameter
         exyz, enorm, eraw = extra[1]
         xyz = np.concatenate([xyz, exyz])
         inten, raw = np.concatenate([inten, enorm]), np.concatenate([raw, eraw])
-        index = np.concatenate([index, np.full(len(rows), EMPTY_RAY_INDEX, np.int64)])
-        if ring is not None:
-            er = fogger.empty.ring
-            ring = np.concatenate([ring, (np.zeros(len(rows), np.int16) if er is None else er[rows])])
-        if ret is not None:
-            ret = np.concatenate([ret, np.ones(len(rows), ret.dtype)])
+        index, ring, ret = append_empty_rays(index, ring, ret, fogger.empty.ring, rows)
     n_added = 0 if added is None else len(added[0])
     if n_added:
         axyz, anorm, araw, src = added

@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fogsim.lidar.fogged_scan import FoggedScan
+from fogsim.lidar.fogged_scan import FoggedScan, append_empty_rays
 from fogsim.lidar.laser_line import LaserLines
-from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, EMPTY_RAY_INDEX, KEPT, LOST, NO_RETURN
+from fogsim.lidar.outcomes import ATTENUATED, CLUTTER, KEPT, LOST, NO_RETURN
 from fogsim.lidar.points import PointCloud
 from fogsim.lidar.soft_target import FogEcho, echo_per_point, fog_echo
 
@@ -245,12 +245,7 @@ class Model:
             return None if a is None else a.copy() if every else a[lv.reported]
         ring, ret, index = take(scan.ring), take(scan.return_index), take(scan.index)
         if len(rows):
-            index = np.concatenate([index, np.full(len(rows), EMPTY_RAY_INDEX, np.int64)])
-            if ring is not None:
-                er = o.empty.ring
-                ring = np.concatenate([ring, (np.zeros(len(rows), np.int16) if er is None else er[rows])])
-            if ret is not None:
-                ret = np.concatenate([ret, np.ones(len(rows), ret.dtype)])
+            index, ring, ret = append_empty_rays(index, ring, ret, o.empty.ring, rows)
         if every:
             out_index = np.arange(n, dtype=np.int64)
         else:
