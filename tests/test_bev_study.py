@@ -137,12 +137,12 @@ def test_the_study_s_augmentation_keeps_a_cell_a_cell(tmp_path):
 def test_the_fogged_kitti_route_end_to_end(street_fog, tmp_path, capsys):
     out = tmp_path / "study"
     common = ["study", "--sensor", "lidar", "--dataset", str(street_fog), "--out", str(out),
-              "--fog-models", "soft-target,attenuation", *TINY]
+              "--fog-models", "hahner2021,stf2020", *TINY]
     assert main([*common, "--prepare-only"]) == 0
     for shard in ("0/2", "1/2"):
         assert main([*common, "--shard", shard, "--no-report"]) == 0
     assert main(["study", "--sensor", "lidar", "--dataset", str(street_fog), "--out", str(out), "--quiet",
-                 "--fog-models", "soft-target,attenuation", "--report-only"]) == 0  # the rest from study.json
+                 "--fog-models", "hahner2021,stf2020", "--report-only"]) == 0  # the rest from study.json
     report = out / "bev" / "report"
     table = json.loads((report / "cross_density_lidar.json").read_text())
     levels = ["clear", "beta0.03", "beta0.06", "beta0.09", "beta0.12"]
@@ -153,10 +153,10 @@ def test_the_fogged_kitti_route_end_to_end(street_fog, tmp_path, capsys):
         assert all(v is None or 0 <= v <= 1 for v in c["recall_by_distance"].values())
     assert table["oracle"]["beta0.06"] == table["beta0.06"]["beta0.06"]
     fog = json.loads((report / "fog_models.json").read_text())
-    assert set(fog) == {"soft-target", "attenuation"} and all(set(v) == set(fog) for v in fog.values())
+    assert set(fog) == {"hahner2021", "stf2020"} and all(set(v) == set(fog) for v in fog.values())
     md = (report / "report.md").read_text()
     for text in ("## lidar", "**BEV AP**", "## The sensors side by side", "## LiDAR fog models against each other",
-                 "KITTI difficulty **moderate**", "| lidar@attenuation | mixed |"):
+                 "KITTI difficulty **moderate**", "| lidar@stf2020 | mixed |"):
         assert text in md, text
     for png in ("bev_contact_sheet.png", "recall_by_distance.png", "lidar_ap_heatmap.png", "lidar_recall_heatmap.png"):
         assert (report / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
