@@ -166,6 +166,7 @@ def test_the_fogged_kitti_route_end_to_end(street_fog, tmp_path, capsys):
     # a rerun trains nothing and gives the same tables
     done = {p: p.read_bytes() for p in (out / "bev").rglob("fogsim_done.json")}
     assert len(done) == 6 + 2
+    assert all(json.loads(b)["seconds_training"] > 0 for b in done.values())  # from each run's results.csv
     capsys.readouterr()
     assert main(common) == 0
     assert {p: p.read_bytes() for p in (out / "bev").rglob("fogsim_done.json")} == done

@@ -4,6 +4,7 @@ installed, a tiny real Ultralytics training through scripts/train_per_density.py
 
 Markers: the report tests need pycocotools and the real trainings Ultralytics (``detect``; the
 trainings are also ``slow``); the others need neither and stay in the fast tier."""
+import csv
 import json
 from pathlib import Path
 
@@ -262,7 +263,11 @@ def test_tiny_real_training_resume_and_shards(dataset, tmp_path):
     r = driver("--out", out, "--dataset", dataset, *TINY)
     assert r.returncode == 0, r.stderr[-3000:]
     assert (out / "predictions" / "beta0.12" / "clear.json").stat().st_mtime_ns == stamp  # done: skipped
-    assert json.loads((out / "runs" / "clear" / "fogsim_done.json").read_text())["state"] == "finished earlier"
+    marker = json.loads((out / "runs" / "clear" / "fogsim_done.json").read_text())
+    assert marker["state"] == "finished earlier"
+    last = list(csv.DictReader((out / "runs" / "clear" / "results.csv").open()))[-1]
+    assert marker["seconds_training"] == round(float(last["time"]), 1) > 0  # the training time survives the restart
+    assert f"| clear | 1 | {marker['seconds_training']:.1f} |" in (out / "report" / "report.md").read_text()
     for lv in LEVELS:
         assert json.loads((out / "predictions" / "clear" / f"{lv}.json").read_text()) == preds["clear", lv]
 

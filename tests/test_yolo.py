@@ -14,7 +14,7 @@ import pytest
 
 from conftest import tree_digest
 from fogsim.dataset.reader import val_ground_truth
-from fogsim.detection.yolo import MIXED_MODEL, TrainConfig, training_view
+from fogsim.detection.yolo import MIXED_MODEL, TrainConfig, training_seconds, training_view
 from fogsim.errors import InputError
 from study_driver import LEVELS, ROOT, TINY, driver, need_detect_extra, study_dataset
 
@@ -22,6 +22,17 @@ from study_driver import LEVELS, ROOT, TINY, driver, need_detect_extra, study_da
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
     return study_dataset(tmp_path_factory)
+
+
+def test_training_seconds_is_the_last_epochs_cumulative_time(tmp_path):
+    # Ultralytics' results.csv: its header padded with spaces in older releases, `time` cumulative over resumes
+    (tmp_path / "results.csv").write_text("  epoch,    time,train/box_loss\n1,17.96,5.1\n2,36.19,4.3\n3,61.04,4.0\n")
+    assert training_seconds(tmp_path) == 61.0
+    (tmp_path / "results.csv").write_text("epoch,train/box_loss\n1,5.1\n")  # no time column
+    assert training_seconds(tmp_path) is None
+    (tmp_path / "results.csv").write_text("epoch,time\n")  # no epoch yet
+    assert training_seconds(tmp_path) is None
+    assert training_seconds(tmp_path / "absent") is None
 
 
 def test_training_view_reads_the_dataset_without_writing_it(dataset, tmp_path):

@@ -62,7 +62,15 @@ from fogsim.detection.coco_eval import BINS, UNKNOWN_DISTANCE, distance_coverage
 from fogsim.detection.fog_models import ROWS, check_same_scenes, path_traced_lines
 from fogsim.detection.layout import StudyLayout
 from fogsim.detection.level_estimation import LevelEstimator, confusion, image_features, route
-from fogsim.detection.table import cross_density, heatmap, markdown, write_report
+from fogsim.detection.table import (
+    TRAINING_SECONDS,
+    cross_density,
+    heatmap,
+    markdown,
+    training_header,
+    training_row,
+    write_report,
+)
 from fogsim.detection.yolo import (
     AUGMENTED_MODEL,
     SCATTER_MODEL,
@@ -434,14 +442,9 @@ class Study:
             lines += ["", *_winner_lines(table, self.levels, self.augment)]
         if path_traced is not None:
             lines += ["", *path_traced_lines(path_traced, self.levels, self.eval_layout.root, self.scatter_layout.root)]
-        lines += ["", "**training** (seconds of the run that finished each model)", "",
-                  "| model | epochs | seconds | state |", "|---|---|---|---|"]
+        lines += ["", f"**training** (seconds: {TRAINING_SECONDS})", "", *training_header("model")]
         training = self.training_records() if training is None else training
-        for m in self.models:
-            info = training[m]
-            seconds = "—" if info.seconds_this_run is None else info.seconds_this_run
-            state = info.state or "—"
-            lines.append(f"| {m} | {cfg.epochs_for(m)} | {seconds} | {state} |")
+        lines += [training_row([m], cfg.epochs_for(m), training[m]) for m in self.models]
         lines += ["", "**fog-level estimators** on the validation images (rows: true, columns: estimated)", ""]
         for method, conf in levels_out.items():
             lines += [f"{method}: accuracy {conf['accuracy']:.3f}", "",

@@ -110,3 +110,21 @@ def write_report(table: dict, out: str | Path) -> None:
     atomic_write_bytes(out / "cross_density.md", markdown(table).encode())
     for metric in METRICS:
         write_image(out / f"{metric}_heatmap.png", heatmap(table, metric))
+
+
+TRAINING_SECONDS = ("training, over every run that resumed the model (Ultralytics' results.csv); this run, of "
+                    "the run that finished it (0 when an earlier run had trained it)")
+
+
+def training_header(*keys: str) -> list[str]:
+    """The header lines of a report's training table, its first columns ``keys``."""
+    cols = [*keys, "epochs", "training s", "this run s", "state"]
+    return ["| " + " | ".join(cols) + " |", "|---" * len(cols) + "|"]
+
+
+def training_row(keys: list[str], epochs: int, info) -> str:
+    """One model's row of :func:`training_header`'s table from its ``fogsim_done.json`` (a ``DoneFile``)."""
+    def num(v):
+        return "—" if v is None else f"{v:.1f}"
+    return "| " + " | ".join([*keys, str(epochs), num(info.seconds_training), num(info.seconds_this_run),
+                              info.state or "—"]) + " |"

@@ -15,6 +15,7 @@ dataset is read through :mod:`fogsim.dataset.reader`.
 """
 from __future__ import annotations
 
+import csv
 import os
 import re
 import shutil
@@ -211,8 +212,20 @@ def train(name: str, data_file: Path, run: Path, cfg: TrainConfig, config_dir: P
         raise FogsimError(f"{run}: Ultralytics finished without writing weights/best.pt")
     write_json(done, {"model": name, "data": str(data_file), "config": asdict(cfg),
                       "ultralytics": ultralytics.__version__, "state": state,
-                      "seconds_this_run": round(time.perf_counter() - started, 1)})
+                      "seconds_this_run": round(time.perf_counter() - started, 1),
+                      "seconds_training": training_seconds(run)})
     return best
+
+
+def training_seconds(run: Path) -> float | None:
+    """Seconds Ultralytics spent training the model of ``run``, over every run that resumed it (the last
+    ``time`` of its ``results.csv``); None where the file or the column is missing or unreadable."""
+    try:
+        with open(Path(run) / "results.csv", newline="") as f:
+            rows = [{k.strip(): v for k, v in row.items() if k} for row in csv.DictReader(f)]
+        return round(float(rows[-1]["time"]), 1)
+    except (OSError, IndexError, KeyError, TypeError, ValueError):
+        return None
 
 
 ANSI = re.compile(r"\x1b\[[0-9;]*m")  # Ultralytics colours its messages

@@ -315,6 +315,7 @@ class DoneFile(Open):
 
     state: Text | None = None
     seconds_this_run: Number | None = None
+    seconds_training: Number | None = None
 
 
 class ClassMapFile(Closed):

@@ -20,7 +20,7 @@ from fogsim.detection.bev.build import Variant
 from fogsim.detection.bev.evaluate import IOU_THRESHOLDS, LOOSE_IOU_THRESHOLDS, distance_bins, evaluate_level
 from fogsim.detection.bev.pictures import contact_sheet, recall_by_distance_plot
 from fogsim.detection.bev.study import ORACLE, BevStudy
-from fogsim.detection.table import heatmap, markdown
+from fogsim.detection.table import TRAINING_SECONDS, heatmap, markdown, training_header, training_row
 from fogsim.errors import InputError
 from fogsim.io.atomic import atomic_write_bytes
 from fogsim.io.documents import write_json
@@ -205,12 +205,11 @@ def report_markdown(study: BevStudy, cfg, difficulty: str, tables: dict, rows: d
                       _fmt(fog[t][e][lv]["ap"])) for e, lv in cols]
             lines.append(f"| {t} | " + " | ".join(cells) + " |")
         lines.append("")
-    lines += ["## Training", "", "| variant | model | epochs | seconds | state |", "|---|---|---|---|---|"]
+    lines += ["## Training", "", f"Seconds: {TRAINING_SECONDS}.", "", *training_header("variant")]
     for u in study.units:
         done = study.files.run_done(u.variant, u.model)
         info = load_json(done, DoneFile) if done.is_file() else DoneFile()
-        lines.append(f"| {u.variant.name} | {u.model} | {cfg.epochs_for(u.model)} | "
-                     f"{'—' if info.seconds_this_run is None else info.seconds_this_run} | {info.state or '—'} |")
+        lines.append(training_row([u.variant.name, u.model], cfg.epochs_for(u.model), info))
     lines += ["", "![BEV contact sheet: ground truth green, the level's own model red](bev_contact_sheet.png)", "",
               "![recall by distance per sensor](recall_by_distance.png)", ""]
     lines += [f"![{v.name} BEV AP heatmap]({v.folder}_ap_heatmap.png)" for v in study.variants]
