@@ -156,7 +156,8 @@ def test_the_fogged_kitti_route_end_to_end(street_fog, tmp_path, capsys):
     assert set(fog) == {"hahner2021", "stf2020"} and all(set(v) == set(fog) for v in fog.values())
     md = (report / "report.md").read_text()
     for text in ("## lidar", "**BEV AP**", "## The sensors side by side", "## LiDAR fog models against each other",
-                 "KITTI difficulty **moderate**", "| lidar@stf2020 | mixed |"):
+                 "KITTI difficulty **moderate**", "| lidar@stf2020 | mixed |",
+                 "| variant | model | epochs | training s | this run s | state |"):
         assert text in md, text
     for png in ("bev_contact_sheet.png", "recall_by_distance.png", "lidar_ap_heatmap.png", "lidar_recall_heatmap.png"):
         assert (report / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

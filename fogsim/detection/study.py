@@ -442,7 +442,7 @@ class Study:
             lines += ["", *_winner_lines(table, self.levels, self.augment)]
         if path_traced is not None:
             lines += ["", *path_traced_lines(path_traced, self.levels, self.eval_layout.root, self.scatter_layout.root)]
-        lines += ["", f"**training** (seconds: {TRAINING_SECONDS})", "", *training_header("model")]
+        lines += ["", f"**training** (seconds: {TRAINING_SECONDS})", "", *training_header(["model"])]
         training = self.training_records() if training is None else training
         lines += [training_row([m], cfg.epochs_for(m), training[m]) for m in self.models]
         lines += ["", "**fog-level estimators** on the validation images (rows: true, columns: estimated)", ""]

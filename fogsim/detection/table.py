@@ -116,7 +116,7 @@ TRAINING_SECONDS = ("training, over every run that resumed the model (Ultralytic
                     "the run that finished it (0 when an earlier run had trained it)")
 
 
-def training_header(*keys: str) -> list[str]:
+def training_header(keys: list[str]) -> list[str]:
     """The header lines of a report's training table, its first columns ``keys``."""
     cols = [*keys, "epochs", "training s", "this run s", "state"]
     return ["| " + " | ".join(cols) + " |", "|---" * len(cols) + "|"]

@@ -52,7 +52,6 @@ class FoggedScan:
                 "no_returns": int(self.no_returns), "no_return_clutter": int(self.no_return_clutter)}
 
 
-
 def append_empty_rays(index: np.ndarray, ring: np.ndarray | None, ret: np.ndarray | None,
                       empty_ring: np.ndarray | None, rows: np.ndarray):
     """``index``, ``ring`` and ``return_index`` columns with the empty rays ``rows``' clutter points appended:
@@ -63,6 +62,7 @@ def append_empty_rays(index: np.ndarray, ring: np.ndarray | None, ret: np.ndarra
     if ret is not None:
         ret = np.concatenate([ret, np.ones(len(rows), ret.dtype)])
     return index, ring, ret
+
 
 def assemble(fogger, idx, pick, oc, new_r, norm_out, raw_out, outcome, parameters: dict, extra=None,
              placed=None, added=None) -> FoggedScan:

@@ -205,7 +205,7 @@ def report_markdown(study: BevStudy, cfg, difficulty: str, tables: dict, rows: d
                       _fmt(fog[t][e][lv]["ap"])) for e, lv in cols]
             lines.append(f"| {t} | " + " | ".join(cells) + " |")
         lines.append("")
-    lines += ["## Training", "", f"Seconds: {TRAINING_SECONDS}.", "", *training_header("variant")]
+    lines += ["## Training", "", f"Seconds: {TRAINING_SECONDS}.", "", *training_header(["variant", "model"])]
     for u in study.units:
         done = study.files.run_done(u.variant, u.model)
         info = load_json(done, DoneFile) if done.is_file() else DoneFile()
